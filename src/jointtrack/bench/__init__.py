@@ -1,0 +1,1 @@
+"""Benchmarks runnable as `jointtrack bench NAME`; peers are optional (the `bench` extra)."""

@@ -1,0 +1,36 @@
+"""Permanents of non-negative matrices and assignment marginals.
+
+The permanent of an n×m non-negative matrix A (n ≤ m) is the sum over injective
+maps σ of rows into columns of Π_t A[t, σ(t)] (Schaub eq. 32). Every hard step
+of jointtrack (JPDA marginals, particle weights, identity probabilities) is this
+sum or one of its minors.
+
+Exact methods
+-------------
+``"dp"``        cancellation-free subset dynamic programme (only adds and
+                multiplies non-negative numbers: relative error ≤ 2n·u).
+``"multiset"``  the same programme over group counts for repeated rows/columns
+                (Schaub eq. 36–37: Π(n_j+1) states, smaller orientation chosen).
+``"glynn"``     Glynn's formula in Gray-code order with power-of-two Sinkhorn
+                pre-balancing and double-double row sums (fast, square only).
+``"ryser"``     Ryser's formula (Schaub eq. 35), same safeguards.
+``"reference"`` exact rational arithmetic (slow; for tests).
+
+Approximations
+--------------
+:func:`bethe_permanent` (belief propagation) and :func:`sample_permanent`
+(sequential importance sampling with a standard error).
+"""
+
+from jointtrack.errors import InfeasibleAssignmentError
+from jointtrack.permanent.balance import sinkhorn
+from jointtrack.permanent.exact import log_permanent, permanent
+from jointtrack.permanent.marginals import assignment_marginals
+
+__all__ = [
+    "InfeasibleAssignmentError",
+    "assignment_marginals",
+    "log_permanent",
+    "permanent",
+    "sinkhorn",
+]
