@@ -1,0 +1,65 @@
+"""Checks for the JPDA cluster convention shared by every association method.
+
+Convention (DESIGN.md): ``L`` is N tracks × M measurements of likelihood ratios
+``L[i, j] = P_D g_ij / λ`` (0 where measurement j is outside track i's gate);
+``miss[i] = 1 − P_D P_G`` is the weight of "track i detected nothing". The
+output ``beta`` is N × (M+1) with column 0 the no-measurement event.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jointtrack.errors import InfeasibleAssignmentError
+
+
+def check_cluster(L, miss) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``(L, miss)`` as float64 arrays after checking the cluster input.
+
+    Raises
+    ------
+    ValueError
+        wrong shapes, negative or non-finite entries, ``miss`` outside [0, 1].
+    InfeasibleAssignmentError
+        a track with ``miss == 0`` (certainly detected) has no gated measurement,
+        or the cluster as a whole has no feasible joint event.
+    """
+    try:
+        L = np.asarray(L, dtype=np.float64)
+        miss = np.asarray(miss, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"L and miss must be numeric arrays: {exc}") from None
+    if L.ndim == 1 and L.size == 0:
+        L = L.reshape(0, 0)
+    if L.ndim != 2:
+        raise ValueError(f"L must be 2-D (tracks × measurements), got {L.ndim} dimension(s)")
+    if miss.ndim != 1:
+        raise ValueError(f"miss must be 1-D (one entry per track), got {miss.ndim} dimension(s)")
+    if miss.shape[0] != L.shape[0]:
+        raise ValueError(
+            f"miss has {miss.shape[0]} entries but L has {L.shape[0]} rows (tracks); "
+            "they must match"
+        )
+    if not np.all(np.isfinite(L)):
+        bad = tuple(np.argwhere(~np.isfinite(L))[0])
+        raise ValueError(f"L has a non-finite likelihood ratio ({L[bad]}) at {bad}")
+    if np.any(L < 0):
+        bad = tuple(np.argwhere(L < 0)[0])
+        raise ValueError(f"L has a negative likelihood ratio ({L[bad]}) at {bad}")
+    if not np.all(np.isfinite(miss)):
+        i = int(np.argwhere(~np.isfinite(miss))[0, 0])
+        raise ValueError(f"miss[{i}] is not finite ({miss[i]})")
+    if np.any((miss < 0) | (miss > 1)):
+        i = int(np.argwhere((miss < 0) | (miss > 1))[0, 0])
+        raise ValueError(
+            f"miss[{i}] = {miss[i]} is outside [0, 1]; miss is the probability-like weight "
+            "1 − P_D·P_G of a track detecting nothing"
+        )
+    dead = (miss == 0) & ~np.any(L > 0, axis=1)
+    if np.any(dead):
+        i = int(np.argwhere(dead)[0, 0])
+        raise InfeasibleAssignmentError(
+            f"track {i} has miss = 0 (certainly detected) but no gated measurement: "
+            "no feasible joint association event exists"
+        )
+    return np.ascontiguousarray(L), np.ascontiguousarray(miss)
