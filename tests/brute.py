@@ -43,3 +43,29 @@ def brute_marginals(A) -> np.ndarray:
     if total == 0:
         raise ZeroDivisionError("no feasible assignment")
     return np.array([[float(x / total) for x in row] for row in acc])
+
+
+def _log_fraction(x: Fraction) -> float:
+    import math
+
+    if x == 0:
+        return -math.inf
+    p, q = x.numerator, x.denominator
+    sp, sq = max(p.bit_length() - 60, 0), max(q.bit_length() - 60, 0)
+    return math.log(p >> sp) - math.log(q >> sq) + (sp - sq) * math.log(2)
+
+
+def brute_log_permanent(A) -> float:
+    """log of the exact permanent (finite even when the value under/overflows float64)."""
+    A = np.asarray(A, dtype=float)
+    n, m = A.shape
+    F = [[Fraction(float(x)) for x in row] for row in A]
+    total = Fraction(0)
+    for cols in itertools.permutations(range(m), n):
+        p = Fraction(1)
+        for i, j in enumerate(cols):
+            p *= F[i][j]
+            if p == 0:
+                break
+        total += p
+    return _log_fraction(total)

@@ -1,0 +1,341 @@
+"""Chi-square validation gates and the gated likelihood-ratio matrix.
+
+A measurement ``z_j`` is validated for track ``i`` when its squared Mahalanobis
+distance from the predicted measurement ``ẑ_i`` under the innovation covariance
+``S_i`` is at most the gate threshold ``γ``:
+
+    d²_ij = (z_j − ẑ_i)ᵀ S_i⁻¹ (z_j − ẑ_i) ≤ γ,   γ = χ²_d⁻¹(P_G)
+
+(Bar-Shalom & Li 1995, Bojilov's ref. [4]; Bojilov et al., d²_ij under eq. (2)). ``P_G`` is
+the probability that the true measurement falls in the gate. The gate is an
+ellipsoid of volume V_i = c_d γ^{d/2} √|S_i| with c_d = π^{d/2}/Γ(d/2 + 1) the
+volume of the d-dimensional unit ball.
+
+The JPDA cluster convention of :mod:`jointtrack.association` (DESIGN.md) is
+produced by :func:`likelihood_ratios`:
+
+    L[i, j] = P_D g_ij / λ   if d²_ij ≤ γ, else 0        (Bojilov eq. (5)/(7))
+    miss[i] = 1 − P_D P_G
+
+where g_ij = N(z_j; ẑ_i, S_i) is the Gaussian measurement likelihood (Bojilov's
+g_ij, eq. (2)) and λ the clutter spatial density (Bojilov's β). Dividing every
+factor of a joint hypothesis weight (5) by λ^{N_M} — the common factor of (7) —
+turns each "measurement j is clutter" factor into 1, each detection factor into
+P_D g_ij/λ, and each missed track into (1 − P_D P_G) (the extra P_G accounts for
+target-originated measurements falling outside the gate; Bar-Shalom, Daum &
+Huang, IEEE Control Syst. Mag. 29(6), 2009). Everything is computed in log
+space so densities of very sharp or very wide gates neither underflow nor
+overflow before the final ratio.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import special, stats
+
+__all__ = ["Gating", "gate_measurements", "likelihood_ratios", "unit_ball_log_volume"]
+
+_LOG_2PI = float(np.log(2.0 * np.pi))
+# exp() of anything above this overflows float64
+_MAX_LOG = float(np.log(np.finfo(np.float64).max))
+
+
+def unit_ball_log_volume(d: int) -> float:
+    """log c_d, c_d = π^{d/2} / Γ(d/2 + 1) the volume of the unit ball in ℝ^d.
+
+    Used for the gate volume V = c_d γ^{d/2} √|S| (Bar-Shalom & Li 1995, Bojilov's ref. [4];
+    Bojilov's V_i(k) under eq. (8)).
+    """
+    if int(d) != d or d < 1:
+        raise ValueError(f"dimension must be a positive integer, got {d!r}")
+    d = int(d)
+    return 0.5 * d * np.log(np.pi) - float(special.gammaln(0.5 * d + 1.0))
+
+
+@dataclass(frozen=True)
+class Gating:
+    """Result of :func:`gate_measurements` for N tracks and M measurements in ℝ^d.
+
+    Attributes
+    ----------
+    mask : (N, M) bool
+        ``d2 <= gamma``: measurement j lies in track i's validation gate.
+    d2 : (N, M) float
+        squared Mahalanobis distances d²_ij (Bojilov, under eq. (2)).
+    log_g : (N, M) float
+        log N(z_j; ẑ_i, S_i), the log Gaussian likelihood g_ij (Bojilov eq. (2)),
+        for every pair, gated or not.
+    gate_volume : (N,) float
+        V_i = c_d γ^{d/2} √|S_i| (may be ``inf`` only if it overflows float64;
+        ``log_gate_volume`` is always finite).
+    log_gate_volume : (N,) float
+        log V_i.
+    gamma : float
+        gate threshold γ = χ²_d⁻¹(P_G).
+    P_G : float
+        gate probability.
+    z_pred : (N, d) float
+        predicted measurements (gate centres).
+    S : (N, d, d) float
+        innovation covariances (symmetrised copy of the input).
+    chol : (N, d, d) float
+        lower Cholesky factors of ``S``.
+    """
+
+    mask: np.ndarray
+    d2: np.ndarray
+    log_g: np.ndarray
+    gate_volume: np.ndarray
+    log_gate_volume: np.ndarray
+    gamma: float
+    P_G: float
+    z_pred: np.ndarray
+    S: np.ndarray
+    chol: np.ndarray
+
+    @property
+    def n_tracks(self) -> int:
+        return int(self.mask.shape[0])
+
+    @property
+    def n_measurements(self) -> int:
+        return int(self.mask.shape[1])
+
+    @property
+    def dim(self) -> int:
+        return int(self.z_pred.shape[1])
+
+    @property
+    def n_gated(self) -> np.ndarray:
+        """m_i: number of measurements in each track's gate (Bojilov's m_i(k), eq. (8))."""
+        return self.mask.sum(axis=1).astype(np.int64)
+
+
+def _as_float(x, name: str) -> np.ndarray:
+    try:
+        return np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a numeric array: {exc}") from None
+
+
+def _check_prob(p, name: str, *, open_left: bool = True) -> float:
+    try:
+        p = float(p)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number in (0, 1), got {p!r}") from None
+    if not np.isfinite(p) or not (0.0 < p < 1.0 if open_left else 0.0 <= p < 1.0):
+        raise ValueError(f"{name} must lie strictly between 0 and 1, got {p}")
+    return p
+
+
+def _cholesky_checked(S: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factors of a stack of symmetric positive definite matrices.
+
+    Raises ValueError naming the first track whose covariance is non-finite,
+    asymmetric, not positive definite or numerically singular.
+    """
+    n, d, _ = S.shape
+    if n == 0:
+        return np.zeros_like(S)
+    finite = np.isfinite(S).reshape(n, -1).all(axis=1)
+    if not finite.all():
+        i = int(np.argmin(finite))
+        raise ValueError(f"innovation covariance S[{i}] (track {i}) has non-finite entries")
+    scale = np.abs(S).reshape(n, -1).max(axis=1)
+    asym = np.abs(S - np.swapaxes(S, 1, 2)).reshape(n, -1).max(axis=1)
+    bad = asym > 1e-9 * np.maximum(scale, np.finfo(np.float64).tiny)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(
+            f"innovation covariance S[{i}] (track {i}) is not symmetric "
+            f"(max |S − Sᵀ| = {asym[i]:.3g})"
+        )
+    zero = scale == 0
+    if zero.any():
+        i = int(np.argmax(zero))
+        raise ValueError(f"innovation covariance S[{i}] (track {i}) is the zero matrix (singular)")
+    Ssym = 0.5 * (S + np.swapaxes(S, 1, 2))
+    try:
+        chol = np.linalg.cholesky(Ssym)
+    except np.linalg.LinAlgError:
+        chol = None
+    if chol is None or not np.isfinite(chol).all():
+        # find the offending track(s) one by one to name them
+        for i in range(n):
+            try:
+                c = np.linalg.cholesky(Ssym[i])
+            except np.linalg.LinAlgError:
+                raise ValueError(
+                    f"innovation covariance S[{i}] (track {i}) is not positive definite"
+                ) from None
+            if not np.isfinite(c).all():
+                raise ValueError(
+                    f"innovation covariance S[{i}] (track {i}) is not positive definite"
+                )
+        raise AssertionError("unreachable")  # pragma: no cover
+    diag = np.diagonal(chol, axis1=1, axis2=2)
+    # reciprocal condition estimate from the Cholesky pivots: cond(S) ≳ (max/min)²
+    rc = (diag.min(axis=1) / diag.max(axis=1)) ** 2
+    sing = ~(rc > d * np.finfo(np.float64).eps)
+    if sing.any():
+        i = int(np.argmax(sing))
+        raise ValueError(
+            f"innovation covariance S[{i}] (track {i}) is numerically singular "
+            f"(reciprocal condition ≈ {rc[i]:.2g})"
+        )
+    return chol
+
+
+def gate_measurements(z_pred, S, z, *, P_G: float = 0.99) -> Gating:
+    """Chi-square validation gates of N tracks applied to M measurements.
+
+    Implements the ellipsoidal validation region d²_ij ≤ γ with γ = χ²_d⁻¹(P_G)
+    (Bar-Shalom & Li 1995; Bojilov et al., d²_ij and g_ij of eq. (2)),
+    the gate volume V_i = c_d γ^{d/2} √|S_i| used by the sample spatial density
+    (Bojilov eq. (8)) and the log Gaussian likelihoods log g_ij.
+
+    Parameters
+    ----------
+    z_pred : (N, d) array
+        predicted measurements ẑ_i (gate centres).
+    S : (N, d, d) array
+        innovation covariances; each must be symmetric positive definite.
+    z : (M, d) array
+        measurements. An empty ``(0,)`` array means no measurements.
+    P_G : float in (0, 1)
+        gate probability.
+
+    Returns
+    -------
+    Gating
+        ``mask``, ``d2``, ``log_g``, ``gate_volume`` and friends.
+
+    Raises
+    ------
+    ValueError
+        wrong shapes, non-finite inputs, ``P_G`` outside (0, 1), or a covariance
+        that is asymmetric, not positive definite or singular (the message names
+        the track).
+    """
+    P_G = _check_prob(P_G, "P_G")
+    z_pred = _as_float(z_pred, "z_pred")
+    S = _as_float(S, "S")
+    z = _as_float(z, "z")
+    if z_pred.ndim != 2:
+        raise ValueError(f"z_pred must be 2-D (tracks × dimension), got shape {z_pred.shape}")
+    n, d = z_pred.shape
+    if d < 1:
+        raise ValueError("measurement dimension d must be at least 1")
+    if S.shape != (n, d, d):
+        raise ValueError(
+            f"S must have shape (N, d, d) = ({n}, {d}, {d}) to match z_pred, got {S.shape}"
+        )
+    if z.ndim == 1 and z.size == 0:
+        z = z.reshape(0, d)
+    if z.ndim != 2 or z.shape[1] != d:
+        raise ValueError(f"z must have shape (M, {d}) to match z_pred, got {z.shape}")
+    if not np.isfinite(z_pred).all():
+        i = int(np.argwhere(~np.isfinite(z_pred))[0, 0])
+        raise ValueError(f"z_pred[{i}] (track {i}) is not finite")
+    if not np.isfinite(z).all():
+        j = int(np.argwhere(~np.isfinite(z))[0, 0])
+        raise ValueError(f"measurement z[{j}] is not finite")
+    m = z.shape[0]
+
+    chol = _cholesky_checked(S)
+    gamma = float(stats.chi2.ppf(P_G, d))
+    half_logdet = np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1) if n else np.zeros(0)
+
+    if n and m:
+        # whitened innovations: chol_i⁻¹ (z_j − ẑ_i), one batched solve for all tracks
+        innov = z[None, :, :] - z_pred[:, None, :]  # (N, M, d)
+        w = np.linalg.solve(chol, np.swapaxes(innov, 1, 2))  # (N, d, M)
+        d2 = np.einsum("ndm,ndm->nm", w, w)
+    else:
+        d2 = np.zeros((n, m))
+    log_g = -0.5 * d2 - 0.5 * d * _LOG_2PI - half_logdet[:, None]
+    mask = d2 <= gamma
+    log_vol = unit_ball_log_volume(d) + 0.5 * d * np.log(gamma) + half_logdet
+    with np.errstate(over="ignore"):
+        vol = np.exp(log_vol)
+    return Gating(
+        mask=mask,
+        d2=d2,
+        log_g=log_g,
+        gate_volume=vol,
+        log_gate_volume=log_vol,
+        gamma=gamma,
+        P_G=P_G,
+        z_pred=z_pred.copy(),
+        S=0.5 * (S + np.swapaxes(S, 1, 2)),
+        chol=chol,
+    )
+
+
+def likelihood_ratios(gating: Gating, P_D, clutter_density) -> tuple[np.ndarray, np.ndarray]:
+    """Gated likelihood-ratio matrix ``L`` and miss weights in the JPDA cluster convention.
+
+    ``L[i, j] = P_D g_ij / λ`` where measurement j is in track i's gate, else 0;
+    ``miss[i] = 1 − P_D P_G``. These are the factors of Bojilov's hypothesis
+    weight (5) after division by the common factor λ^{N_M} of (7) (clutter
+    factors become 1), with the P_G correction for gated detection
+    (the PDAF gate correction of Bar-Shalom, Daum & Huang, "The probabilistic data
+    association filter", IEEE Control Syst. Mag. 29(6), 2009; DESIGN.md convention). Computed as
+    ``exp(log P_D + log g_ij − log λ)``.
+
+    Parameters
+    ----------
+    gating : Gating
+        from :func:`gate_measurements`.
+    P_D : float or (N,) array in (0, 1]
+        detection probability (per track if an array).
+    clutter_density : float or (M,) array, > 0
+        clutter spatial density λ (Bojilov's β), one value or one per measurement
+        (e.g. from :mod:`jointtrack.association.clutter`).
+
+    Returns
+    -------
+    (L, miss) : ((N, M) array, (N,) array)
+
+    Raises
+    ------
+    ValueError
+        ``P_D`` outside (0, 1], non-positive or non-finite clutter density, wrong
+        shapes, or a ratio that overflows float64 (clutter density absurdly small
+        relative to the measurement likelihood).
+    """
+    if not isinstance(gating, Gating):
+        raise ValueError("gating must be a Gating result from gate_measurements")
+    n, m = gating.mask.shape
+    pd = _as_float(P_D, "P_D")
+    if pd.ndim == 0:
+        pd = np.full(n, float(pd))
+    if pd.shape != (n,):
+        raise ValueError(f"P_D must be a scalar or have shape ({n},), got {pd.shape}")
+    if not np.all(np.isfinite(pd)) or np.any((pd <= 0) | (pd > 1)):
+        bad = pd[~(np.isfinite(pd) & (pd > 0) & (pd <= 1))][0]
+        raise ValueError(f"P_D must lie in (0, 1], got {bad}")
+    lam = _as_float(clutter_density, "clutter_density")
+    if lam.ndim == 0:
+        lam = np.full(m, float(lam))
+    if lam.shape != (m,):
+        raise ValueError(
+            f"clutter_density must be a scalar or have shape ({m},) (one per measurement), "
+            f"got {lam.shape}"
+        )
+    if not np.all(np.isfinite(lam)) or np.any(lam <= 0):
+        bad = lam[~(np.isfinite(lam) & (lam > 0))][0]
+        raise ValueError(f"clutter_density must be positive and finite, got {bad}")
+    log_L = np.log(pd)[:, None] + gating.log_g - np.log(lam)[None, :]
+    log_L = np.where(gating.mask, log_L, -np.inf)
+    if np.any(log_L > _MAX_LOG):
+        i, j = (int(v) for v in np.argwhere(log_L > _MAX_LOG)[0])
+        raise ValueError(
+            f"likelihood ratio L[{i}, {j}] = exp({log_L[i, j]:.4g}) overflows float64: the "
+            "clutter density is too small relative to the measurement likelihood"
+        )
+    L = np.exp(log_L)
+    miss = 1.0 - pd * gating.P_G
+    return L, miss

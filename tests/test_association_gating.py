@@ -1,0 +1,409 @@
+"""Gating, clustering and clutter density (jointtrack.association.{gating,clustering,clutter})."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy import stats
+
+from jointtrack.association.clustering import clusters, has_feasible_event
+from jointtrack.association.clutter import (
+    cluster_clutter_density,
+    cluster_heuristic_density,
+    known_density,
+    track_sample_density,
+    union_gate_volume,
+    union_sample_density,
+)
+from jointtrack.association.gating import gate_measurements, likelihood_ratios
+
+
+def _spd(rng, d, scale=1.0):
+    A = rng.standard_normal((d, d))
+    return scale * (A @ A.T + 0.5 * np.eye(d))
+
+
+# ----------------------------------------------------------------------------- gating
+
+
+@pytest.mark.parametrize("d", [1, 2, 3])
+def test_gate_matches_explicit_formulas(d):
+    rng = np.random.default_rng(d)
+    n, m = 3, 7
+    zp = rng.standard_normal((n, d))
+    S = np.array([_spd(rng, d) for _ in range(n)])
+    z = 2 * rng.standard_normal((m, d))
+    g = gate_measurements(zp, S, z, P_G=0.95)
+    gamma = stats.chi2.ppf(0.95, d)
+    assert g.gamma == pytest.approx(gamma, rel=1e-14)
+    for i in range(n):
+        Si = np.linalg.inv(S[i])
+        for j in range(m):
+            e = z[j] - zp[i]
+            assert g.d2[i, j] == pytest.approx(e @ Si @ e, rel=1e-10)
+            assert g.log_g[i, j] == pytest.approx(
+                stats.multivariate_normal(zp[i], S[i]).logpdf(z[j]), rel=1e-10, abs=1e-12
+            )
+    np.testing.assert_array_equal(g.mask, g.d2 <= gamma)
+    # unit-ball volumes: 2, π, 4π/3
+    c_d = {1: 2.0, 2: math.pi, 3: 4.0 * math.pi / 3.0}[d]
+    V = c_d * gamma ** (d / 2) * np.sqrt(np.linalg.det(S))
+    np.testing.assert_allclose(g.gate_volume, V, rtol=1e-12)
+    np.testing.assert_allclose(g.log_gate_volume, np.log(V), rtol=1e-12)
+    np.testing.assert_array_equal(g.n_gated, g.mask.sum(axis=1))
+
+
+def test_gate_probability_is_P_G():
+    # true measurements drawn from N(ẑ, S) fall in the gate with probability P_G
+    rng = np.random.default_rng(0)
+    S = np.array([[[2.0, 0.7], [0.7, 1.0]]])
+    zt = rng.multivariate_normal([1.0, -1.0], S[0], size=40_000)
+    g = gate_measurements([[1.0, -1.0]], S, zt, P_G=0.9)
+    frac = g.mask.mean()
+    se = math.sqrt(0.9 * 0.1 / zt.shape[0])
+    assert abs(frac - 0.9) < 4 * se
+
+
+def test_gate_log_space_extreme_covariances():
+    # |S| = 1e-600 underflows a determinant; the Cholesky log-det does not
+    S = np.array([1e-300 * np.eye(2), 1e300 * np.eye(2)])
+    zp = np.zeros((2, 2))
+    z = np.array([[1e-150, 0.0], [1e150, 0.0]])
+    g = gate_measurements(zp, S, z)
+    assert np.all(np.isfinite(g.log_g[g.mask])) and np.all(np.isfinite(g.log_gate_volume))
+    assert not np.isnan(g.d2).any() and not np.isnan(g.log_g).any()
+    assert g.d2[0, 1] == np.inf and g.log_g[0, 1] == -np.inf  # (1e300)² overflows: g = 0
+    assert g.d2[0, 0] == pytest.approx(1.0, rel=1e-12)
+    assert g.d2[1, 1] == pytest.approx(1.0, rel=1e-12)
+    assert g.log_g[0, 0] == pytest.approx(-0.5 - math.log(2 * math.pi) + 300 * math.log(10))
+    assert g.mask[0, 0] and g.mask[1, 1] and not g.mask[0, 1]
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 4), m=st.integers(0, 5))
+def test_gate_translation_invariant_and_ratios(seed, n, m):
+    rng = np.random.default_rng(seed)
+    d = 2
+    zp = rng.standard_normal((n, d))
+    S = np.array([_spd(rng, d) for _ in range(n)]).reshape(n, d, d)
+    z = 1.5 * rng.standard_normal((m, d))
+    g = gate_measurements(zp, S, z, P_G=0.99)
+    shift = rng.standard_normal(d) * 10
+    g2 = gate_measurements(zp + shift, S, z + shift, P_G=0.99)
+    np.testing.assert_allclose(g.d2, g2.d2, rtol=1e-8, atol=1e-10)
+    assert np.all(g.d2 >= 0)
+    P_D = rng.uniform(0.5, 1.0, size=n)
+    lam = rng.uniform(0.01, 1.0, size=m)
+    L, miss = likelihood_ratios(g, P_D, lam)
+    expect = np.where(g.mask, P_D[:, None] * np.exp(g.log_g) / lam[None, :], 0.0)
+    np.testing.assert_allclose(L, expect, rtol=1e-12)
+    np.testing.assert_allclose(miss, 1.0 - P_D * 0.99, rtol=1e-15)
+    assert L.shape == (n, m) and np.all(L >= 0)
+
+
+def test_likelihood_ratio_scalar_inputs():
+    g = gate_measurements([[0.0]], [[[1.0]]], [[0.5], [10.0]], P_G=0.99)
+    L, miss = likelihood_ratios(g, 0.9, 0.2)
+    assert L[0, 0] == pytest.approx(0.9 * stats.norm.pdf(0.5) / 0.2, rel=1e-13)
+    assert L[0, 1] == 0.0
+    assert miss[0] == pytest.approx(1 - 0.9 * 0.99, rel=1e-15)
+
+
+def test_gate_empty():
+    g = gate_measurements(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.ones((3, 2)))
+    assert g.mask.shape == (0, 3) and g.gate_volume.shape == (0,)
+    L, miss = likelihood_ratios(g, 0.9, 1.0)
+    assert L.shape == (0, 3) and miss.shape == (0,)
+    g = gate_measurements(np.zeros((2, 2)), np.array([np.eye(2)] * 2), np.zeros((0,)))
+    assert g.mask.shape == (2, 0)
+    L, miss = likelihood_ratios(g, 0.9, 1.0)
+    assert L.shape == (2, 0) and miss.shape == (2,)
+
+
+@pytest.mark.parametrize(
+    ("S1", "msg"),
+    [
+        (np.array([[1.0, 2.0], [2.0, 1.0]]), "track 1.*not positive definite"),
+        (np.array([[1.0, 1.0], [1.0, 1.0]]), "track 1"),
+        (np.array([[1.0, 0.3], [0.0, 1.0]]), "track 1.*not symmetric"),
+        (np.array([[1.0, np.nan], [np.nan, 1.0]]), "track 1.*non-finite"),
+        (np.array([[1.0, 0.0], [0.0, 1e-20]]), "track 1.*singular"),
+        (np.zeros((2, 2)), "track 1.*singular"),
+    ],
+)
+def test_gate_bad_covariance_names_track(S1, msg):
+    S = np.array([np.eye(2), S1, np.eye(2)])
+    with pytest.raises(ValueError, match=msg):
+        gate_measurements(np.zeros((3, 2)), S, np.zeros((1, 2)))
+
+
+def test_gate_bad_shapes_and_parameters():
+    S = np.array([np.eye(2)])
+    with pytest.raises(ValueError, match="S must have shape"):
+        gate_measurements(np.zeros((1, 2)), np.eye(2), np.zeros((1, 2)))
+    with pytest.raises(ValueError, match="z must have shape"):
+        gate_measurements(np.zeros((1, 2)), S, np.zeros((1, 3)))
+    with pytest.raises(ValueError, match="z_pred must be 2-D"):
+        gate_measurements(np.zeros(2), S, np.zeros((1, 2)))
+    with pytest.raises(ValueError, match="P_G"):
+        gate_measurements(np.zeros((1, 2)), S, np.zeros((1, 2)), P_G=1.0)
+    with pytest.raises(ValueError, match="measurement z\\[0\\]"):
+        gate_measurements(np.zeros((1, 2)), S, np.array([[np.inf, 0.0]]))
+    g = gate_measurements(np.zeros((1, 2)), S, np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="P_D"):
+        likelihood_ratios(g, 1.5, 1.0)
+    with pytest.raises(ValueError, match="clutter_density"):
+        likelihood_ratios(g, 0.9, 0.0)
+    with pytest.raises(ValueError, match="clutter_density"):
+        likelihood_ratios(g, 0.9, [1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="overflows"):
+        likelihood_ratios(gate_measurements([[0.0]], [[[1e-300]]], [[0.0]]), 0.9, 1e-300)
+
+
+# ------------------------------------------------------------------------- clustering
+
+
+def _components_bfs(mask):
+    """Reference: connected components by breadth-first search (tracks only)."""
+    n, m = mask.shape
+    label = [-1] * n
+    k = 0
+    for s in range(n):
+        if label[s] >= 0:
+            continue
+        label[s] = k
+        stack = [s]
+        while stack:
+            t = stack.pop()
+            for j in np.flatnonzero(mask[t]):
+                for u in np.flatnonzero(mask[:, j]):
+                    if label[u] < 0:
+                        label[u] = k
+                        stack.append(u)
+        k += 1
+    return label
+
+
+def test_clusters_example():
+    mask = np.array(
+        [
+            [1, 0, 0, 0, 0],
+            [0, 0, 1, 0, 0],
+            [0, 1, 1, 0, 0],
+            [0, 0, 0, 0, 0],
+            [0, 1, 0, 0, 1],
+        ],
+        dtype=bool,
+    )
+    c = clusters(mask)
+    assert len(c) == 3
+    np.testing.assert_array_equal(c[0].tracks, [0])
+    np.testing.assert_array_equal(c[0].measurements, [0])
+    np.testing.assert_array_equal(c[1].tracks, [1, 2, 4])
+    np.testing.assert_array_equal(c[1].measurements, [1, 2, 4])
+    np.testing.assert_array_equal(c[2].tracks, [3])
+    assert c[2].measurements.size == 0
+    np.testing.assert_array_equal(c.unassociated, [3])
+    np.testing.assert_array_equal(c.measurement_cluster, [0, 1, 1, -1, 1])
+    L = np.arange(25.0).reshape(5, 5) * mask
+    Ls, ms = c[1].select(L, np.arange(5.0))
+    np.testing.assert_array_equal(Ls, L[np.ix_([1, 2, 4], [1, 2, 4])])
+    np.testing.assert_array_equal(ms, [1.0, 2.0, 4.0])
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 8), m=st.integers(0, 8))
+def test_clusters_partition_matches_bfs(seed, n, m):
+    rng = np.random.default_rng(seed)
+    mask = rng.random((n, m)) < rng.random() * 0.5
+    c = clusters(mask)
+    ref = _components_bfs(mask)
+    # same partition of tracks
+    for a in range(n):
+        for b in range(n):
+            assert (c.track_cluster[a] == c.track_cluster[b]) == (ref[a] == ref[b])
+    # every track exactly once, measurements partitioned, unassociated = ungated
+    all_t = np.concatenate([k.tracks for k in c] + [np.zeros(0, int)])
+    np.testing.assert_array_equal(np.sort(all_t), np.arange(n))
+    all_m = np.concatenate([k.measurements for k in c] + [c.unassociated])
+    np.testing.assert_array_equal(np.sort(all_m), np.arange(m))
+    np.testing.assert_array_equal(c.unassociated, np.flatnonzero(~mask.any(axis=0)))
+    for k, cl in enumerate(c):
+        # no gated pair leaves the cluster
+        rest = np.setdiff1d(np.arange(m), cl.measurements)
+        assert not mask[np.ix_(cl.tracks, rest)].any()
+        assert np.all(c.track_cluster[cl.tracks] == k)
+    # clusters ordered by smallest track
+    firsts = [int(k.tracks[0]) for k in c]
+    assert firsts == sorted(firsts)
+
+
+def test_clusters_accepts_likelihood_matrix_and_empty():
+    c = clusters(np.array([[0.0, 2.5], [0.0, 0.0]]))
+    assert len(c) == 2 and list(c.unassociated) == [0]
+    assert len(clusters(np.zeros((0, 0)))) == 0
+    assert (
+        len(clusters(np.zeros((0, 4)))) == 0 and clusters(np.zeros((0, 4))).unassociated.size == 4
+    )
+    c = clusters(np.zeros((3, 0)))
+    assert len(c) == 3 and all(k.measurements.size == 0 for k in c)
+    with pytest.raises(ValueError, match="negative"):
+        clusters(np.array([[-1.0]]))
+    with pytest.raises(ValueError, match="2-D"):
+        clusters(np.zeros((2, 2, 2)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 4), m=st.integers(0, 4))
+def test_has_feasible_event_matches_enumeration(seed, n, m):
+    rng = np.random.default_rng(seed)
+    L = rng.random((n, m)) * (rng.random((n, m)) < 0.5)
+    miss = np.where(rng.random(n) < 0.6, 0.0, 0.5)
+    opts = [[-1] * int(miss[i] > 0) + list(np.flatnonzero(L[i] > 0)) for i in range(n)]
+    feasible = any(
+        len(set(j for j in a if j >= 0)) == sum(j >= 0 for j in a) for a in itertools.product(*opts)
+    )
+    assert has_feasible_event(L, miss) == feasible
+
+
+# ---------------------------------------------------------------------------- clutter
+
+
+def _disc_S(r, gamma):
+    """Covariance whose γ-gate is the disc of radius r."""
+    return (r * r / gamma) * np.eye(2)
+
+
+def _lens_area(r, dist):
+    return 2 * r * r * math.acos(dist / (2 * r)) - 0.5 * dist * math.sqrt(4 * r * r - dist * dist)
+
+
+def test_simple_density_estimators():
+    assert known_density(0.25) == 0.25
+    for bad in (0.0, -1.0, np.inf, "x"):
+        with pytest.raises(ValueError):
+            known_density(bad)
+    np.testing.assert_allclose(track_sample_density([3, 0, 5], [2.0, 1.0, 10.0]), [1.5, 0.0, 0.5])
+    # Bojilov (8): Σ m_i / Σ V_i
+    assert cluster_heuristic_density([3, 0, 5], [2.0, 1.0, 10.0]) == pytest.approx(8 / 13)
+    with pytest.raises(ValueError, match="volume"):
+        cluster_heuristic_density([1, 2], [1.0, 0.0])
+    with pytest.raises(ValueError, match="integers"):
+        track_sample_density([1.5], [1.0])
+    with pytest.raises(ValueError, match="no tracks"):
+        cluster_heuristic_density([], [])
+
+
+def test_union_volume_exact_cases_and_lens():
+    gamma = stats.chi2.ppf(0.99, 2)
+    S = np.array([_disc_S(1.0, gamma)] * 2)
+    # identical gates: every sample has c(x) = 2 → estimator exact, zero variance
+    u = union_gate_volume([[0.0, 0.0], [0.0, 0.0]], S, gamma=gamma, n_samples=5000, rng=0)
+    assert u.volume == pytest.approx(math.pi, rel=1e-12) and u.std_error == 0.0
+    assert u.sum_volume == pytest.approx(2 * math.pi, rel=1e-12)
+    # disjoint gates: c(x) = 1
+    u = union_gate_volume([[0.0, 0.0], [3.0, 0.0]], S, P_G=0.99, n_samples=5000, rng=0)
+    assert u.volume == pytest.approx(2 * math.pi, rel=1e-12) and u.std_error == 0.0
+    # centres one radius apart: union = 2π − lens, within 4 standard errors
+    u = union_gate_volume([[0.0, 0.0], [1.0, 0.0]], S, gamma=gamma, n_samples=200_000, rng=1)
+    exact = 2 * math.pi - _lens_area(1.0, 1.0)
+    assert abs(u.volume - exact) < 4 * u.std_error
+    assert u.std_error < 0.002 * exact
+    # reproducible for a seed
+    u2 = union_gate_volume([[0.0, 0.0], [1.0, 0.0]], S, gamma=gamma, n_samples=200_000, rng=1)
+    assert u2.volume == u.volume
+
+
+def test_union_volume_1d_intervals_and_ellipses():
+    # 1-D: intervals [−1, 1], [0.5, 2.5], [2, 4] → union [−1, 4] of length 5
+    gamma = 1.0
+    c = np.array([[0.0], [1.5], [3.0]])
+    S = np.ones((3, 1, 1))
+    u = union_gate_volume(c, S, gamma=gamma, n_samples=200_000, rng=2)
+    assert abs(u.volume - 5.0) < 4 * u.std_error and u.std_error < 0.01
+    # an ellipse inside a disc: union = disc
+    S = np.array([np.diag([4.0, 4.0]), np.diag([1.0, 0.25])])
+    u = union_gate_volume(np.zeros((2, 2)), S, gamma=1.0, n_samples=100_000, rng=3)
+    assert abs(u.volume - 4 * math.pi) < 4 * u.std_error + 1e-12
+
+
+def test_heuristic_8_versus_union_density():
+    """How far Bojilov's (8) is from the exact N_M/|∪V| (module docstring identity)."""
+    gamma = stats.chi2.ppf(0.99, 2)
+    S = np.array([_disc_S(1.0, gamma)] * 2)
+    V = np.array([math.pi, math.pi])
+    m = 6
+
+    # identical gates, all m measurements shared: the duplication in numerator and
+    # denominator cancels and (8) is exact (m/V both) — not m/(2V)
+    ex = union_sample_density(m, np.zeros((2, 2)), S, gamma=gamma, n_samples=2000, rng=0)
+    heur = cluster_heuristic_density([m, m], V)
+    assert ex.density == pytest.approx(m / math.pi, rel=1e-12)
+    assert heur == pytest.approx(ex.density, rel=1e-12)
+
+    # disjoint gates, 4 + 2 measurements: (8) is exact again
+    ex = union_sample_density(m, [[0.0, 0.0], [5.0, 0.0]], S, gamma=gamma, n_samples=2000, rng=0)
+    assert cluster_heuristic_density([4, 2], V) == pytest.approx(ex.density, rel=1e-12)
+
+    # heavily overlapping gates (centres one radius apart, overlap 39 % of each disc)
+    centres = [[0.0, 0.0], [1.0, 0.0]]
+    ex = union_sample_density(m, centres, S, gamma=gamma, n_samples=200_000, rng=1)
+    union = 2 * math.pi - _lens_area(1.0, 1.0)
+    assert ex.density == pytest.approx(m / union, rel=4 * ex.std_error / ex.density)
+    c_vol = 2 * math.pi / union  # mean gate multiplicity of the union volume, 1.243
+    # (a) all measurements in the lens: (8) counts each twice → 2/c_vol = 1.61 × exact
+    heur_in = cluster_heuristic_density([m, m], V)
+    assert heur_in / ex.density == pytest.approx(2 / c_vol, rel=0.01)
+    assert heur_in / ex.density > 1.5
+    # (b) all measurements outside the lens: 1/c_vol = 0.80 × exact
+    heur_out = cluster_heuristic_density([3, 3], V)
+    assert heur_out / ex.density == pytest.approx(1 / c_vol, rel=0.01)
+    assert heur_out / ex.density < 0.85
+
+
+def test_heuristic_8_unbiased_for_poisson_clutter():
+    """For Poisson clutter both estimators target λ; (8) is unbiased, E Σm_i = λΣV_i."""
+    rng = np.random.default_rng(7)
+    lam = 3.0
+    gamma = stats.chi2.ppf(0.99, 2)
+    centres = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.8]])
+    S = np.array([_disc_S(1.0, gamma)] * 3)
+    U = union_gate_volume(centres, S, gamma=gamma, n_samples=200_000, rng=0)
+    box = np.array([[-1.0, 2.0], [-1.0, 1.8]])
+    area = np.prod(box[:, 1] - box[:, 0])
+    heur, exact = [], []
+    for _ in range(1500):
+        k = rng.poisson(lam * area)
+        pts = box[:, 0] + rng.random((k, 2)) * (box[:, 1] - box[:, 0])
+        inside = ((pts[None, :, :] - centres[:, None, :]) ** 2).sum(axis=2) <= 1.0
+        heur.append(inside.sum() / (3 * math.pi))
+        exact.append(inside.any(axis=0).sum() / U.volume)
+    heur, exact = np.array(heur), np.array(exact)
+    assert abs(heur.mean() - lam) < 4 * heur.std() / math.sqrt(heur.size)
+    assert abs(exact.mean() - lam) < 4 * exact.std() / math.sqrt(exact.size) + 3 * lam * (
+        U.std_error / U.volume
+    )
+    # …but (8) is noisier: shared measurements are counted more than once
+    assert heur.std() > exact.std()
+
+
+def test_cluster_clutter_density_from_gating():
+    gamma = stats.chi2.ppf(0.99, 2)
+    S = np.array([_disc_S(1.0, gamma)] * 2)
+    z = np.array([[0.5, 0.0], [0.5, 0.1], [-0.9, 0.0], [5.0, 5.0]])
+    g = gate_measurements([[0.0, 0.0], [1.0, 0.0]], S, z, P_G=0.99)
+    np.testing.assert_array_equal(g.n_gated, [3, 2])
+    h = cluster_clutter_density(g, method="heuristic")
+    assert h.density == pytest.approx(5 / (2 * math.pi), rel=1e-12)
+    u = cluster_clutter_density(g, [0, 1], method="union", n_samples=100_000, rng=0)
+    union = 2 * math.pi - _lens_area(1.0, 1.0)
+    assert u.density == pytest.approx(3 / union, abs=4 * u.std_error)
+    with pytest.raises(ValueError, match="method"):
+        cluster_clutter_density(g, method="nope")
+    with pytest.raises(ValueError, match="exactly one"):
+        union_gate_volume([[0.0, 0.0]], S[:1])
