@@ -13,34 +13,77 @@ the permanent by a known factor. Two uses:
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
-from scipy.special import logsumexp
 
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent._validate import check_compressed, check_matrix
 
 
-def _log_scaling(logA, log_rows, log_cols, n_total, m_total, iters, tol=0.0):
-    """Alternate row/column normalisation in log space.
+@nb.njit(cache=True)
+def _lse_rows(logA, add_cols):
+    n, m = logA.shape
+    out = np.empty(n)
+    for i in range(n):
+        mx = -np.inf
+        for j in range(m):
+            v = logA[i, j] + add_cols[j]
+            if v > mx:
+                mx = v
+        if mx == -np.inf:
+            out[i] = -np.inf
+            continue
+        s = 0.0
+        for j in range(m):
+            s += np.exp(logA[i, j] + add_cols[j] - mx)
+        out[i] = mx + np.log(s)
+    return out
 
-    Rows of the expanded matrix are normalised to sum 1 and columns to n/m, so
-    the expanded scaled matrix is doubly stochastic when square. Groups of
-    identical rows/columns are weighted by their counts. Returns (u, v, err)
-    with err the final max relative row-sum error.
+
+@nb.njit(cache=True)
+def _lse_cols(logA, add_rows):
+    n, m = logA.shape
+    out = np.empty(m)
+    for j in range(m):
+        mx = -np.inf
+        for i in range(n):
+            v = logA[i, j] + add_rows[i]
+            if v > mx:
+                mx = v
+        if mx == -np.inf:
+            out[j] = -np.inf
+            continue
+        s = 0.0
+        for i in range(n):
+            s += np.exp(logA[i, j] + add_rows[i] - mx)
+        out[j] = mx + np.log(s)
+    return out
+
+
+@nb.njit(cache=True)
+def _log_scaling(logA, log_rows, log_cols, col_target, iters, tol):
+    """Alternate row/column normalisation in log space (weighted by group counts).
+
+    Rows of the expanded matrix are normalised to sum 1 and columns to
+    exp(col_target) (= n/m). Returns (u, v, err) with err the final max
+    relative row-sum error when ``tol > 0`` (else inf).
     """
     n, m = logA.shape
     u = np.zeros(n)
     v = np.zeros(m)
-    col_target = np.log(n_total / m_total)
-    live_cols = np.isfinite(logA).any(axis=0)
     err = np.inf
     for _ in range(iters):
-        u = -logsumexp(logA + (v + log_cols)[None, :], axis=1)
-        s = logsumexp(logA + (u + log_rows)[:, None], axis=0)
-        v = np.where(live_cols, col_target - np.where(live_cols, s, 0.0), 0.0)
+        u = -_lse_rows(logA, v + log_cols)
+        s = _lse_cols(logA, u + log_rows)
+        for j in range(m):
+            v[j] = col_target - s[j] if np.isfinite(s[j]) else 0.0
         if tol > 0.0:
-            r = logsumexp(logA + (v + log_cols)[None, :] + u[:, None], axis=1)
-            err = float(np.max(np.abs(np.expm1(r)))) if n else 0.0
+            r = _lse_rows(logA, v + log_cols)
+            err = 0.0
+            for i in range(n):
+                e = abs(np.expm1(r[i] + u[i]))
+                if e > err:
+                    err = e
             if err <= tol:
                 break
     return u, v, err
@@ -72,11 +115,12 @@ def balance_pow2(A, row_counts=None, col_counts=None, iters: int = 12):
     if rows.sum() < cols.sum():
         # Per(D1 A D2) = Π d1 Π d2 Per(A) holds only for square matrices: an n×m
         # assignment uses n of the m columns, so only rows may be scaled freely.
-        u = -logsumexp(logA + np.log(cols)[None, :], axis=1)
+        u = -_lse_rows(logA, np.log(cols))
         er = np.rint(u / np.log(2.0)).astype(np.int64)
         return er, np.zeros(m, np.int64)
+    target = float(np.log(rows.sum() / cols.sum()))
     for sweeps in (iters, 10 * iters):
-        u, v, _ = _log_scaling(logA, np.log(rows), np.log(cols), rows.sum(), cols.sum(), sweeps)
+        u, v, _ = _log_scaling(logA, np.log(rows), np.log(cols), target, sweeps, 0.0)
         er = np.rint(u / np.log(2.0)).astype(np.int64)
         ec = np.rint(v / np.log(2.0)).astype(np.int64)
         if _well_balanced(logA, er, ec, rows, cols):
@@ -91,10 +135,10 @@ def _well_balanced(logA, er, ec, rows, cols) -> bool:
     Waerden's bound for doubly stochastic matrices, loosened by the factor 4),
     so states that underflow cannot matter.
     """
-    logB = logA + np.log(2.0) * (er[:, None] + ec[None, :])
-    r = logsumexp(logB + np.log(cols)[None, :], axis=1)
-    c = logsumexp(logB + np.log(rows)[:, None], axis=0)
-    return bool(np.all(np.abs(r) <= np.log(4.0)) and np.all(np.abs(c) <= np.log(4.0)))
+    ln2 = np.log(2.0)
+    r = _lse_rows(logA, ln2 * ec + np.log(cols)) + ln2 * er
+    c = _lse_cols(logA, ln2 * er + np.log(rows)) + ln2 * ec
+    return bool(np.all(np.abs(r) <= 2 * ln2) and np.all(np.abs(c) <= 2 * ln2))
 
 
 def _dual_exponents(logA, rows, cols):
@@ -180,9 +224,8 @@ def sinkhorn(A, *, tol: float = 1e-12, max_iter: int = 10_000, row_counts=None, 
     if not (np.isfinite(tol) and tol > 0):
         raise ValueError(f"tol must be a positive finite number, got {tol}")
     logA = _log(A)
-    u, v, err = _log_scaling(
-        logA, np.log(rows), np.log(cols), rows.sum(), cols.sum(), max_iter, tol=tol
-    )
+    target = float(np.log(rows.sum() / cols.sum()))
+    u, v, err = _log_scaling(logA, np.log(rows), np.log(cols), target, max_iter, float(tol))
     if not err <= tol:
         raise ValueError(
             f"Sinkhorn scaling did not converge to tol={tol} in {max_iter} iterations "
