@@ -1,0 +1,328 @@
+"""Kinematic motion models: nearly-constant velocity and constant acceleration.
+
+State layout (the same in every jointtrack model, filter and tracker)
+--------------------------------------------------------------------
+Blocked by derivative order, positions first::
+
+    nearly-constant velocity, 2-D:   [x, y, vx, vy]
+    nearly-constant velocity, 3-D:   [x, y, z, vx, vy, vz]
+    constant acceleration,   2-D:   [x, y, vx, vy, ax, ay]
+    constant acceleration,   3-D:   [x, y, z, vx, vy, vz, ax, ay, az]
+
+so the position is always ``x[..., :dim]`` (``position_indices``) whatever the
+model order, and a position measurement is ``H = [I 0]``. Every matrix below is
+the one-axis matrix Kronecker-multiplied by ``I_dim`` (axes independent).
+
+Noise: continuous time
+----------------------
+Both models are the *continuous-time* white-noise kinematic models of
+Bar-Shalom, Li & Kirubarajan, *Estimation with Applications to Tracking and
+Navigation* (2001), §6.2 (also Bar-Shalom, Willett & Tian, *Tracking and Data
+Fusion*, 2011): with ``ẋ = A x + G w(t)``, ``w`` zero-mean white noise of
+power spectral density ``q`` (per axis),
+
+    F(Δt) = e^{A Δt},      Q(Δt) = q ∫₀^{Δt} e^{Aτ} G Gᵀ e^{Aᵀτ} dτ.
+
+* **Nearly-constant velocity** (continuous white-noise acceleration, CWNA,
+  §6.2.2): ``w`` is the acceleration, ``q`` in m²/s³.
+* **Constant acceleration** (continuous Wiener-process acceleration, §6.2.3):
+  ``w`` is the jerk, ``q`` in m²/s⁵.
+
+Being exact discretisations, both satisfy the semigroup identities
+``F(a+b) = F(b)F(a)`` and ``Q(a+b) = F(b) Q(a) F(b)ᵀ + Q(b)``, so a scan interval
+may vary from scan to scan without changing the model. A time step must be
+finite and positive; the functions accept a scalar ``dt`` (one ``(n, n)``
+matrix) or a 1-D array of ``N`` steps (an ``(N, n, n)`` stack, e.g. one per track).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "ConstantAcceleration",
+    "ConstantVelocity",
+    "ca_noise",
+    "ca_transition",
+    "cv_noise",
+    "cv_transition",
+]
+
+
+def _check_dim(dim) -> int:
+    try:
+        ok = not isinstance(dim, bool) and int(dim) == dim and 1 <= dim <= 3
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ValueError(f"spatial dimension must be 1, 2 or 3, got {dim!r}")
+    return int(dim)
+
+
+def _check_dt(dt) -> np.ndarray:
+    try:
+        dt = np.asarray(dt, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"time step dt must be a number or 1-D array, got {dt!r}") from None
+    if dt.ndim > 1:
+        raise ValueError(f"time step dt must be a scalar or 1-D array, got shape {dt.shape}")
+    bad = ~(np.isfinite(dt) & (dt > 0))
+    if bad.any():
+        if dt.ndim == 0:
+            raise ValueError(f"time step dt must be finite and > 0, got {float(dt)}")
+        i = int(np.argmax(bad))
+        raise ValueError(f"time step dt[{i}] (track {i}) must be finite and > 0, got {dt[i]}")
+    return dt
+
+
+def _check_q(q) -> float:
+    try:
+        q = float(q)
+    except (TypeError, ValueError):
+        raise ValueError(f"noise intensity q must be a number, got {q!r}") from None
+    if not np.isfinite(q) or q < 0:
+        raise ValueError(f"noise intensity q must be finite and ≥ 0, got {q}")
+    return q
+
+
+def _kron_axes(block: np.ndarray, dim: int) -> np.ndarray:
+    """``block ⊗ I_dim`` for a (k, k) or (N, k, k) one-axis block (blocked state layout)."""
+    eye = np.eye(dim)
+    out = block[..., :, None, :, None] * eye[:, None, :]
+    k = block.shape[-1]
+    return out.reshape(*block.shape[:-2], k * dim, k * dim)
+
+
+def cv_transition(dt, dim: int = 2) -> np.ndarray:
+    """Nearly-constant-velocity transition matrix F(Δt) = e^{AΔt}.
+
+    Per axis ``[[1, Δt], [0, 1]]`` (Bar-Shalom, Li & Kirubarajan 2001,
+    §6.2.2), in the blocked layout ``[pos(dim), vel(dim)]``::
+
+        F = [[I, Δt I],
+             [0,    I]]
+
+    Parameters
+    ----------
+    dt : float or (N,) array, > 0
+        time step(s).
+    dim : {1, 2, 3}
+        spatial dimension.
+
+    Returns
+    -------
+    (2·dim, 2·dim) array, or (N, 2·dim, 2·dim) for an array ``dt``.
+    """
+    dim = _check_dim(dim)
+    dt = _check_dt(dt)
+    one = np.ones_like(dt)
+    zero = np.zeros_like(dt)
+    block = np.stack([np.stack([one, dt], -1), np.stack([zero, one], -1)], -2)
+    return _kron_axes(block, dim)
+
+
+def cv_noise(dt, q: float = 1.0, dim: int = 2) -> np.ndarray:
+    """Nearly-constant-velocity process noise Q(Δt), continuous white-noise acceleration.
+
+    Per axis (Bar-Shalom, Li & Kirubarajan 2001, §6.2.2; Bar-Shalom,
+    Willett & Tian 2011)::
+
+        Q = q [[Δt³/3, Δt²/2],
+               [Δt²/2, Δt   ]]
+
+    the exact integral q ∫₀^{Δt} e^{Aτ} G Gᵀ e^{Aᵀτ} dτ with ``G = [0, 1]ᵀ``.
+
+    Parameters
+    ----------
+    dt : float or (N,) array, > 0
+        time step(s).
+    q : float ≥ 0
+        power spectral density of the continuous acceleration noise (m²/s³), per axis.
+    dim : {1, 2, 3}
+        spatial dimension.
+
+    Returns
+    -------
+    (2·dim, 2·dim) array, or (N, 2·dim, 2·dim) for an array ``dt``.
+    """
+    dim = _check_dim(dim)
+    dt = _check_dt(dt)
+    q = _check_q(q)
+    d2, d3 = dt**2, dt**3
+    block = q * np.stack([np.stack([d3 / 3.0, d2 / 2.0], -1), np.stack([d2 / 2.0, dt], -1)], -2)
+    return _kron_axes(block, dim)
+
+
+def ca_transition(dt, dim: int = 2) -> np.ndarray:
+    """Constant-acceleration transition matrix F(Δt) = e^{AΔt}.
+
+    Per axis ``[[1, Δt, Δt²/2], [0, 1, Δt], [0, 0, 1]]`` (Bar-Shalom, Li &
+    Kirubarajan 2001, §6.2.3), in the blocked layout ``[pos, vel, acc]``.
+
+    Parameters
+    ----------
+    dt : float or (N,) array, > 0
+        time step(s).
+    dim : {1, 2, 3}
+        spatial dimension.
+
+    Returns
+    -------
+    (3·dim, 3·dim) array, or (N, 3·dim, 3·dim) for an array ``dt``.
+    """
+    dim = _check_dim(dim)
+    dt = _check_dt(dt)
+    one = np.ones_like(dt)
+    zero = np.zeros_like(dt)
+    block = np.stack(
+        [
+            np.stack([one, dt, dt**2 / 2.0], -1),
+            np.stack([zero, one, dt], -1),
+            np.stack([zero, zero, one], -1),
+        ],
+        -2,
+    )
+    return _kron_axes(block, dim)
+
+
+def ca_noise(dt, q: float = 1.0, dim: int = 2) -> np.ndarray:
+    """Constant-acceleration process noise Q(Δt), continuous Wiener-process acceleration.
+
+    Per axis (Bar-Shalom, Li & Kirubarajan 2001, §6.2.3)::
+
+        Q = q [[Δt⁵/20, Δt⁴/8, Δt³/6],
+               [Δt⁴/8,  Δt³/3, Δt²/2],
+               [Δt³/6,  Δt²/2, Δt   ]]
+
+    the exact integral q ∫₀^{Δt} e^{Aτ} G Gᵀ e^{Aᵀτ} dτ with ``G = [0, 0, 1]ᵀ``
+    (white jerk of power spectral density ``q``).
+
+    Parameters
+    ----------
+    dt : float or (N,) array, > 0
+        time step(s).
+    q : float ≥ 0
+        power spectral density of the continuous jerk noise (m²/s⁵), per axis.
+    dim : {1, 2, 3}
+        spatial dimension.
+
+    Returns
+    -------
+    (3·dim, 3·dim) array, or (N, 3·dim, 3·dim) for an array ``dt``.
+    """
+    dim = _check_dim(dim)
+    dt = _check_dt(dt)
+    q = _check_q(q)
+    d2, d3, d4, d5 = dt**2, dt**3, dt**4, dt**5
+    block = q * np.stack(
+        [
+            np.stack([d5 / 20.0, d4 / 8.0, d3 / 6.0], -1),
+            np.stack([d4 / 8.0, d3 / 3.0, d2 / 2.0], -1),
+            np.stack([d3 / 6.0, d2 / 2.0, dt], -1),
+        ],
+        -2,
+    )
+    return _kron_axes(block, dim)
+
+
+@dataclass(frozen=True)
+class ConstantVelocity:
+    """Nearly-constant-velocity motion (continuous white-noise acceleration).
+
+    State ``[x, y(, z), vx, vy(, vz)]`` (positions first, see module docstring).
+
+    Parameters
+    ----------
+    dim : {1, 2, 3}
+        spatial dimension.
+    q : float ≥ 0
+        power spectral density of the white acceleration noise (m²/s³), per axis.
+
+    Examples
+    --------
+    >>> m = ConstantVelocity(dim=2, q=0.5)
+    >>> F, Q = m.transition(1.0), m.noise(1.0)   # (4, 4) each
+    """
+
+    dim: int = 2
+    q: float = 1.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "dim", _check_dim(self.dim))
+        object.__setattr__(self, "q", _check_q(self.q))
+
+    @property
+    def state_dim(self) -> int:
+        """Length of the state vector, ``2·dim``."""
+        return 2 * self.dim
+
+    @property
+    def position_indices(self) -> np.ndarray:
+        """Indices of the position components, ``[0, …, dim−1]``."""
+        return np.arange(self.dim)
+
+    @property
+    def velocity_indices(self) -> np.ndarray:
+        """Indices of the velocity components, ``[dim, …, 2·dim−1]``."""
+        return np.arange(self.dim, 2 * self.dim)
+
+    def transition(self, dt) -> np.ndarray:
+        """F(Δt), see :func:`cv_transition`."""
+        return cv_transition(dt, self.dim)
+
+    def noise(self, dt) -> np.ndarray:
+        """Q(Δt), see :func:`cv_noise`."""
+        return cv_noise(dt, self.q, self.dim)
+
+
+@dataclass(frozen=True)
+class ConstantAcceleration:
+    """Constant-acceleration motion (continuous Wiener-process acceleration).
+
+    State ``[x, y(, z), vx, vy(, vz), ax, ay(, az)]`` (positions first, see the
+    module docstring).
+
+    Parameters
+    ----------
+    dim : {1, 2, 3}
+        spatial dimension.
+    q : float ≥ 0
+        power spectral density of the white jerk noise (m²/s⁵), per axis.
+    """
+
+    dim: int = 2
+    q: float = 1.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "dim", _check_dim(self.dim))
+        object.__setattr__(self, "q", _check_q(self.q))
+
+    @property
+    def state_dim(self) -> int:
+        """Length of the state vector, ``3·dim``."""
+        return 3 * self.dim
+
+    @property
+    def position_indices(self) -> np.ndarray:
+        """Indices of the position components, ``[0, …, dim−1]``."""
+        return np.arange(self.dim)
+
+    @property
+    def velocity_indices(self) -> np.ndarray:
+        """Indices of the velocity components, ``[dim, …, 2·dim−1]``."""
+        return np.arange(self.dim, 2 * self.dim)
+
+    @property
+    def acceleration_indices(self) -> np.ndarray:
+        """Indices of the acceleration components, ``[2·dim, …, 3·dim−1]``."""
+        return np.arange(2 * self.dim, 3 * self.dim)
+
+    def transition(self, dt) -> np.ndarray:
+        """F(Δt), see :func:`ca_transition`."""
+        return ca_transition(dt, self.dim)
+
+    def noise(self, dt) -> np.ndarray:
+        """Q(Δt), see :func:`ca_noise`."""
+        return ca_noise(dt, self.q, self.dim)
