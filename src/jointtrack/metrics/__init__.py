@@ -1,0 +1,22 @@
+"""Performance metrics: OSPA, GOSPA (with its decomposition and over time), track statistics.
+
+* :func:`ospa`, :func:`gospa` — distances between two finite sets of points
+  (:mod:`jointtrack.metrics.ospa`).
+* :func:`gospa_series` — GOSPA per scan between truth and tracks with an
+  identity-switch penalty.
+* :func:`track_statistics` — true/false tracks, breaks, fragmentations,
+  identity switches and RMSE (:mod:`jointtrack.metrics.tracks`).
+"""
+
+from jointtrack.metrics.ospa import GOSPA, GOSPASeries, gospa, gospa_series, ospa
+from jointtrack.metrics.tracks import TrackStatistics, track_statistics
+
+__all__ = [
+    "GOSPA",
+    "GOSPASeries",
+    "TrackStatistics",
+    "gospa",
+    "gospa_series",
+    "ospa",
+    "track_statistics",
+]

@@ -1,0 +1,29 @@
+"""Seeded simulated scenarios (truth, detections, clutter) for trackers and metrics.
+
+* :func:`bojilov` — Bojilov et al.'s five targets on parallel, closely spaced
+  trajectories drifting into 4–5-target clusters, Poisson clutter β per gate.
+* :func:`crossing` — two targets crossing in an X.
+* :func:`many_targets` — ≥ 100 NCV targets with births and deaths in clutter.
+* :class:`Scenario` — the result; :func:`simulate_scenario` builds one from
+  any truth; :func:`nominal_gate` the steady-state NCV gate used as Bojilov's
+  clutter unit.
+"""
+
+from jointtrack.scenarios.generators import bojilov, crossing, many_targets, nominal_gate
+from jointtrack.scenarios.simulate import (
+    Scenario,
+    ncv_matrices,
+    propagate_ncv,
+    simulate_scenario,
+)
+
+__all__ = [
+    "Scenario",
+    "bojilov",
+    "crossing",
+    "many_targets",
+    "ncv_matrices",
+    "nominal_gate",
+    "propagate_ncv",
+    "simulate_scenario",
+]
