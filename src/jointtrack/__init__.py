@@ -14,4 +14,13 @@ try:
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0+unknown"
 
-__all__ = ["InfeasibleAssignmentError", "__version__"]
+__all__ = ["InfeasibleAssignmentError", "JPDATracker", "TrackerConfig", "__version__"]
+
+
+def __getattr__(name):
+    # The tracker pulls in the filters and the association engine; import on use.
+    if name in ("JPDATracker", "TrackerConfig"):
+        from jointtrack import trackers
+
+        return getattr(trackers, name)
+    raise AttributeError(f"module 'jointtrack' has no attribute {name!r}")

@@ -1,0 +1,509 @@
+"""The JPDA tracker: predict → gate → cluster → associate → update → track logic.
+
+Bojilov et al. describe the whole loop (§2–§4): per scan, every track's
+validation gate is formed, tracks sharing measurements are grouped into
+clusters, the association probabilities β of each cluster are computed (eq. 5–7,
+here exactly by :func:`jointtrack.association.marginals` without enumeration)
+and each track is updated with the combined innovation (eq. 4). Track
+initiation, confirmation and deletion follow the usual M-of-N logic
+(Blackman & Popoli 1999, §6.2) or, with ``existence=True``, the integrated
+probability of target existence of JIPDA (Mušicki & Evans 2004, "Joint integrated
+probabilistic data association: JIPDA", IEEE T-AES 40(3)).
+
+All tracks live in a few arrays (states ``x`` (N, n), covariances ``P``
+(N, n, n), ids, counters), so a scan is a handful of batched numpy calls plus
+one association call per multi-track cluster — no per-track Python objects.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import pickle
+import time as _time
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from jointtrack.association import marginals
+from jointtrack.association.clustering import clusters
+from jointtrack.association.gating import gate_measurements
+from jointtrack.filters import pda_update, predict, predict_measurement
+from jointtrack.models import ConstantAcceleration, ConstantVelocity, LinearPosition
+
+__all__ = ["JPDATracker", "ScanResult", "TrackerConfig"]
+
+log = logging.getLogger("jointtrack.tracker")
+
+_STATE_VERSION = 1
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Everything that defines a JPDA tracker; plain numbers, TOML-friendly.
+
+    Attributes
+    ----------
+    dim : 2 or 3, spatial dimension; measurements are positions ``[x, y(, z)]``.
+    motion : ``"cv"`` (nearly constant velocity) or ``"ca"`` (constant acceleration).
+    process_noise : q of the motion model (m²/s³ for CV, m²/s⁵ for CA).
+    measurement_noise : σ² of each position coordinate (R = σ² I).
+    p_d : detection probability P_D.
+    p_g : gate probability P_G (chi-square gate γ = χ²_d⁻¹(P_G)).
+    clutter_density : λ, false returns per unit volume; ``None`` estimates it per
+        cluster by Bojilov's heuristic (8), λ = Σ m_i / Σ V_i.
+    association : method for clusters within budget (``"exact"`` by default).
+    exact_max_tracks : clusters with more tracks than this use ``approximation``
+        (logged as a warning with the cluster size).
+    approximation : ``"lbp"``, ``"mcmc"``, ``"kbest"`` or ``"pda"``.
+    initiation : ``"two-point"`` (velocity from two unassociated returns of
+        consecutive scans no further apart than ``max_speed·dt``) or
+        ``"one-point"`` (zero velocity, σ_v = max_speed/2).
+    max_speed : largest target speed, m/s.
+    confirm_m, confirm_n : M-of-N confirmation (hits = scans with a gated return).
+    delete_misses : consecutive scans without a gated return that delete a
+        confirmed track.
+    max_position_std : delete a track whose position standard deviation
+        √(tr P_pos / dim) exceeds this (covariance growth).
+    existence : use JIPDA existence probabilities (default) instead of M-of-N
+        logic; M-of-N confirms nearly every clutter-born track once gates hold
+        about one false return each.
+    p_survive : probability that a target survives one scan (JIPDA).
+    r_init, r_confirm, r_delete : initial, confirmation and deletion thresholds
+        of the existence probability (JIPDA).
+    seed : seed of the random generator used by randomised approximations.
+    """
+
+    dim: int = 2
+    motion: str = "cv"
+    process_noise: float = 1.0
+    measurement_noise: float = 100.0
+    p_d: float = 0.9
+    p_g: float = 0.99
+    clutter_density: float | None = None
+    association: str = "exact"
+    exact_max_tracks: int = 24
+    approximation: str = "lbp"
+    initiation: str = "two-point"
+    max_speed: float = 50.0
+    confirm_m: int = 2
+    confirm_n: int = 3
+    delete_misses: int = 3
+    max_position_std: float = math.inf
+    existence: bool = True
+    p_survive: float = 0.99
+    r_init: float = 0.05
+    r_confirm: float = 0.9
+    r_delete: float = 0.01
+    seed: int | None = 0
+
+    def __post_init__(self):
+        def need(cond, msg):
+            if not cond:
+                raise ValueError(f"TrackerConfig: {msg}")
+
+        need(self.dim in (2, 3), f"dim must be 2 or 3, got {self.dim}")
+        need(self.motion in ("cv", "ca"), f"motion must be 'cv' or 'ca', got {self.motion!r}")
+        for name in ("process_noise", "measurement_noise", "max_speed"):
+            v = getattr(self, name)
+            need(math.isfinite(v) and v > 0, f"{name} must be positive and finite, got {v}")
+        for name in ("p_d", "p_g", "p_survive"):
+            v = getattr(self, name)
+            need(0 < v <= 1 and (name != "p_g" or v < 1), f"{name} must lie in (0, 1], got {v}")
+        if self.clutter_density is not None:
+            c = self.clutter_density
+            need(math.isfinite(c) and c > 0, f"clutter_density must be positive, got {c}")
+        from jointtrack.association.core import METHODS
+
+        need(self.association in METHODS, f"association must be one of {METHODS}")
+        need(
+            self.approximation in ("lbp", "mcmc", "kbest", "pda"),
+            f"approximation must be lbp, mcmc, kbest or pda, got {self.approximation!r}",
+        )
+        need(self.exact_max_tracks >= 1, "exact_max_tracks must be ≥ 1")
+        need(self.initiation in ("two-point", "one-point"), "initiation: two-point|one-point")
+        need(1 <= self.confirm_m <= self.confirm_n <= 30, "need 1 ≤ confirm_m ≤ confirm_n ≤ 30")
+        need(self.delete_misses >= 1, "delete_misses must be ≥ 1")
+        need(self.max_position_std > 0, "max_position_std must be positive")
+        need(0 < self.r_delete < self.r_init < 1, "need 0 < r_delete < r_init < 1")
+        need(self.r_delete < self.r_confirm <= 1, "need r_delete < r_confirm ≤ 1")
+
+    @classmethod
+    def from_dict(cls, d: dict) -> TrackerConfig:
+        """Build from a (TOML) mapping; unknown keys are an error naming them."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ValueError(
+                f"unknown tracker setting(s): {', '.join(unknown)}; "
+                f"known: {', '.join(sorted(known))}"
+            )
+        return cls(**d)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class ScanResult:
+    """What one call of :meth:`JPDATracker.step` did.
+
+    ``tracks`` holds the confirmed tracks after the update: ``ids`` (K,),
+    ``x`` (K, n), ``P`` (K, n, n), ``existence`` (K,) (1.0 without JIPDA).
+    ``cluster_sizes`` lists (tracks, measurements) of every multi-track
+    cluster and ``cluster_seconds`` the association time of each.
+    """
+
+    time: float
+    ids: np.ndarray
+    x: np.ndarray
+    P: np.ndarray
+    existence: np.ndarray
+    n_tentative: int
+    n_measurements: int
+    n_unassociated: int
+    cluster_sizes: list = field(default_factory=list)
+    cluster_seconds: list = field(default_factory=list)
+    cluster_methods: list = field(default_factory=list)
+
+
+class JPDATracker:
+    """Multi-target JPDA tracker (see the module docstring).
+
+    >>> trk = JPDATracker(TrackerConfig(clutter_density=1e-4))
+    >>> for t, z in detections:            # z: (M, dim) positions at time t
+    ...     result = trk.step(t, z)        # confirmed tracks in result.ids / result.x
+    """
+
+    def __init__(self, config: TrackerConfig | None = None):
+        self.config = config or TrackerConfig()
+        c = self.config
+        model = ConstantVelocity if c.motion == "cv" else ConstantAcceleration
+        self._motion = model(dim=c.dim, q=c.process_noise)
+        n = self._motion.state_dim
+        self._sensor = LinearPosition(c.dim, c.measurement_noise, state_dim=n)
+        self.rng = np.random.default_rng(c.seed)
+        self.time: float | None = None
+        self.x = np.zeros((0, n))
+        self.P = np.zeros((0, n, n))
+        self.ids = np.zeros(0, np.int64)
+        self.confirmed = np.zeros(0, bool)
+        self.history = np.zeros(0, np.int64)  # bit k: hit k scans ago
+        self.age = np.zeros(0, np.int64)
+        self.misses = np.zeros(0, np.int64)
+        self.existence = np.zeros(0)
+        self.seeds = np.zeros((0, c.dim))  # unassociated returns of the previous scan
+        self.next_id = 1
+        self.n_scans = 0
+
+    # ------------------------------------------------------------------ scan
+    def step(self, t: float, z) -> ScanResult:
+        """Process the measurements ``z`` (M, dim) taken at time ``t``."""
+        c = self.config
+        t = float(t)
+        if not math.isfinite(t):
+            raise ValueError(f"scan time must be finite, got {t}")
+        z = np.asarray(z, dtype=float)
+        if z.size == 0:
+            z = z.reshape(0, c.dim)
+        if z.ndim != 2 or z.shape[1] != c.dim:
+            raise ValueError(f"measurements must have shape (M, {c.dim}), got {z.shape}")
+        if not np.all(np.isfinite(z)):
+            raise ValueError(f"scan at t={t} has a non-finite measurement")
+        if self.time is not None and not t > self.time:
+            raise ValueError(f"scan times must increase: got t={t} after t={self.time}")
+        dt = None if self.time is None else t - self.time
+
+        if dt is not None and len(self.ids):
+            self.x, self.P = predict(
+                self.x, self.P, self._motion.transition(dt), self._motion.noise(dt)
+            )
+            if c.existence:
+                self.existence = self.existence * c.p_survive
+        # Confirmed tracks first; tentative ones only see the returns no confirmed
+        # track gated, so clutter-born tentative tracks cannot glue true targets'
+        # clusters together (cf. a separate initiator, Blackman & Popoli §6).
+        N, M = len(self.ids), len(z)
+        beta = np.zeros((N, M + 1))
+        beta[:, 0] = 1.0
+        hit = np.zeros(N, bool)
+        free = np.arange(M)
+        sizes, seconds, methods = [], [], []
+        for group, loud in (
+            (np.flatnonzero(self.confirmed), True),
+            (np.flatnonzero(~self.confirmed), False),
+        ):
+            if len(group) == 0:
+                continue
+            b, h, free_local, info = self._associate(group, z[free], loud)
+            beta[group, 0] = b[:, 0]
+            beta[np.ix_(group, 1 + free)] = b[:, 1:]
+            hit[group] = h
+            for part, extra in zip((sizes, seconds, methods), info, strict=True):
+                part.extend(extra)
+            free = free[free_local]
+        unassoc = free
+        if N:
+            self.x, self.P = pda_update(self.x, self.P, z, self._sensor.H, self._sensor.R, beta)
+            self._track_logic(hit)
+        self._initiate(z[unassoc], dt)
+        self.time = t
+        self.n_scans += 1
+        keep = self.confirmed
+        return ScanResult(
+            time=t,
+            ids=self.ids[keep].copy(),
+            x=self.x[keep].copy(),
+            P=self.P[keep].copy(),
+            existence=(self.existence[keep] if c.existence else np.ones(int(keep.sum()))),
+            n_tentative=int((~self.confirmed).sum()),
+            n_measurements=len(z),
+            n_unassociated=len(unassoc),
+            cluster_sizes=sizes,
+            cluster_seconds=seconds,
+            cluster_methods=methods,
+        )
+
+    def _associate(self, tracks, z, loud):
+        """β (n, M+1) for the given tracks against ``z``, cluster by cluster.
+
+        Returns ``(beta, hit, unassociated, (sizes, seconds, methods))`` with
+        ``hit`` the tracks that gated a return and ``unassociated`` the returns
+        no track of the group gated.
+        """
+        c = self.config
+        n, M = len(tracks), len(z)
+        x, P = self.x[tracks], self.P[tracks]
+        z_pred, S = predict_measurement(x, P, self._sensor.H, self._sensor.R)
+        g = gate_measurements(z_pred, S, z, P_G=c.p_g)
+        mask = g.mask
+        groups = clusters(mask)
+        lam = np.full(M, c.clutter_density if c.clutter_density else 1.0)
+        if c.clutter_density is None:
+            # Bojilov (8): λ = Σ_i m_i / Σ_i V_i over the cluster's tracks
+            m_i = mask.sum(axis=1)
+            for cl in groups.clusters:
+                if len(cl.measurements):
+                    lam[cl.measurements] = m_i[cl.tracks].sum() / g.gate_volume[cl.tracks].sum()
+        r = self.existence[tracks] if c.existence else np.ones(n)
+        pdg = c.p_d * c.p_g
+        with np.errstate(under="ignore", divide="ignore"):
+            L = np.where(mask, np.exp(np.log(c.p_d * r)[:, None] + g.log_g - np.log(lam)), 0.0)
+        miss = 1.0 - r * pdg
+        beta = np.zeros((n, M + 1))
+        beta[:, 0] = 1.0
+        sizes, seconds, methods = [], [], []
+        for cl in groups.clusters:
+            tr, ms = cl.tracks, cl.measurements
+            if len(ms) == 0:
+                continue
+            Lc, mc = L[np.ix_(tr, ms)], miss[tr]
+            if len(tr) == 1:  # one track: PDA is exact
+                w = np.concatenate([mc, Lc[0]])
+                beta[tr[0], 0] = w[0] / w.sum()
+                beta[tr[0], 1 + ms] = w[1:] / w.sum()
+                continue
+            method = c.association
+            opts = {}
+            if len(tr) > c.exact_max_tracks and method in ("exact", "enumerate"):
+                method = c.approximation
+                (log.warning if loud else log.debug)(
+                    "cluster of %d %s tracks and %d measurements exceeds exact_max_tracks=%d: "
+                    "using %s",
+                    len(tr),
+                    "confirmed" if loud else "tentative",
+                    len(ms),
+                    c.exact_max_tracks,
+                    method,
+                )
+            if method == "mcmc":
+                opts["rng"] = self.rng
+            t0 = _time.perf_counter()
+            bc = marginals(Lc, mc, method=method, **opts)
+            seconds.append(_time.perf_counter() - t0)
+            sizes.append((len(tr), len(ms)))
+            methods.append(method)
+            beta[tr, 0] = bc[:, 0]
+            beta[np.ix_(tr, 1 + ms)] = bc[:, 1:]
+        if c.existence:
+            beta = self._existence_update(tracks, beta, r, pdg)
+        return beta, mask.any(axis=1), groups.unassociated, (sizes, seconds, methods)
+
+    def _existence_update(self, tracks, beta, r, pdg):
+        """JIPDA: posterior existence and β conditioned on existence (Mušicki & Evans 2004)."""
+        exists_missed = beta[:, 0] * r * (1.0 - pdg) / (1.0 - r * pdg)
+        r_post = np.clip(exists_missed + (1.0 - beta[:, 0]), 1e-12, 1.0)
+        cond = beta.copy()
+        cond[:, 0] = exists_missed
+        cond /= cond.sum(axis=1, keepdims=True)
+        self.existence[tracks] = r_post
+        return cond
+
+    def _track_logic(self, hit):
+        c = self.config
+        self.age += 1
+        self.history = ((self.history << 1) | hit.astype(np.int64)) & ((1 << c.confirm_n) - 1)
+        self.misses = np.where(hit, 0, self.misses + 1)
+        pos_var = np.einsum("nii->n", self.P[:, : c.dim, : c.dim]) / c.dim
+        blown = np.sqrt(pos_var) > c.max_position_std
+        if c.existence:
+            self.confirmed |= self.existence >= c.r_confirm
+            dead = self.existence < c.r_delete
+        else:
+            hits = np.array([bin(h).count("1") for h in self.history], dtype=np.int64)
+            self.confirmed |= hits >= c.confirm_m
+            dead_tentative = ~self.confirmed & (self.age >= c.confirm_n)
+            dead = dead_tentative | (self.confirmed & (self.misses >= c.delete_misses))
+        self._keep(~(dead | blown))
+
+    def _keep(self, keep):
+        for name in ("x", "P", "ids", "confirmed", "history", "age", "misses", "existence"):
+            setattr(self, name, getattr(self, name)[keep])
+
+    def _initiate(self, z_new, dt):
+        """Start tentative tracks from returns no track claimed (two- or one-point)."""
+        c = self.config
+        n = self._motion.state_dim
+        d = c.dim
+        R = c.measurement_noise
+        if c.initiation == "one-point":
+            starts = z_new
+            vel = np.zeros_like(z_new)
+            var_v = np.full(len(z_new), (c.max_speed / 2.0) ** 2)
+            cov_pv = np.zeros(len(z_new))
+            self.seeds = np.zeros((0, d))
+        else:
+            starts = vel = np.zeros((0, d))
+            var_v = cov_pv = np.zeros(0)
+            if dt is not None and len(self.seeds) and len(z_new):
+                dist = np.linalg.norm(z_new[:, None, :] - self.seeds[None, :, :], axis=2)
+                reach = c.max_speed * dt + 3.0 * math.sqrt(2.0 * R)
+                cost = np.where(dist <= reach, dist, 1e12)
+                rows, cols = linear_sum_assignment(cost)
+                ok = cost[rows, cols] < 1e12
+                rows, cols = rows[ok], cols[ok]
+                starts = z_new[rows]
+                vel = (z_new[rows] - self.seeds[cols]) / dt
+                var_v = np.full(len(rows), 2.0 * R / dt**2)
+                cov_pv = np.full(len(rows), R / dt)
+                unused = np.ones(len(z_new), bool)
+                unused[rows] = False
+                self.seeds = z_new[unused]
+            else:
+                self.seeds = z_new
+        k = len(starts)
+        if k == 0:
+            return
+        x0 = np.zeros((k, n))
+        x0[:, :d] = starts
+        x0[:, d : 2 * d] = vel
+        P0 = np.zeros((k, n, n))
+        idx = np.arange(d)
+        P0[:, idx, idx] = R
+        P0[:, d + idx, d + idx] = var_v[:, None]
+        P0[:, idx, d + idx] = cov_pv[:, None]
+        P0[:, d + idx, idx] = cov_pv[:, None]
+        if n > 2 * d:  # constant acceleration: acceleration unknown
+            a = 2 * d + idx
+            P0[:, a, a] = (c.max_speed / 2.0) ** 2
+        self.x = np.concatenate([self.x, x0])
+        self.P = np.concatenate([self.P, P0])
+        self.ids = np.concatenate([self.ids, np.arange(self.next_id, self.next_id + k)])
+        self.next_id += k
+        self.confirmed = np.concatenate([self.confirmed, np.zeros(k, bool)])
+        self.history = np.concatenate([self.history, np.ones(k, np.int64)])
+        self.age = np.concatenate([self.age, np.zeros(k, np.int64)])
+        self.misses = np.concatenate([self.misses, np.zeros(k, np.int64)])
+        self.existence = np.concatenate([self.existence, np.full(k, c.r_init)])
+
+    def start_tracks(self, x0, P0, *, confirmed: bool = True, existence: float = 0.99):
+        """Add tracks with known states (e.g. from a previous stage or ground truth).
+
+        ``x0`` (K, n) states in the motion model's layout, ``P0`` (K, n, n) or
+        (n, n) covariances. Returns the new track ids.
+        """
+        n = self._motion.state_dim
+        x0 = np.atleast_2d(np.asarray(x0, dtype=float))
+        if x0.ndim != 2 or x0.shape[1] != n:
+            raise ValueError(f"x0 must have shape (K, {n}), got {x0.shape}")
+        P0 = np.asarray(P0, dtype=float)
+        P0 = np.broadcast_to(P0, (len(x0), n, n)).copy()
+        if not (np.all(np.isfinite(x0)) and np.all(np.isfinite(P0))):
+            raise ValueError("x0 and P0 must be finite")
+        if np.any(np.linalg.eigvalsh(0.5 * (P0 + P0.transpose(0, 2, 1))) <= 0):
+            raise ValueError("every P0 must be symmetric positive definite")
+        k = len(x0)
+        ids = np.arange(self.next_id, self.next_id + k)
+        self.next_id += k
+        self.x = np.concatenate([self.x, x0])
+        self.P = np.concatenate([self.P, P0])
+        self.ids = np.concatenate([self.ids, ids])
+        self.confirmed = np.concatenate([self.confirmed, np.full(k, confirmed)])
+        self.history = np.concatenate([self.history, np.ones(k, np.int64)])
+        self.age = np.concatenate([self.age, np.zeros(k, np.int64)])
+        self.misses = np.concatenate([self.misses, np.zeros(k, np.int64)])
+        self.existence = np.concatenate([self.existence, np.full(k, float(existence))])
+        return ids
+
+    # ------------------------------------------------------------ save/load
+    _FIELDS = (
+        "time",
+        "x",
+        "P",
+        "ids",
+        "confirmed",
+        "history",
+        "age",
+        "misses",
+        "existence",
+        "seeds",
+        "next_id",
+        "n_scans",
+    )
+
+    def state_dict(self) -> dict:
+        """Everything needed to continue the run identically (plain types and arrays)."""
+        state = {name: getattr(self, name) for name in self._FIELDS}
+        state["config"] = self.config.to_dict()
+        state["rng"] = self.rng.bit_generator.state
+        state["version"] = _STATE_VERSION
+        return state
+
+    @classmethod
+    def from_state_dict(cls, state: dict) -> JPDATracker:
+        if state.get("version") != _STATE_VERSION:
+            raise ValueError(
+                f"tracker state version {state.get('version')!r} is not supported "
+                f"(this jointtrack writes version {_STATE_VERSION})"
+            )
+        trk = cls(TrackerConfig.from_dict(state["config"]))
+        for name in cls._FIELDS:
+            setattr(trk, name, state[name])
+        trk.rng.bit_generator.state = state["rng"]
+        return trk
+
+    def save(self, path) -> Path:
+        """Write the tracker state to ``path`` (pickle of plain arrays; atomic replace)."""
+        path = Path(path)
+        tmp = path.with_suffix(path.suffix + ".tmp")
+        with open(tmp, "wb") as fh:
+            pickle.dump(self.state_dict(), fh, protocol=pickle.HIGHEST_PROTOCOL)
+        tmp.replace(path)
+        return path
+
+    @classmethod
+    def load(cls, path) -> JPDATracker:
+        """Restore a tracker written by :meth:`save`; the run continues identically."""
+        path = Path(path)
+        try:
+            with open(path, "rb") as fh:
+                state = pickle.load(fh)
+        except FileNotFoundError:
+            raise ValueError(f"{path}: no such tracker state file") from None
+        except (pickle.UnpicklingError, EOFError, AttributeError, ImportError) as exc:
+            raise ValueError(f"{path}: not a jointtrack tracker state file ({exc})") from None
+        if not isinstance(state, dict) or "config" not in state:
+            raise ValueError(f"{path}: not a jointtrack tracker state file")
+        return cls.from_state_dict(state)
