@@ -1,0 +1,138 @@
+"""JPDA tracker end to end: crossing targets, save/restore, configuration and bad input."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+
+from jointtrack.metrics import gospa_series, track_statistics
+from jointtrack.scenarios import bojilov, crossing
+from jointtrack.trackers import JPDATracker, TrackerConfig
+
+
+def config_for(sc, **kw):
+    return TrackerConfig(
+        process_noise=max(sc.process_noise, 0.05),
+        measurement_noise=float(sc.R[0, 0]),
+        p_d=sc.p_d,
+        clutter_density=sc.clutter_density,
+        max_speed=15.0,
+        **kw,
+    )
+
+
+def run(trk, sc, scans=None):
+    rows = []
+    for t, z in list(zip(sc.times, sc.detections, strict=True))[scans or slice(None)]:
+        r = trk.step(t, z)
+        rows += [(t, i, *x) for i, x in zip(r.ids, r.x, strict=True)]
+    return np.array(rows).reshape(-1, 2 + trk.x.shape[1])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_crossing_targets_keep_both_tracks(seed):
+    sc = crossing(seed=seed)
+    rows = run(JPDATracker(config_for(sc)), sc)
+    truth = sc.truth_table()
+    stats = track_statistics(*truth, rows[:, 0], rows[:, 1].astype(int), rows[:, 2:4], gate=30)
+    g = gospa_series(*truth, rows[:, 0], rows[:, 1].astype(int), rows[:, 2:4], c=30)
+    # Bound: the first two scans are initiation (two missed targets cost 2·c²/2 each
+    # scan), afterwards localisation error ~ σ = 10 m per target.
+    assert g.mean <= 20.0, g.mean
+    assert stats.n_true_tracks == 2
+    assert stats.n_false_tracks <= 1
+    assert stats.n_id_switches == 0
+
+
+def test_exact_and_enumerate_give_the_same_tracks():
+    sc = bojilov(0.2, seed=2, n_scans=45)
+    out = []
+    for method in ("exact", "enumerate"):
+        trk = JPDATracker(config_for(sc, association=method, exact_max_tracks=5))
+        trk.start_tracks(sc.truth_states[0], np.diag([100.0, 100.0, 4.0, 4.0]))
+        out.append(run(trk, sc))
+    assert out[0].shape == out[1].shape
+    np.testing.assert_allclose(out[0], out[1], rtol=0, atol=1e-8)
+
+
+def test_save_and_load_continue_identically(tmp_path):
+    sc = crossing(seed=7)
+    cfg = config_for(sc, association="mcmc", exact_max_tracks=1)  # uses the rng too
+    full = JPDATracker(cfg)
+    first = run(full, sc, slice(0, 20))
+    path = full.save(tmp_path / "state.pkl")
+    rest_a = run(full, sc, slice(20, None))
+    restored = JPDATracker.load(path)
+    rest_b = run(restored, sc, slice(20, None))
+    assert len(first) and len(rest_a)
+    np.testing.assert_array_equal(rest_a, rest_b)
+
+
+def test_oversized_cluster_falls_back_with_warning(caplog):
+    trk = JPDATracker(TrackerConfig(clutter_density=1e-4, exact_max_tracks=2))
+    x0 = np.array([[0.0, 0, 1, 0], [5.0, 0, 1, 0], [10.0, 0, 1, 0]])
+    trk.start_tracks(x0, np.diag([100.0, 100, 1, 1]))
+    with caplog.at_level(logging.WARNING, logger="jointtrack.tracker"):
+        r = trk.step(1.0, np.array([[1.0, 0], [6.0, 0], [11.0, 0]]))
+    assert r.cluster_methods == ["lbp"]
+    assert r.cluster_sizes == [(3, 3)]
+    assert "cluster of 3 confirmed tracks" in caplog.text
+
+
+def test_empty_scans_and_no_tracks():
+    trk = JPDATracker(TrackerConfig(clutter_density=1e-4))
+    r = trk.step(0.0, np.zeros((0, 2)))
+    assert r.ids.size == 0 and r.n_measurements == 0
+    r = trk.step(1.0, [[0.0, 0.0]])
+    assert r.n_unassociated == 1
+    trk.start_tracks([0.0, 0.0, 1.0, 0.0], np.eye(4) * 10)
+    r = trk.step(2.0, np.zeros((0, 2)))
+    assert len(r.ids) == 1  # coasts through an empty scan
+
+
+def test_bad_input():
+    trk = JPDATracker(TrackerConfig(clutter_density=1e-4))
+    trk.step(1.0, [[0.0, 0.0]])
+    with pytest.raises(ValueError, match="increase"):
+        trk.step(1.0, [[0.0, 0.0]])
+    with pytest.raises(ValueError, match="shape"):
+        trk.step(2.0, [[0.0, 0.0, 0.0]])
+    with pytest.raises(ValueError, match="non-finite"):
+        trk.step(2.0, [[np.nan, 0.0]])
+    with pytest.raises(ValueError, match="positive definite"):
+        trk.start_tracks([0.0, 0, 0, 0], -np.eye(4))
+    with pytest.raises(ValueError, match="p_d"):
+        TrackerConfig(p_d=1.5)
+    with pytest.raises(ValueError, match="unknown tracker setting"):
+        TrackerConfig.from_dict({"p_d": 0.9, "pd": 0.8})
+    with pytest.raises(ValueError, match="association"):
+        TrackerConfig(association="hungarian")
+
+
+def test_load_rejects_foreign_files(tmp_path):
+    bad = tmp_path / "x.pkl"
+    bad.write_bytes(b"not a pickle")
+    with pytest.raises(ValueError, match="not a jointtrack tracker state"):
+        JPDATracker.load(bad)
+    with pytest.raises(ValueError, match="no such"):
+        JPDATracker.load(tmp_path / "missing.pkl")
+
+
+def test_m_of_n_logic_confirms_and_deletes():
+    cfg = TrackerConfig(
+        clutter_density=1e-6,
+        existence=False,
+        confirm_m=2,
+        confirm_n=3,
+        delete_misses=2,
+        initiation="one-point",
+        max_speed=5.0,
+    )
+    trk = JPDATracker(cfg)
+    track = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]
+    ids = [trk.step(t, [p]).ids for t, p in enumerate(track)]
+    assert len(ids[0]) == 0 and len(ids[1]) == 1  # confirmed at the second hit
+    trk.step(3.0, np.zeros((0, 2)))
+    assert len(trk.step(4.0, np.zeros((0, 2))).ids) == 0  # deleted after 2 misses
