@@ -150,10 +150,12 @@ class TrackerConfig:
 class ScanResult:
     """What one call of :meth:`JPDATracker.step` did.
 
-    ``tracks`` holds the confirmed tracks after the update: ``ids`` (K,),
-    ``x`` (K, n), ``P`` (K, n, n), ``existence`` (K,) (1.0 without JIPDA).
+    The confirmed tracks after the update: ``ids`` (K,), ``x`` (K, n),
+    ``P`` (K, n, n), ``existence`` (K,) (1.0 without JIPDA).
     ``cluster_sizes`` lists (tracks, measurements) of every multi-track
-    cluster and ``cluster_seconds`` the association time of each.
+    cluster, ``cluster_seconds`` the association time of each,
+    ``cluster_methods`` the method used and ``cluster_confirmed`` whether it
+    was a cluster of confirmed (True) or tentative (False) tracks.
     """
 
     time: float
@@ -167,6 +169,7 @@ class ScanResult:
     cluster_sizes: list = field(default_factory=list)
     cluster_seconds: list = field(default_factory=list)
     cluster_methods: list = field(default_factory=list)
+    cluster_confirmed: list = field(default_factory=list)
 
 
 class JPDATracker:
@@ -230,7 +233,7 @@ class JPDATracker:
         beta[:, 0] = 1.0
         hit = np.zeros(N, bool)
         free = np.arange(M)
-        sizes, seconds, methods = [], [], []
+        sizes, seconds, methods, kinds = [], [], [], []
         for group, loud in (
             (np.flatnonzero(self.confirmed), True),
             (np.flatnonzero(~self.confirmed), False),
@@ -243,6 +246,7 @@ class JPDATracker:
             hit[group] = h
             for part, extra in zip((sizes, seconds, methods), info, strict=True):
                 part.extend(extra)
+            kinds.extend([loud] * len(info[0]))
             free = free[free_local]
         unassoc = free
         if N:
@@ -264,6 +268,7 @@ class JPDATracker:
             cluster_sizes=sizes,
             cluster_seconds=seconds,
             cluster_methods=methods,
+            cluster_confirmed=kinds,
         )
 
     def _associate(self, tracks, z, loud):

@@ -1,0 +1,12 @@
+"""The JPDA tracker end to end; see jointtrack.bench.tracker. Same as `jointtrack bench tracker`."""
+
+import argparse
+
+from jointtrack.bench.tracker import run
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="fewer scans and seeds")
+    parser.add_argument("--out", help="also write the results as JSON to this file")
+    args = parser.parse_args()
+    run(quick=args.quick, out=args.out)
