@@ -8,8 +8,7 @@ from fractions import Fraction
 import numpy as np
 
 
-def brute_permanent(A) -> float:
-    """Sum over injective maps of rows into columns, in exact rational arithmetic."""
+def _exact_permanent(A) -> Fraction:
     A = np.asarray(A, dtype=float)
     n, m = A.shape
     F = [[Fraction(float(x)) for x in row] for row in A]
@@ -21,7 +20,12 @@ def brute_permanent(A) -> float:
             if p == 0:
                 break
         total += p
-    return float(total)
+    return total
+
+
+def brute_permanent(A) -> float:
+    """Sum over injective maps of rows into columns, in exact rational arithmetic."""
+    return float(_exact_permanent(A))
 
 
 def brute_marginals(A) -> np.ndarray:
@@ -57,15 +61,4 @@ def _log_fraction(x: Fraction) -> float:
 
 def brute_log_permanent(A) -> float:
     """log of the exact permanent (finite even when the value under/overflows float64)."""
-    A = np.asarray(A, dtype=float)
-    n, m = A.shape
-    F = [[Fraction(float(x)) for x in row] for row in A]
-    total = Fraction(0)
-    for cols in itertools.permutations(range(m), n):
-        p = Fraction(1)
-        for i, j in enumerate(cols):
-            p *= F[i][j]
-            if p == 0:
-                break
-        total += p
-    return _log_fraction(total)
+    return _log_fraction(_exact_permanent(A))

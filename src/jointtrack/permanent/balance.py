@@ -22,6 +22,7 @@ from jointtrack.permanent._validate import check_compressed, check_matrix
 
 @nb.njit(cache=True)
 def _lse_rows(logA, add_cols):
+    """log Σ_j exp(logA[i, j] + add_cols[j]) for every row i (stable; -inf rows stay -inf)."""
     n, m = logA.shape
     out = np.empty(n)
     for i in range(n):
@@ -41,26 +42,6 @@ def _lse_rows(logA, add_cols):
 
 
 @nb.njit(cache=True)
-def _lse_cols(logA, add_rows):
-    n, m = logA.shape
-    out = np.empty(m)
-    for j in range(m):
-        mx = -np.inf
-        for i in range(n):
-            v = logA[i, j] + add_rows[i]
-            if v > mx:
-                mx = v
-        if mx == -np.inf:
-            out[j] = -np.inf
-            continue
-        s = 0.0
-        for i in range(n):
-            s += np.exp(logA[i, j] + add_rows[i] - mx)
-        out[j] = mx + np.log(s)
-    return out
-
-
-@nb.njit(cache=True)
 def _log_scaling(logA, log_rows, log_cols, col_target, iters, tol):
     """Alternate row/column normalisation in log space (weighted by group counts).
 
@@ -69,12 +50,13 @@ def _log_scaling(logA, log_rows, log_cols, col_target, iters, tol):
     relative row-sum error when ``tol > 0`` (else inf).
     """
     n, m = logA.shape
+    logAT = np.ascontiguousarray(logA.T)
     u = np.zeros(n)
     v = np.zeros(m)
     err = np.inf
     for _ in range(iters):
         u = -_lse_rows(logA, v + log_cols)
-        s = _lse_cols(logA, u + log_rows)
+        s = _lse_rows(logAT, u + log_rows)
         for j in range(m):
             v[j] = col_target - s[j] if np.isfinite(s[j]) else 0.0
         if tol > 0.0:
@@ -137,7 +119,7 @@ def _well_balanced(logA, er, ec, rows, cols) -> bool:
     """
     ln2 = np.log(2.0)
     r = _lse_rows(logA, ln2 * ec + np.log(cols)) + ln2 * er
-    c = _lse_cols(logA, ln2 * er + np.log(rows)) + ln2 * ec
+    c = _lse_rows(np.ascontiguousarray(logA.T), ln2 * er + np.log(rows)) + ln2 * ec
     return bool(np.all(np.abs(r) <= 2 * ln2) and np.all(np.abs(c) <= 2 * ln2))
 
 

@@ -31,14 +31,71 @@ def _two_sum(a, b):
     return s, (a - (s - bb)) + (b - bb)
 
 
+@nb.njit(cache=True, inline="always")
+def _parity(g):
+    parity = 0
+    while g:
+        parity ^= g & 1
+        g >>= 1
+    return parity
+
+
+@nb.njit(cache=True, inline="always")
+def _signed_product(sign, hi, lo, n):
+    # two interleaved partial products: half the dependency chain, same rounding
+    p1 = sign
+    p2 = 1.0
+    for j in range(0, n - 1, 2):
+        p1 *= hi[j] + lo[j]
+        p2 *= hi[j + 1] + lo[j + 1]
+    if n & 1:
+        p1 *= hi[n - 1] + lo[n - 1]
+    return p1 * p2
+
+
+@nb.njit(cache=True, inline="always")
+def _dd_add(hi, lo, values, scale):
+    """Running double-double sums: (hi, lo) += scale · values, error-free per step."""
+    for j in range(hi.shape[0]):
+        h, e = _two_sum(hi[j], scale * values[j])
+        hi[j] = h
+        lo[j] += e
+
+
+@nb.njit(cache=True, inline="always")
+def _flipped_bit(k):
+    """Index of the bit that changes between Gray codes k−1 and k (k ≥ 1)."""
+    b = 0
+    while (k & 1) == 0:
+        k >>= 1
+        b += 1
+    return b
+
+
+@nb.njit(cache=True)
+def _combine(res, comp, absr, sq):
+    s = 0.0
+    cs = 0.0
+    a = 0.0
+    q = 0.0
+    for c in range(res.shape[0]):
+        s, e = _two_sum(s, res[c])
+        cs += e + comp[c]
+        a += absr[c]
+        q += sq[c]
+    return s + cs, a, np.sqrt(q)
+
+
 @nb.njit(parallel=True, cache=True)
 def glynn_kernel(A, log2_chunk):
-    """Return (Σ terms, Σ |terms|, √Σ terms²) of Glynn's formula, each divided by 2^{n−1}."""
+    """Return (Σ terms, Σ |terms|, √Σ terms²) of Glynn's formula, each divided by 2^{n−1}.
+
+    Row 0 always enters with δ = +1; bit i−1 of the Gray code g set means δ_i = −1.
+    """
     n = A.shape[0]
     total = np.int64(1) << (n - 1)
     csize = min(total, np.int64(1) << log2_chunk)
     nchunks = total // csize
-    A2 = 2.0 * A
     res = np.zeros(nchunks)
     comp = np.zeros(nchunks)
     absr = np.zeros(nchunks)
@@ -46,80 +103,40 @@ def glynn_kernel(A, log2_chunk):
     for c in nb.prange(nchunks):
         start = c * csize
         g = start ^ (start >> 1)
-        hi = np.empty(n)
-        lo = np.empty(n)
-        for j in range(n):
-            h = A[0, j]
-            lsum = 0.0
-            for i in range(1, n):
-                x = -A[i, j] if (g >> (i - 1)) & 1 else A[i, j]
-                h, e = _two_sum(h, x)
-                lsum += e
-            hi[j] = h
-            lo[j] = lsum
-        parity = 0
-        x = g
-        while x:
-            parity ^= x & 1
-            x >>= 1
-        sign = -1.0 if parity else 1.0
-        acc = 0.0
-        cacc = 0.0
-        aacc = 0.0
-        qacc = 0.0
+        hi = A[0].copy()
+        lo = np.zeros(n)
+        for i in range(1, n):
+            _dd_add(hi, lo, A[i], -1.0 if (g >> (i - 1)) & 1 else 1.0)
+        sign = -1.0 if _parity(g) else 1.0
+        acc = cacc = aacc = qacc = 0.0
         for k in range(start, start + csize):
-            p1 = sign
-            p2 = 1.0
-            for j in range(0, n - 1, 2):
-                p1 *= hi[j] + lo[j]
-                p2 *= hi[j + 1] + lo[j + 1]
-            if n & 1:
-                p1 *= hi[n - 1] + lo[n - 1]
-            p = p1 * p2
+            p = _signed_product(sign, hi, lo, n)
             acc, e = _two_sum(acc, p)
             cacc += e
             aacc += abs(p)
             qacc += p * p
             if k + 1 < start + csize:
-                kk = k + 1
-                b = 0
-                while (kk & 1) == 0:
-                    kk >>= 1
-                    b += 1
-                i = b + 1
-                if (g >> b) & 1:
-                    for j in range(n):
-                        h, e = _two_sum(hi[j], A2[i, j])
-                        hi[j] = h
-                        lo[j] += e
-                else:
-                    for j in range(n):
-                        h, e = _two_sum(hi[j], -A2[i, j])
-                        hi[j] = h
-                        lo[j] += e
+                b = _flipped_bit(k + 1)
+                _dd_add(hi, lo, A[b + 1], 2.0 if (g >> b) & 1 else -2.0)
                 g ^= np.int64(1) << b
                 sign = -sign
         res[c] = acc
         comp[c] = cacc
         absr[c] = aacc
         sq[c] = qacc
-    s = 0.0
-    cs = 0.0
-    a = 0.0
-    q = 0.0
-    for c in range(nchunks):
-        s, e = _two_sum(s, res[c])
-        cs += e + comp[c]
-        a += absr[c]
-        q += sq[c]
+    value, a, q = _combine(res, comp, absr, sq)
     scale = 2.0 ** (1 - n)
-    return (s + cs) * scale, a * scale, np.sqrt(q) * scale
+    return value * scale, a * scale, q * scale
 
 
 @nb.njit(parallel=True, cache=True)
 def ryser_kernel(A, log2_chunk):
-    """Return (Σ terms, Σ |terms|, √Σ terms²) of Ryser's formula (Schaub eq. 35)."""
+    """Return (Σ terms, Σ |terms|, √Σ terms²) of Ryser's formula (Schaub eq. 35).
+
+    Bit j of the Gray code g set means column j is in the subset Y.
+    """
     n = A.shape[0]
+    AT = np.ascontiguousarray(A.T)
     total = np.int64(1) << n
     csize = min(total, np.int64(1) << log2_chunk)
     nchunks = total // csize
@@ -130,69 +147,26 @@ def ryser_kernel(A, log2_chunk):
     for c in nb.prange(nchunks):
         start = c * csize
         g = start ^ (start >> 1)
-        hi = np.empty(n)
-        lo = np.empty(n)
-        for i in range(n):
-            h = 0.0
-            lsum = 0.0
-            for j in range(n):
-                if (g >> j) & 1:
-                    h, e = _two_sum(h, A[i, j])
-                    lsum += e
-            hi[i] = h
-            lo[i] = lsum
-        parity = n & 1
-        x = g
-        while x:
-            parity ^= x & 1
-            x >>= 1
-        sign = -1.0 if parity else 1.0
-        acc = 0.0
-        cacc = 0.0
-        aacc = 0.0
-        qacc = 0.0
+        hi = np.zeros(n)
+        lo = np.zeros(n)
+        for j in range(n):
+            if (g >> j) & 1:
+                _dd_add(hi, lo, AT[j], 1.0)
+        sign = -1.0 if (n & 1) ^ _parity(g) else 1.0
+        acc = cacc = aacc = qacc = 0.0
         for k in range(start, start + csize):
-            p1 = sign
-            p2 = 1.0
-            for i in range(0, n - 1, 2):
-                p1 *= hi[i] + lo[i]
-                p2 *= hi[i + 1] + lo[i + 1]
-            if n & 1:
-                p1 *= hi[n - 1] + lo[n - 1]
-            p = p1 * p2
+            p = _signed_product(sign, hi, lo, n)
             acc, e = _two_sum(acc, p)
             cacc += e
             aacc += abs(p)
             qacc += p * p
             if k + 1 < start + csize:
-                kk = k + 1
-                b = 0
-                while (kk & 1) == 0:
-                    kk >>= 1
-                    b += 1
-                if (g >> b) & 1:
-                    for i in range(n):
-                        h, e = _two_sum(hi[i], -A[i, b])
-                        hi[i] = h
-                        lo[i] += e
-                else:
-                    for i in range(n):
-                        h, e = _two_sum(hi[i], A[i, b])
-                        hi[i] = h
-                        lo[i] += e
+                b = _flipped_bit(k + 1)
+                _dd_add(hi, lo, AT[b], -1.0 if (g >> b) & 1 else 1.0)
                 g ^= np.int64(1) << b
                 sign = -sign
         res[c] = acc
         comp[c] = cacc
         absr[c] = aacc
         sq[c] = qacc
-    s = 0.0
-    cs = 0.0
-    a = 0.0
-    q = 0.0
-    for c in range(nchunks):
-        s, e = _two_sum(s, res[c])
-        cs += e + comp[c]
-        a += absr[c]
-        q += sq[c]
-    return s + cs, a, np.sqrt(q)
+    return _combine(res, comp, absr, sq)
