@@ -136,3 +136,18 @@ def test_m_of_n_logic_confirms_and_deletes():
     assert len(ids[0]) == 0 and len(ids[1]) == 1  # confirmed at the second hit
     trk.step(3.0, np.zeros((0, 2)))
     assert len(trk.step(4.0, np.zeros((0, 2))).ids) == 0  # deleted after 2 misses
+
+
+def test_cluster_hook_sees_every_multi_track_cluster():
+    sc = bojilov(1.0, seed=4, n_scans=50)
+    records = []
+    trk = JPDATracker(config_for(sc), on_cluster=records.append)
+    trk.start_tracks(sc.truth_states[0], np.diag([100.0, 100.0, 4.0, 4.0]))
+    n_reported = 0
+    for t, z in zip(sc.times, sc.detections, strict=True):
+        n_reported += len(trk.step(t, z).cluster_sizes)
+    assert len(records) == n_reported > 0
+    assert any(r.confirmed and len(r.track_ids) == 5 for r in records)
+    for r in records:
+        assert r.beta.shape == (len(r.track_ids), r.L.shape[1] + 1)
+        np.testing.assert_allclose(r.beta.sum(axis=1), 1.0, atol=1e-12)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import importlib
+from pathlib import Path
+from typing import Annotated
 
 import typer
 
@@ -47,6 +49,17 @@ def bench_permanent(
     _run_bench("permanent", quick, out)
 
 
+@bench_app.command("tracker")
+def bench_tracker(
+    quick: bool = typer.Option(
+        False, "--quick", help="Fewer scans and seeds; finishes in seconds."
+    ),
+    out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
+) -> None:
+    """JPDA tracker end to end: many-target scan rate, Bojilov cluster cost vs his Table 3."""
+    _run_bench("tracker", quick, out)
+
+
 @bench_app.command("association")
 def bench_association(
     quick: bool = typer.Option(False, "--quick", help="Smaller sizes; finishes in seconds."),
@@ -54,6 +67,185 @@ def bench_association(
 ) -> None:
     """JPDA association engine vs Stone Soup and pyehm on the canonical clusters."""
     _run_bench("association", quick, out)
+
+
+reproduce_app = typer.Typer(
+    help="Reproduce a paper's tables beside the paper's own numbers.", no_args_is_help=True
+)
+app.add_typer(reproduce_app, name="reproduce")
+
+
+def _fail(message, code: int = 2):
+    """One red line on stderr and exit ``code`` (never a traceback)."""
+    from rich.console import Console
+
+    text = " ".join(str(message).split())
+    Console(stderr=True).print(
+        f"error: {text}", style="bold red", markup=False, highlight=False, soft_wrap=True
+    )
+    raise typer.Exit(code)
+
+
+@app.command("run")
+def run_command(
+    detections: Annotated[
+        Path | None,
+        typer.Option(
+            "--detections", help="Detections file (CSV or Parquet: time, x, y[, z][, sensor])."
+        ),
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option("--config", help="TOML file with tracker, scenario and metrics tables."),
+    ] = None,
+    scenario: Annotated[
+        str | None,
+        typer.Option("--scenario", help="Built-in scenario: bojilov (default) | crossing | many."),
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("jointtrack-out"),
+    seed: Annotated[int | None, typer.Option("--seed", help="Scenario seed (default 0).")] = None,
+    fmt: Annotated[
+        str, typer.Option("--format", help="Tracks file format: csv | parquet.")
+    ] = "csv",
+    checkpoint: Annotated[
+        Path | None,
+        typer.Option("--checkpoint", help="Save the tracker state to this file as the run goes."),
+    ] = None,
+    checkpoint_every: Annotated[
+        int, typer.Option("--checkpoint-every", help="Scans between checkpoints.")
+    ] = 10,
+    resume: Annotated[
+        Path | None,
+        typer.Option("--resume", help="Continue from this checkpoint with the next scan."),
+    ] = None,
+    max_scans: Annotated[
+        int | None,
+        typer.Option("--max-scans", help="Stop after this many scans (counted from the first)."),
+    ] = None,
+    progress: Annotated[
+        bool | None,
+        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
+    ] = None,
+) -> None:
+    """Track: detections in, tracks out (default: Bojilov's five targets, beta = 1, seed 0).
+
+    Writes tracks.csv (or .parquet), metrics.json, scene.png and gospa.png to
+    --out and prints a summary.
+    """
+    from rich.console import Console
+
+    from jointtrack.io import DataFileError
+
+    console = Console()
+    show = console.is_terminal if progress is None else progress
+    try:
+        from jointtrack.experiments import run as runmod
+
+        if fmt not in runmod.FORMATS:
+            raise runmod.RunConfigError(f"--format must be csv or parquet, got {fmt!r}")
+        if scenario is not None and scenario not in runmod.SCENARIOS:
+            raise runmod.RunConfigError(
+                f"--scenario must be one of {', '.join(runmod.SCENARIOS)}, got {scenario!r}"
+            )
+        cfg = runmod.load_config(config) if config is not None else runmod.RunConfig()
+        common = dict(
+            out_dir=out,
+            fmt=fmt,
+            progress=show,
+            checkpoint=checkpoint,
+            checkpoint_every=checkpoint_every,
+            resume=resume,
+            max_scans=max_scans,
+            metrics_opts=cfg.metrics,
+            console=console,
+        )
+        if detections is not None:
+            if scenario is not None or seed is not None:
+                raise runmod.RunConfigError(
+                    "--detections cannot be combined with --scenario or --seed"
+                )
+            from jointtrack.io import read_detections
+
+            dets = read_detections(detections)
+            tracker_cfg = runmod.make_tracker_config(
+                {"dim": dets.dim}, cfg.tracker, source=cfg.source
+            )
+            if tracker_cfg.dim != dets.dim:
+                raise runmod.RunConfigError(
+                    f"{cfg.source}: [tracker] key 'dim' = {tracker_cfg.dim} but {detections} "
+                    f"holds {dets.dim}-D detections"
+                )
+            if cfg.scenario:
+                console.print(
+                    "warning: the [scenario] table of the config is ignored with --detections",
+                    style="yellow",
+                    markup=False,
+                    highlight=False,
+                    soft_wrap=True,
+                )
+            metrics = runmod.run_detections(dets, tracker_cfg, **common)
+        else:
+            sc_table = dict(cfg.scenario)
+            name = scenario or sc_table.pop("name", "bojilov")
+            sc_table.pop("name", None)
+            sd = seed if seed is not None else sc_table.pop("seed", 0)
+            sc_table.pop("seed", None)
+            from_truth = sc_table.pop("start_from_truth", None)
+            sc = runmod.make_scenario(name, sd, sc_table, source=cfg.source)
+            tracker_cfg = runmod.make_tracker_config(
+                runmod.scenario_tracker_settings(sc), cfg.tracker, source=cfg.source
+            )
+            if tracker_cfg.dim != sc.dim:
+                raise runmod.RunConfigError(
+                    f"{cfg.source}: [tracker] key 'dim' = {tracker_cfg.dim} but scenario "
+                    f"{name} is {sc.dim}-D"
+                )
+            metrics = runmod.run_scenario(
+                sc, tracker_cfg, scenario_kwargs=sc_table, start_from_truth=from_truth, **common
+            )
+    except KeyboardInterrupt:
+        _fail(
+            f"interrupted; the tracks so far are in {out}"
+            + (f"; continue with --resume {checkpoint}" if checkpoint else ""),
+            code=130,
+        )
+    except (DataFileError, ValueError, OSError) as exc:
+        _fail(exc)
+    runmod.print_summary(metrics, console)
+    console.print(f"outputs in {out}/", markup=False, highlight=False)
+
+
+@reproduce_app.command("bojilov")
+def reproduce_bojilov(
+    runs: Annotated[
+        int | None, typer.Option("--runs", help="Runs per clutter density (default 10).")
+    ] = None,
+    quick: Annotated[
+        bool, typer.Option("--quick", help="2 runs per clutter density (--runs wins).")
+    ] = False,
+    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("jointtrack-out"),
+    progress: Annotated[
+        bool | None,
+        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
+    ] = None,
+) -> None:
+    """Bojilov et al. Tables 2-3 (hypotheses, multiplications, seconds per cluster) vs ours."""
+    from rich.console import Console
+
+    console = Console()
+    show = console.is_terminal if progress is None else progress
+    n = runs if runs is not None else (2 if quick else 10)
+    if n < 1:
+        _fail(f"--runs must be >= 1, got {n}")
+    try:
+        from jointtrack.experiments import bojilov as boj
+
+        result = boj.reproduce(runs=n, out_dir=out, progress=show, console=console)
+    except KeyboardInterrupt:
+        _fail("interrupted", code=130)
+    except (ValueError, OSError) as exc:
+        _fail(exc)
+    boj.print_report(result, console)
 
 
 def main() -> None:

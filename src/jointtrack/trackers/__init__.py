@@ -1,5 +1,5 @@
 """Trackers built on the association engine."""
 
-from jointtrack.trackers.jpda import JPDATracker, ScanResult, TrackerConfig
+from jointtrack.trackers.jpda import ClusterRecord, JPDATracker, ScanResult, TrackerConfig
 
-__all__ = ["JPDATracker", "ScanResult", "TrackerConfig"]
+__all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackerConfig"]

@@ -33,7 +33,7 @@ from jointtrack.association.gating import gate_measurements
 from jointtrack.filters import pda_update, predict, predict_measurement
 from jointtrack.models import ConstantAcceleration, ConstantVelocity, LinearPosition
 
-__all__ = ["JPDATracker", "ScanResult", "TrackerConfig"]
+__all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackerConfig"]
 
 log = logging.getLogger("jointtrack.tracker")
 
@@ -84,7 +84,7 @@ class TrackerConfig:
     p_g: float = 0.99
     clutter_density: float | None = None
     association: str = "exact"
-    exact_max_tracks: int = 24
+    exact_max_tracks: int = 16
     approximation: str = "lbp"
     initiation: str = "two-point"
     max_speed: float = 50.0
@@ -172,6 +172,25 @@ class ScanResult:
     cluster_confirmed: list = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class ClusterRecord:
+    """One multi-track cluster as the association engine saw it (for ``on_cluster``).
+
+    ``L``, ``miss`` and ``beta`` are in the cluster convention of
+    :func:`jointtrack.association.marginals` (β before the JIPDA existence
+    conditioning); ``confirmed`` tells the confirmed-track pass from the
+    tentative one.
+    """
+
+    track_ids: np.ndarray
+    L: np.ndarray
+    miss: np.ndarray
+    beta: np.ndarray
+    seconds: float
+    method: str
+    confirmed: bool
+
+
 class JPDATracker:
     """Multi-target JPDA tracker (see the module docstring).
 
@@ -180,8 +199,11 @@ class JPDATracker:
     ...     result = trk.step(t, z)        # confirmed tracks in result.ids / result.x
     """
 
-    def __init__(self, config: TrackerConfig | None = None):
+    def __init__(self, config: TrackerConfig | None = None, *, on_cluster=None):
+        """``on_cluster(record)`` (optional) is called with a :class:`ClusterRecord`
+        for every multi-track cluster; it is not part of the saved state."""
         self.config = config or TrackerConfig()
+        self.on_cluster = on_cluster
         c = self.config
         model = ConstantVelocity if c.motion == "cv" else ConstantAcceleration
         self._motion = model(dim=c.dim, q=c.process_noise)
@@ -332,6 +354,10 @@ class JPDATracker:
             methods.append(method)
             beta[tr, 0] = bc[:, 0]
             beta[np.ix_(tr, 1 + ms)] = bc[:, 1:]
+            if self.on_cluster is not None:
+                self.on_cluster(
+                    ClusterRecord(self.ids[tracks[tr]], Lc, mc, bc, seconds[-1], method, loud)
+                )
         if c.existence:
             beta = self._existence_update(tracks, beta, r, pdg)
         return beta, mask.any(axis=1), groups.unassociated, (sizes, seconds, methods)

@@ -1,0 +1,261 @@
+"""Figures of the experiments (matplotlib, Agg backend: files only, no display).
+
+* :func:`plot_scene` — truth, detections and tracks of a run (``scene.png``).
+* :func:`plot_gospa` — GOSPA over time and its decomposition (``gospa.png``).
+* :func:`plot_bojilov` — association cost per cluster size vs Bojilov's
+  Tables 2–3 (``reproduce-bojilov.png``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+__all__ = ["plot_bojilov", "plot_gospa", "plot_scene"]
+
+_MAX_LABELLED_TRACKS = 60
+
+
+def _save(fig, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def _figsize(region) -> tuple[float, float]:
+    if region is None:
+        return (9.0, 7.0)
+    w, h = float(np.ptp(region[0])), float(np.ptp(region[1]))
+    aspect = min(max(h / w, 0.35), 1.0) if w > 0 else 1.0
+    return (12.0, max(4.5, 12.0 * aspect * 0.9))
+
+
+def plot_scene(
+    path, *, times, scans, tracks, origins=None, truth=None, region=None, title: str = ""
+) -> Path:
+    """Truth lines, detections (grey dots, clutter lighter) and confirmed tracks with ids.
+
+    ``scans``: per-scan (M_k, d) detections; ``origins``: per-scan target id or
+    −1 (clutter), or ``None`` (unknown); ``truth`` and ``tracks``: flat tables
+    ``(times, ids, positions)``; ``region``: (d, 2) box for the axis limits.
+    Only the first two coordinates are drawn.
+    """
+    fig, ax = plt.subplots(figsize=_figsize(region))
+    pts = [z for z in scans if len(z)]
+    if pts:
+        Z = np.concatenate(pts)
+        if origins is not None:
+            org = np.concatenate([o for o, z in zip(origins, scans, strict=True) if len(z)])
+            clutter = org < 0
+            ax.scatter(
+                Z[clutter, 0],
+                Z[clutter, 1],
+                s=2,
+                c="0.82",
+                lw=0,
+                label="clutter",
+                zorder=1,
+                rasterized=True,
+            )
+            ax.scatter(
+                Z[~clutter, 0],
+                Z[~clutter, 1],
+                s=4,
+                c="0.45",
+                lw=0,
+                label="target detections",
+                zorder=2,
+                rasterized=True,
+            )
+        else:
+            ax.scatter(
+                Z[:, 0], Z[:, 1], s=3, c="0.6", lw=0, label="detections", zorder=1, rasterized=True
+            )
+    if truth is not None and len(truth[0]):
+        tt, ti, tp = truth
+        first = True
+        for i in np.unique(ti):
+            m = ti == i
+            o = np.argsort(tt[m], kind="stable")
+            ax.plot(
+                tp[m][o, 0],
+                tp[m][o, 1],
+                "-",
+                c="k",
+                lw=1.2,
+                alpha=0.8,
+                zorder=3,
+                label="truth" if first else None,
+            )
+            first = False
+    et, ei, ep = tracks
+    ids = np.unique(ei)
+    cmap = plt.get_cmap("tab10" if len(ids) <= 10 else "tab20")
+    label = len(ids) <= _MAX_LABELLED_TRACKS
+    for n, i in enumerate(ids):
+        m = ei == i
+        o = np.argsort(et[m], kind="stable")
+        p = ep[m][o]
+        col = cmap(n % cmap.N)
+        ax.plot(
+            p[:, 0],
+            p[:, 1],
+            "-",
+            c=col,
+            lw=1.6,
+            zorder=4,
+            label="confirmed tracks" if n == 0 else None,
+        )
+        if label:
+            ax.annotate(
+                str(int(i)),
+                p[-1, :2],
+                xytext=(3, 3),
+                textcoords="offset points",
+                fontsize=8,
+                color=col,
+                fontweight="bold",
+                zorder=5,
+            )
+    if region is not None:
+        box = np.asarray(region, dtype=float)[:2].copy()
+        if len(ep):  # tracks that wander off the region stay in view
+            box[:, 0] = np.minimum(box[:, 0], ep[:, :2].min(axis=0))
+            box[:, 1] = np.maximum(box[:, 1], ep[:, :2].max(axis=0))
+        pad = 0.03 * np.ptp(box, axis=1)
+        ax.set_xlim(box[0, 0] - pad[0], box[0, 1] + pad[0])
+        ax.set_ylim(box[1, 0] - pad[1], box[1, 1] + pad[1])
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    n_t = len(np.unique(times)) if len(times) else 0
+    extra = "" if label else " (ids not shown)"
+    ax.set_title(f"{title} — {n_t} scans, {len(ids)} confirmed tracks{extra}".strip(" —"))
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper left", fontsize=8, markerscale=3, framealpha=0.85)
+    ax.grid(alpha=0.2)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_gospa(path, series, title: str = "") -> Path:
+    """GOSPA per scan (top) and its p-th-power parts stacked (bottom)."""
+    fig, (ax1, ax2) = plt.subplots(
+        2, 1, figsize=(10, 6.5), sharex=True, gridspec_kw={"height_ratios": [1, 1.3]}
+    )
+    t = series.times
+    ax1.plot(t, series.gospa, c="k", lw=1.4)
+    ax1.set_ylabel(f"GOSPA (c={series.c:g}, p={series.p:g})")
+    ax1.set_title(f"{title} — mean GOSPA {series.mean:.3g}".strip(" —"))
+    ax1.grid(alpha=0.3)
+    ax2.stackplot(
+        t,
+        series.localisation,
+        series.missed,
+        series.false,
+        labels=["localisation", "missed targets", "false targets"],
+        colors=["#4c72b0", "#dd8452", "#c44e52"],
+        alpha=0.85,
+    )
+    ax2.set_ylabel(f"GOSPA^{series.p:g} parts")
+    ax2.set_xlabel("time")
+    ax2.legend(loc="upper left", fontsize=8)
+    ax2.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+_METHOD_STYLE = {
+    "naive": ("#c44e52", "naive enumeration"),
+    "optimised": ("#4c72b0", "optimised enumeration"),
+    "exact": ("#55a868", "jointtrack exact"),
+}
+
+
+def plot_bojilov(path, result: dict) -> Path:
+    """Seconds and multiplications per cluster vs targets in the cluster, ours and the paper's.
+
+    ``result`` is the dict of :func:`jointtrack.experiments.bojilov.reproduce`.
+    Top row: Table 3 (seconds per cluster, log scale) for β = 1, 2; bottom
+    row: Table 2 (multiplications per cluster; the paper counts floating point
+    operations). Lines: ours; hollow markers: the paper's values.
+    """
+    paper = result["paper"]
+    betas = [b for b in result["betas"]]
+    fig, axes = plt.subplots(2, len(betas), figsize=(6 * len(betas), 8), squeeze=False)
+    p2 = {r[0]: r for r in paper["table2_flops_per_cluster"]["rows"]}
+    p3 = {r[0]: r for r in paper["table3_seconds_per_cluster"]["rows"]}
+    for col, beta in enumerate(betas):
+        rows = result["results"][_key(beta)]["rows"]
+        rows = [r for r in rows if r["n_clusters"] > 0]
+        n = [r["targets"] for r in rows]
+        off = 1 if float(beta) == 1.0 else 4  # paper column offset (beta1 / beta2)
+        ax = axes[0, col]
+        for m, key in (
+            ("naive", "mean_seconds_naive"),
+            ("optimised", "mean_seconds_optimised"),
+            ("exact", "mean_seconds_exact"),
+        ):
+            c, lab = _METHOD_STYLE[m]
+            ax.plot(n, [r[key] for r in rows], "o-", c=c, label=f"ours: {lab}")
+        for m, j in (("naive", 0), ("optimised", 1)):
+            c, lab = _METHOD_STYLE[m]
+            xs = sorted(p3)
+            ax.plot(
+                xs,
+                [p3[x][off + j] for x in xs],
+                "s--",
+                mfc="none",
+                c=c,
+                ms=8,
+                label=f"paper: {lab}",
+            )
+        ax.axhline(1e-3, c="0.5", ls=":", lw=1)
+        ax.text(2.0, 1.15e-3, "target 1 ms", fontsize=8, color="0.4")
+        ax.set_yscale("log")
+        ax.set_title(f"Table 3: seconds per cluster, β = {beta:g}")
+        ax.set_ylabel("seconds per cluster")
+        ax.set_xticks([2, 3, 4, 5])
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7, loc="upper left")
+        ax = axes[1, col]
+        for m, key in (("naive", "mean_mult_naive"), ("optimised", "mean_mult_optimised")):
+            c, lab = _METHOD_STYLE[m]
+            ax.plot(n, [r[key] for r in rows], "o-", c=c, label=f"ours: {lab} (multiplications)")
+        for m, j in (("naive", 0), ("optimised", 1)):
+            c, lab = _METHOD_STYLE[m]
+            xs = sorted(p2)
+            ax.plot(
+                xs,
+                [p2[x][off + j] for x in xs],
+                "s--",
+                mfc="none",
+                c=c,
+                ms=8,
+                label=f"paper: {lab} (flops)",
+            )
+        ax.set_yscale("log")
+        ax.set_title(f"Table 2: operations per cluster, β = {beta:g}")
+        ax.set_xlabel("targets (tracks) in cluster")
+        ax.set_ylabel("operations per cluster")
+        ax.set_xticks([2, 3, 4, 5])
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7, loc="upper left")
+    fig.suptitle(
+        f"Bojilov et al. Tables 2–3 vs jointtrack ({result['settings']['runs']} runs per β; "
+        "β units differ, compare trends)",
+        fontsize=11,
+    )
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _key(beta) -> str:
+    return f"beta={float(beta):g}"
