@@ -24,13 +24,19 @@ Approximations
 
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent.balance import sinkhorn
+from jointtrack.permanent.bethe import BethePermanent, bethe_permanent
 from jointtrack.permanent.exact import log_permanent, permanent
 from jointtrack.permanent.marginals import assignment_marginals
+from jointtrack.permanent.sampling import SampledPermanent, sample_permanent
 
 __all__ = [
+    "BethePermanent",
     "InfeasibleAssignmentError",
+    "SampledPermanent",
     "assignment_marginals",
+    "bethe_permanent",
     "log_permanent",
     "permanent",
+    "sample_permanent",
     "sinkhorn",
 ]

@@ -163,9 +163,11 @@ def apply_pow2(A, er, ec) -> np.ndarray:
 def sinkhorn(A, *, tol: float = 1e-12, max_iter: int = 10_000, row_counts=None, col_counts=None):
     """Sinkhorn factorisation ``B = diag(d1) · A · diag(d2)`` (Schaub eq. 38).
 
-    For square A, B is doubly stochastic (unit row and column sums); for an n×m
-    matrix with n < m, rows sum to 1 and columns to n/m. By eq. (39),
-    ``Per(A) = Per(B) / (Π d1 · Π d2)``. With ``row_counts``/``col_counts`` the
+    For square A, B is doubly stochastic (unit row and column sums) and, by
+    eq. (39), ``Per(A) = Per(B) / (Π d1 · Π d2)``. For an n×m matrix with
+    n < m, rows sum to 1 and columns to n/m; eq. (39) does not hold then (an
+    assignment uses only n of the m column factors), only the row factors
+    scale the permanent exactly. With ``row_counts``/``col_counts`` the
     scaling is that of the expanded matrix (groups of identical rows/columns get
     identical factors) expressed on the compressed one.
 
