@@ -113,10 +113,18 @@ def test_conflicts_prune_hypotheses_and_multiplications():
 
 def test_table1_listing_reproduced():
     # Table 1: target 1 gates {1,2,3}, target 2 {3,4,5}, target 3 {5,6}
-    beta_ = 0.7      # clutter density β
+    beta_ = 0.7  # clutter density β
     PD = 0.9
-    g = {(1, 1): 0.3, (1, 2): 0.5, (1, 3): 0.2, (2, 3): 0.4, (2, 4): 0.1, (2, 5): 0.6,
-         (3, 5): 0.25, (3, 6): 0.35}
+    g = {
+        (1, 1): 0.3,
+        (1, 2): 0.5,
+        (1, 3): 0.2,
+        (2, 3): 0.4,
+        (2, 4): 0.1,
+        (2, 5): 0.6,
+        (3, 5): 0.25,
+        (3, 6): 0.35,
+    }
     L = np.zeros((3, 6))
     for (t, m), v in g.items():
         L[t - 1, m - 1] = PD * v / beta_
@@ -126,8 +134,14 @@ def test_table1_listing_reproduced():
     assert listing == [(0, 0, 0), (0, 0, 5), (0, 0, 6), (0, 3, 0), (0, 3, 5), (0, 3, 6)]
     # probabilities ∝ the paper's bracketed products (times β^{N_M} = β^6, common)
     b1 = beta_ * (1 - PD)
-    paper = [b1**3, b1**2 * PD * g[3, 5], b1**2 * PD * g[3, 6], b1 * PD * g[2, 3] * b1,
-             b1 * PD * g[2, 3] * PD * g[3, 5], b1 * PD * g[2, 3] * PD * g[3, 6]]
+    paper = [
+        b1**3,
+        b1**2 * PD * g[3, 5],
+        b1**2 * PD * g[3, 6],
+        b1 * PD * g[2, 3] * b1,
+        b1 * PD * g[2, 3] * PD * g[3, 5],
+        b1 * PD * g[2, 3] * PD * g[3, 6],
+    ]
     ours = [p for _, p in hyps[:6]]
     np.testing.assert_allclose(np.array(ours) / ours[0], np.array(paper) / paper[0], rtol=1e-12)
     # every listed assignment is feasible, and there are no others
@@ -203,7 +217,7 @@ def test_stats_flag_and_order_validation():
 def test_extreme_scales_enumerate_without_overflow():
     rng = np.random.default_rng(9)
     for scale in (1e-250, 1e250):
-        L = scale * rng.uniform(0.1, 1, (6, 3))     # N > M: ≥ 3 misses per hypothesis
+        L = scale * rng.uniform(0.1, 1, (6, 3))  # N > M: ≥ 3 misses per hypothesis
         miss = rng.uniform(0.1, 1, 6)
         for naive in (False, True):
             r = enumerate_jpda(L, miss, naive=naive)

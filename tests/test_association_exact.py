@@ -116,12 +116,12 @@ def clusters(draw, max_n=6, max_m=6):
     rng = np.random.default_rng(seed)
     L = rng.exponential(size=(N, M)) * (rng.random((N, M)) < density)
     if M and draw(st.booleans()):
-        L[:, rng.integers(M)] = 0.0                 # a measurement gated by no track
+        L[:, rng.integers(M)] = 0.0  # a measurement gated by no track
     if draw(st.booleans()):
-        L[rng.integers(N), :] = 0.0                 # a track with an empty gate
+        L[rng.integers(N), :] = 0.0  # a track with an empty gate
     miss = rng.uniform(0.01, 1.0, size=N)
     if draw(st.booleans()):
-        miss[rng.integers(N)] = 0.0                 # a certainly detected track
+        miss[rng.integers(N)] = 0.0  # a certainly detected track
     return L, miss
 
 
@@ -188,7 +188,7 @@ def test_checkpointing_and_threads_give_the_same_answer():
     miss = np.full(16, 0.1)
     full = exact_jpda(L, miss)
     assert full.max_frontier == 16
-    ck = exact_jpda(L, miss, max_memory=14 * 8 * 2**16)     # forces recomputed segments
+    ck = exact_jpda(L, miss, max_memory=14 * 8 * 2**16)  # forces recomputed segments
     assert ck.state_bytes < full.state_bytes
     np.testing.assert_allclose(ck.beta, full.beta, rtol=1e-13, atol=1e-15)
     par = exact_jpda(L, miss, parallel=True)
@@ -209,9 +209,10 @@ def test_sparse_structures_fold_or_stay_narrow():
     miss = rng.uniform(0.05, 0.5, N)
     res = exact_jpda(L, miss)
     assert res.n_components == 0 and res.max_frontier == 0
-    sub = slice(0, 6)                   # compare a short chain with brute force
-    np.testing.assert_allclose(exact_marginals(L[sub, :13], miss[sub]),
-                               brute_jpda(L[sub, :13], miss[sub])[0], atol=1e-12)
+    sub = slice(0, 6)  # compare a short chain with brute force
+    np.testing.assert_allclose(
+        exact_marginals(L[sub, :13], miss[sub]), brute_jpda(L[sub, :13], miss[sub])[0], atol=1e-12
+    )
     # a ring of 12 tracks: one cycle, the frontier stays small
     N = 12
     L = np.zeros((N, N))
@@ -266,11 +267,9 @@ def test_scaling_a_track_with_its_miss_weight_is_invariant(method):
     L, miss = _random_cluster(12)
     c = np.array([0.5, 1e-3, 1.0, 0.25, 1e-7])
     beta = marginals(L, miss, method=method)
-    np.testing.assert_allclose(marginals(L * c[:, None], miss * c, method=method), beta,
-                               atol=1e-13)
+    np.testing.assert_allclose(marginals(L * c[:, None], miss * c, method=method), beta, atol=1e-13)
     # so is scaling ALL of L and miss by one constant (≈ changing P_D·g units)
-    np.testing.assert_allclose(marginals(L * 0.01, miss * 0.01, method=method), beta,
-                               atol=1e-13)
+    np.testing.assert_allclose(marginals(L * 0.01, miss * 0.01, method=method), beta, atol=1e-13)
 
 
 def test_scaling_l_alone_or_one_measurement_changes_jpda():
@@ -290,7 +289,7 @@ def test_independent_blocks_and_ungated_measurements():
     L2, m2 = _random_cluster(22, 4, 3)
     L = np.zeros((7, 8))
     L[:3, :4] = L1
-    L[3:, 4:7] = L2            # column 7: gated by nobody
+    L[3:, 4:7] = L2  # column 7: gated by nobody
     miss = np.concatenate((m1, m2))
     r = exact_jpda(L, miss)
     r1 = exact_jpda(L1, m1)
@@ -378,7 +377,7 @@ def test_unknown_method_lists_the_methods():
 @pytest.mark.parametrize("scale", [1e-200, 1e-120, 1e120, 1e200, "mixed"])
 def test_extreme_scales_are_finite_and_correct(method, scale):
     rng = np.random.default_rng(17)
-    N, M = 5, 4          # N > M: every event misses a track
+    N, M = 5, 4  # N > M: every event misses a track
     A = rng.uniform(0.1, 1, (N, M)) * (rng.random((N, M)) < 0.8)
     if scale == "mixed":
         A *= 10.0 ** rng.choice([-200, 0, 200], size=(N, M))
@@ -387,8 +386,9 @@ def test_extreme_scales_are_finite_and_correct(method, scale):
     miss = rng.uniform(0.05, 1, N)
     if method == "pda":
         ref = np.column_stack((miss, A)).astype(object)
-        ref = np.array([[float(Fraction(x) / sum(Fraction(y) for y in row)) for x in row]
-                        for row in ref])
+        ref = np.array(
+            [[float(Fraction(x) / sum(Fraction(y) for y in row)) for x in row] for row in ref]
+        )
     else:
         ref = brute_jpda(A, miss, exact_arith=True)[0]
     beta = marginals(A, miss, method=method)

@@ -110,9 +110,7 @@ def wide_matrices(draw, max_m=6):
     return draw(arrays(np.float64, (n, m), elements=_entry))
 
 
-_hyp = settings(
-    max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow]
-)
+_hyp = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 def _close_le(a: float, b: float, rtol: float = 1e-9) -> bool:
@@ -382,8 +380,15 @@ def test_bethe_input_errors():
     for bad in ([[1.0, -1.0]], [[np.nan]], [1.0, 2.0], np.ones((3, 2))):
         with pytest.raises(ValueError):
             bethe_permanent(bad)
-    for kw in ({"tol": 0.0}, {"tol": np.nan}, {"max_iter": 0}, {"max_iter": 2.5},
-               {"damping": 1.0}, {"damping": -0.1}, {"anderson": -1}):
+    for kw in (
+        {"tol": 0.0},
+        {"tol": np.nan},
+        {"max_iter": 0},
+        {"max_iter": 2.5},
+        {"damping": 1.0},
+        {"damping": -0.1},
+        {"anderson": -1},
+    ):
         with pytest.raises(ValueError):
             bethe_permanent(np.ones((2, 2)), **kw)
     empty = bethe_permanent(np.zeros((0, 3)))

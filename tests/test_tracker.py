@@ -151,3 +151,65 @@ def test_cluster_hook_sees_every_multi_track_cluster():
     for r in records:
         assert r.beta.shape == (len(r.track_ids), r.L.shape[1] + 1)
         np.testing.assert_allclose(r.beta.sum(axis=1), 1.0, atol=1e-12)
+
+
+def range_bearing_scene(seed, sensor=(2000.0, 0.0), sigma_r=10.0, sigma_b=0.005, clutter=10.0):
+    """The crossing targets, rotated so that target 1 flies along y = 0 towards a
+    range–bearing sensor due east of it.
+
+    Its bearing stays at ±π for the whole run and the noise flips it across the
+    branch cut scan after scan: a tracker that does not wrap the bearing
+    residual (in gating and in the update) loses that target.
+    """
+    sc = crossing(seed=seed)
+    v = sc.truth_states[0][0, 2:4]
+    phi = np.arctan2(v[1], v[0])
+    rot = np.array([[np.cos(phi), np.sin(phi)], [-np.sin(phi), np.cos(phi)]])
+    positions = [s[:, :2] @ rot.T for s in sc.truth_states]
+    rng = np.random.default_rng(1000 + seed)
+    r_lim, b_half = (1500.0, 2500.0), 0.25
+    scans = []
+    for pos in positions:
+        det = pos[rng.random(len(pos)) < sc.p_d] - np.asarray(sensor)
+        z = np.column_stack([np.hypot(det[:, 0], det[:, 1]), np.arctan2(det[:, 1], det[:, 0])])
+        z += rng.normal(size=z.shape) * [sigma_r, sigma_b]
+        k = rng.poisson(clutter)
+        cz = np.column_stack([rng.uniform(*r_lim, k), np.pi + rng.uniform(-b_half, b_half, k)])
+        z = np.vstack([z, cz])
+        z[:, 1] = np.angle(np.exp(1j * z[:, 1]))  # bearings in (−π, π]
+        scans.append(z)
+    density = clutter / ((r_lim[1] - r_lim[0]) * 2 * b_half)
+    cfg = TrackerConfig(
+        sensor="range-bearing",
+        sensor_position=sensor,
+        range_noise=sigma_r**2,
+        bearing_noise=sigma_b**2,
+        process_noise=max(sc.process_noise, 0.05),
+        p_d=sc.p_d,
+        clutter_density=density,
+        max_speed=15.0,
+    )
+    times, ids, _ = sc.truth_table()
+    truth = (times, ids, np.concatenate(positions))
+    return sc, scans, cfg, truth
+
+
+def test_range_bearing_ekf_tracks_across_the_bearing_branch_cut():
+    # Measured over seeds 0–5: mean GOSPA ≈ 10.6 with the wrapped residual, ≈ 15.5
+    # when gating uses the raw bearing difference (coverage drops to 0.74–0.82).
+    gospas = []
+    for seed in range(6):
+        sc, scans, cfg, truth = range_bearing_scene(seed)
+        assert sum(np.ptp(z[:, 1]) > np.pi for z in scans) > len(scans) // 3  # bearings wrap
+        trk = JPDATracker(cfg)
+        rows = []
+        for t, z in zip(sc.times, scans, strict=True):
+            r = trk.step(t, z)
+            rows += [(t, i, x[0], x[1]) for i, x in zip(r.ids, r.x, strict=True)]
+        rows = np.array(rows)
+        ids = rows[:, 1].astype(int)
+        stats = track_statistics(*truth, rows[:, 0], ids, rows[:, 2:4], gate=30)
+        gospas.append(gospa_series(*truth, rows[:, 0], ids, rows[:, 2:4], c=30).mean)
+        assert stats.n_true_tracks == 2 and stats.n_false_tracks == 0, stats.as_dict()
+        assert stats.coverage >= 0.85, stats.as_dict()
+    assert np.mean(gospas) <= 12.5, gospas

@@ -132,11 +132,10 @@ def run_command(
     Writes tracks.csv (or .parquet), metrics.json, scene.png and gospa.png to
     --out and prints a summary.
     """
-    from rich.console import Console
-
+    from jointtrack._console import make_console
     from jointtrack.io import DataFileError
 
-    console = Console()
+    console = make_console()
     show = console.is_terminal if progress is None else progress
     try:
         from jointtrack.experiments import run as runmod
@@ -230,9 +229,9 @@ def reproduce_bojilov(
     ] = None,
 ) -> None:
     """Bojilov et al. Tables 2-3 (hypotheses, multiplications, seconds per cluster) vs ours."""
-    from rich.console import Console
+    from jointtrack._console import make_console
 
-    console = Console()
+    console = make_console()
     show = console.is_terminal if progress is None else progress
     n = runs if runs is not None else (2 if quick else 10)
     if n < 1:

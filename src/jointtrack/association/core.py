@@ -72,6 +72,4 @@ def marginals(L, miss, method: str = "exact", **options) -> np.ndarray:
         from jointtrack.association.kbest import kbest_marginals
 
         return kbest_marginals(L, miss, **options)
-    raise ValueError(
-        f"unknown association method {method!r}; choose one of: " + ", ".join(METHODS)
-    )
+    raise ValueError(f"unknown association method {method!r}; choose one of: " + ", ".join(METHODS))

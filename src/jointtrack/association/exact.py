@@ -64,10 +64,10 @@ __all__ = [
 ]
 
 _FM = {"reassoc", "contract", "nsz", "arcp"}
-_BLOCK_BITS = 11          # 2048 float64 = 16 KiB: blocks of x and y stay in L1
+_BLOCK_BITS = 11  # 2048 float64 = 16 KiB: blocks of x and y stay in L1
 _RENORM_HI = 2.0**600
 _RENORM_LO = 2.0**-600
-_PAR_MIN_BITS = 16        # use the multi-thread kernels from 2^16 states up
+_PAR_MIN_BITS = 16  # use the multi-thread kernels from 2^16 states up
 DEFAULT_MAX_BITS = 30
 DEFAULT_MAX_MEMORY = 2 * 1024**3
 
@@ -172,10 +172,10 @@ def _fold_leaves(Wm, We, um, ue, vm, ve):
     rec_kind = np.empty(nrec_max, np.int64)
     rec_node = np.empty(nrec_max, np.int64)
     rec_other = np.empty(nrec_max, np.int64)
-    rec_m = np.empty((nrec_max, 3))          # W[r,c], old unassigned·leaf, new unassigned
+    rec_m = np.empty((nrec_max, 3))  # W[r,c], old unassigned·leaf, new unassigned
     rec_e = np.empty((nrec_max, 3), np.int64)
     nrec = 0
-    queue = np.empty(4 * (R + C) + 4, np.int64)   # id < R: row, else column id − R
+    queue = np.empty(4 * (R + C) + 4, np.int64)  # id < R: row, else column id − R
     qh = 0
     qt = 0
     for r in range(R):
@@ -292,8 +292,17 @@ def _fold_leaves(Wm, We, um, ue, vm, ve):
             if deg_r[r] <= 1:
                 queue[qt] = r
                 qt += 1
-    return (rec_kind[:nrec], rec_node[:nrec], rec_other[:nrec], rec_m[:nrec], rec_e[:nrec],
-            kill_t, alive_r, alive_c, infeasible)
+    return (
+        rec_kind[:nrec],
+        rec_node[:nrec],
+        rec_other[:nrec],
+        rec_m[:nrec],
+        rec_e[:nrec],
+        kill_t,
+        alive_r,
+        alive_c,
+        infeasible,
+    )
 
 
 @numba.njit(cache=True)
@@ -637,15 +646,15 @@ def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
     tot = 0.0
     for hb in range(hb0, hb1):
         base = hb << kb
-        yb = y[base:base + B]
-        xb = x[base:base + B]
+        yb = y[base : base + B]
+        xb = x[base : base + B]
         for t in range(B):
             yb[t] = u * xb[t]
         for q in range(his.size):
             hbit = 1 << his[q]
             if hb & hbit:
                 src = (hb ^ hbit) << kb
-                xs = x[src:src + B]
+                xs = x[src : src + B]
                 w = ws[hq[q]]
                 for t in range(B):
                     yb[t] += w * xs[t]
@@ -653,8 +662,8 @@ def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
             step = 1 << los[q]
             w = ws[lq[q]]
             for b0 in range(0, B, 2 * step):
-                ys = yb[b0 + step:b0 + 2 * step]
-                xs = xb[b0:b0 + step]
+                ys = yb[b0 + step : b0 + 2 * step]
+                xs = xb[b0 : b0 + step]
                 for t in range(step):
                     ys[t] += w * xs[t]
         if small:
@@ -696,9 +705,9 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
     tot = 0.0
     for hb in range(hb0, hb1):
         base = hb << kb
-        bb = b[base:base + B]
-        pb = bp[base:base + B]
-        fb = F[base:base + B]
+        bb = b[base : base + B]
+        pb = bp[base : base + B]
+        fb = F[base : base + B]
         s0 = 0.0
         for t in range(B):
             bv = bb[t]
@@ -709,7 +718,7 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
             hbit = 1 << his[q]
             if not (hb & hbit):
                 src = (hb | hbit) << kb
-                bs = b[src:src + B]
+                bs = b[src : src + B]
                 w = ws[hq[q]]
                 sq = 0.0
                 for t in range(B):
@@ -722,9 +731,9 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
             w = ws[lq[q]]
             sq = 0.0
             for b0 in range(0, B, 2 * step):
-                ps = pb[b0:b0 + step]
-                fs = fb[b0:b0 + step]
-                bs = bb[b0 + step:b0 + 2 * step]
+                ps = pb[b0 : b0 + step]
+                fs = fb[b0 : b0 + step]
+                bs = bb[b0 + step : b0 + 2 * step]
                 for t in range(step):
                     bv = bs[t]
                     ps[t] += w * bv
@@ -770,8 +779,21 @@ def _fwd_par(x, y, kb, u, ws, his, hq, los, lq, w3, small, nchunk):
     nblk = x.size >> kb
     parts = np.zeros(nchunk)
     for c in numba.prange(nchunk):
-        parts[c] = _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small,
-                               c * nblk // nchunk, (c + 1) * nblk // nchunk)
+        parts[c] = _fwd_blocks(
+            x,
+            y,
+            kb,
+            u,
+            ws,
+            his,
+            hq,
+            los,
+            lq,
+            w3,
+            small,
+            c * nblk // nchunk,
+            (c + 1) * nblk // nchunk,
+        )
     return parts.sum()
 
 
@@ -780,8 +802,24 @@ def _bwd_par(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, nchunk):
     nblk = b.size >> kb
     parts = np.zeros((nchunk, ws.size + 5))
     for c in numba.prange(nchunk):
-        _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small,
-                    c * nblk // nchunk, (c + 1) * nblk // nchunk, parts[c])
+        _bwd_blocks(
+            F,
+            b,
+            bp,
+            kb,
+            u,
+            ws,
+            his,
+            hq,
+            los,
+            lq,
+            w3,
+            q3,
+            small,
+            c * nblk // nchunk,
+            (c + 1) * nblk // nchunk,
+            parts[c],
+        )
     return parts.sum(axis=0)
 
 
@@ -898,7 +936,7 @@ def _dp_run(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, stride, nchunk
     nops = op_kind.size
     ncp = (nops + stride - 1) // stride
     CP = np.empty((ncp, n))
-    fe = np.zeros(nops + 1, np.int64)      # power-of-two exponent of each forward array
+    fe = np.zeros(nops + 1, np.int64)  # power-of-two exponent of each forward array
     # ---- forward
     CP[0, :] = 0.0
     CP[0, 0] = 1.0
@@ -953,7 +991,7 @@ def _dp_run(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, stride, nchunk
             for t in range(step):
                 acc += FT[b0 + t] * b[b0 + t]
         pi[c] = acc / Zs
-    be = 0          # exponent of b
+    be = 0  # exponent of b
     # ---- backward, segment by segment
     nseg = ncp
     for sg in range(nseg - 1, -1, -1):
@@ -962,8 +1000,19 @@ def _dp_run(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, stride, nchunk
         if stride > 1:
             seg[0, :] = CP[sg]
             for t in range(t0, t1 - 1):
-                _op_fwd(op_kind[t], op_arg[t], seg[t - t0], seg[t - t0 + 1], kb, nchunk,
-                        W, u, v, lay_slot, slot_of)
+                _op_fwd(
+                    op_kind[t],
+                    op_arg[t],
+                    seg[t - t0],
+                    seg[t - t0 + 1],
+                    kb,
+                    nchunk,
+                    W,
+                    u,
+                    v,
+                    lay_slot,
+                    slot_of,
+                )
                 # renormalise exactly as in the forward pass
                 e = fe[t + 1] - fe[t]
                 if e != 0:
@@ -1011,8 +1060,7 @@ def _prepare(L, miss):
         ue[r] = e
     vm = np.full(M, 0.5)
     ve = np.ones(M, np.int64)
-    rk, rn, ro, rm, re, kill_t, alive_r, alive_c, infeasible = _fold_leaves(
-        Wm, We, um, ue, vm, ve)
+    rk, rn, ro, rm, re, kill_t, alive_r, alive_c, infeasible = _fold_leaves(Wm, We, um, ue, vm, ve)
     ln2 = math.log(2.0)
     logz = 0.0
     for q in range(rk.size):
@@ -1022,8 +1070,26 @@ def _prepare(L, miss):
             logz += math.log(vm[rn[q]]) + ve[rn[q]] * ln2 if vm[rn[q]] > 0 else -np.inf
     E = kill_t > rk.size
     lab_r, lab_c, ncomp = _components(E, alive_r, alive_c)
-    return (Wm, We, um, ue, vm, ve, rk, rn, ro, rm, re, kill_t, infeasible, logz,
-            E, lab_r, lab_c, ncomp)
+    return (
+        Wm,
+        We,
+        um,
+        ue,
+        vm,
+        ve,
+        rk,
+        rn,
+        ro,
+        rm,
+        re,
+        kill_t,
+        infeasible,
+        logz,
+        E,
+        lab_r,
+        lab_c,
+        ncomp,
+    )
 
 
 @numba.njit(cache=True)
@@ -1154,8 +1220,7 @@ def _solve_block(W, u, v, max_bits, max_memory, parallel=False):
     nchunk = 1
     if parallel and K >= _PAR_MIN_BITS and numba.get_num_threads() > 1:
         nchunk = 4 * numba.get_num_threads()
-    pl, pi, pe, logZ = _dp_run(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, stride,
-                               nchunk)
+    pl, pi, pe, logZ = _dp_run(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, stride, nchunk)
     if not np.isfinite(logZ):
         raise InfeasibleAssignmentError(_INFEASIBLE_MSG)
     if transpose:
@@ -1168,8 +1233,26 @@ def _solve(L, miss, max_bits=DEFAULT_MAX_BITS, max_memory=DEFAULT_MAX_MEMORY, pa
     N, M = L.shape
     if N == 0:
         return ExactResult(np.zeros((0, M + 1)), 0.0, 0, 0, 0, 0)
-    (Wm, We, um, ue, vm, ve, rk, rn, ro, rm, re, kill_t, infeasible, logZ,
-     E, lab_r, lab_c, ncomp) = _prepare(L, miss)
+    (
+        Wm,
+        We,
+        um,
+        ue,
+        vm,
+        ve,
+        rk,
+        rn,
+        ro,
+        rm,
+        re,
+        kill_t,
+        infeasible,
+        logZ,
+        E,
+        lab_r,
+        lab_c,
+        ncomp,
+    ) = _prepare(L, miss)
     if infeasible:
         raise InfeasibleAssignmentError(_INFEASIBLE_MSG)
     pu = np.zeros(N)
@@ -1190,8 +1273,14 @@ def _solve(L, miss, max_bits=DEFAULT_MAX_BITS, max_memory=DEFAULT_MAX_MEMORY, pa
     return ExactResult(beta, float(logZ), int(ncomp), int(kmax), int(len(rk)), int(peak))
 
 
-def exact_jpda(L, miss, *, max_bits: int = DEFAULT_MAX_BITS,
-               max_memory: int = DEFAULT_MAX_MEMORY, parallel: bool = False) -> ExactResult:
+def exact_jpda(
+    L,
+    miss,
+    *,
+    max_bits: int = DEFAULT_MAX_BITS,
+    max_memory: int = DEFAULT_MAX_MEMORY,
+    parallel: bool = False,
+) -> ExactResult:
     """Exact JPDA association probabilities and normaliser (Bojilov eqs. (5)–(7)).
 
     Computes ``p_ij = Σ_{l ∈ L_j} P(H_l)`` (the marginal sum following (6)) for
@@ -1230,8 +1319,14 @@ def exact_jpda(L, miss, *, max_bits: int = DEFAULT_MAX_BITS,
     return _solve(L, miss, max_bits, max_memory, parallel)
 
 
-def exact_marginals(L, miss, *, max_bits: int = DEFAULT_MAX_BITS,
-                    max_memory: int = DEFAULT_MAX_MEMORY, parallel: bool = False) -> np.ndarray:
+def exact_marginals(
+    L,
+    miss,
+    *,
+    max_bits: int = DEFAULT_MAX_BITS,
+    max_memory: int = DEFAULT_MAX_MEMORY,
+    parallel: bool = False,
+) -> np.ndarray:
     """Exact JPDA marginals ``beta`` (N × (M+1)), Bojilov eqs. (5)–(7) and the sum after (6).
 
     ``beta[i, 0]`` is the probability that track i has no measurement,
@@ -1241,8 +1336,9 @@ def exact_marginals(L, miss, *, max_bits: int = DEFAULT_MAX_BITS,
     return _solve(L, miss, max_bits, max_memory, parallel).beta
 
 
-def exact_log_normalizer(L, miss, *, max_bits: int = DEFAULT_MAX_BITS,
-                         max_memory: int = DEFAULT_MAX_MEMORY) -> float:
+def exact_log_normalizer(
+    L, miss, *, max_bits: int = DEFAULT_MAX_BITS, max_memory: int = DEFAULT_MAX_MEMORY
+) -> float:
     """``log Σ_H P'(H)``: natural log of the normaliser of Bojilov eq. (6) with (7) weights.
 
     With ``L = (L > 0)`` and ``miss = (miss > 0)`` this is the log of the number

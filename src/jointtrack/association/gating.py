@@ -188,7 +188,7 @@ def _cholesky_checked(S: np.ndarray) -> np.ndarray:
     return chol
 
 
-def gate_measurements(z_pred, S, z, *, P_G: float = 0.99) -> Gating:
+def gate_measurements(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> Gating:
     """Chi-square validation gates of N tracks applied to M measurements.
 
     Implements the ellipsoidal validation region d²_ij ≤ γ with γ = χ²_d⁻¹(P_G)
@@ -206,6 +206,10 @@ def gate_measurements(z_pred, S, z, *, P_G: float = 0.99) -> Gating:
         measurements. An empty ``(0,)`` array means no measurements.
     P_G : float in (0, 1)
         gate probability.
+    residual : callable, optional
+        ``residual(z, z_pred)`` → innovation, broadcasting over leading axes;
+        default ``z − z_pred``. Pass a measurement model's ``residual`` for
+        angular components (e.g. ``RangeBearing.residual`` wraps the bearing).
 
     Returns
     -------
@@ -250,7 +254,10 @@ def gate_measurements(z_pred, S, z, *, P_G: float = 0.99) -> Gating:
 
     if n and m:
         # whitened innovations: chol_i⁻¹ (z_j − ẑ_i), one batched solve for all tracks
-        innov = z[None, :, :] - z_pred[:, None, :]  # (N, M, d)
+        if residual is None:
+            innov = z[None, :, :] - z_pred[:, None, :]  # (N, M, d)
+        else:
+            innov = np.asarray(residual(z[None, :, :], z_pred[:, None, :]), dtype=float)
         w = np.linalg.solve(chol, np.swapaxes(innov, 1, 2))  # (N, d, M)
         d2 = np.einsum("ndm,ndm->nm", w, w)
     else:

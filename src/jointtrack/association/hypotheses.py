@@ -162,8 +162,13 @@ def _levels(L, miss, order="gate_count"):
             meas.append(j)
             mult.append(L[i, j])
         ptr[k + 1] = len(meas)
-    return (order, sizes[order].astype(np.int64), ptr, np.array(meas, np.int64),
-            np.array(mult, np.float64))
+    return (
+        order,
+        sizes[order].astype(np.int64),
+        ptr,
+        np.array(meas, np.int64),
+        np.array(mult, np.float64),
+    )
 
 
 def _best_scales(L, miss, order, ptr, meas, mult):
@@ -188,7 +193,7 @@ def _best_scales(L, miss, order, ptr, meas, mult):
     k = -np.frexp(pick[order])[1].astype(np.int64)
     scaled = mult.copy()
     for lev in range(N):
-        scaled[ptr[lev]:ptr[lev + 1]] = np.ldexp(mult[ptr[lev]:ptr[lev + 1]], k[lev])
+        scaled[ptr[lev] : ptr[lev + 1]] = np.ldexp(mult[ptr[lev] : ptr[lev + 1]], k[lev])
     return scaled, int(k.sum())
 
 
@@ -292,7 +297,7 @@ def _check_limit(L, miss, sizes, max_hypotheses):
     if count is None:
         try:
             c = count_hypotheses(L, miss)
-        except ValueError:          # too large even for the exact DP count
+        except ValueError:  # too large even for the exact DP count
             c = math.inf
         if c <= max_hypotheses:
             return
@@ -305,9 +310,14 @@ def _check_limit(L, miss, sizes, max_hypotheses):
     )
 
 
-def enumerate_jpda(L, miss, *, naive: bool = False,
-                   max_hypotheses: int | None = DEFAULT_MAX_HYPOTHESES,
-                   order: str = "gate_count") -> EnumerationResult:
+def enumerate_jpda(
+    L,
+    miss,
+    *,
+    naive: bool = False,
+    max_hypotheses: int | None = DEFAULT_MAX_HYPOTHESES,
+    order: str = "gate_count",
+) -> EnumerationResult:
     """JPDA by Bojilov's feasible-hypothesis enumeration, with operation counts.
 
     Implements section 3 of the paper: hypotheses (5)/(7) generated depth-first
@@ -341,8 +351,9 @@ def enumerate_jpda(L, miss, *, naive: bool = False,
     L, miss = check_cluster(L, miss)
     N, M = L.shape
     if N == 0:
-        return EnumerationResult(np.zeros((0, M + 1)), 1, 0, 0, np.zeros(0, np.int64),
-                                 np.zeros(0, np.int64), naive, 0.0)
+        return EnumerationResult(
+            np.zeros((0, M + 1)), 1, 0, 0, np.zeros(0, np.int64), np.zeros(0, np.int64), naive, 0.0
+        )
     order, sizes, ptr, meas, mult = _levels(L, miss, order)
     _check_limit(L, miss, sizes, max_hypotheses)
     scaled, kshift = _best_scales(L, miss, order, ptr, meas, mult)
@@ -355,13 +366,27 @@ def enumerate_jpda(L, miss, *, naive: bool = False,
             beta[i, meas[o] + 1] = acc[o] / Z
     beta /= beta.sum(axis=1, keepdims=True)
     logZ = math.log(Z) - kshift * math.log(2.0)
-    return EnumerationResult(beta, int(nhyp), int(nmul), int(nadd), order.astype(np.int64),
-                             sizes, bool(naive), float(logZ))
+    return EnumerationResult(
+        beta,
+        int(nhyp),
+        int(nmul),
+        int(nadd),
+        order.astype(np.int64),
+        sizes,
+        bool(naive),
+        float(logZ),
+    )
 
 
-def enumerate_marginals(L, miss, *, naive: bool = False, stats: bool = False,
-                        max_hypotheses: int | None = DEFAULT_MAX_HYPOTHESES,
-                        order: str = "gate_count"):
+def enumerate_marginals(
+    L,
+    miss,
+    *,
+    naive: bool = False,
+    stats: bool = False,
+    max_hypotheses: int | None = DEFAULT_MAX_HYPOTHESES,
+    order: str = "gate_count",
+):
     """JPDA marginals by Bojilov's enumeration (eqs. (5)–(7), section 3).
 
     Returns ``beta`` (N × (M+1)), or the full :class:`EnumerationResult`
@@ -372,8 +397,9 @@ def enumerate_marginals(L, miss, *, naive: bool = False, stats: bool = False,
     return res if stats else res.beta
 
 
-def iter_hypotheses(L, miss, *, max_hypotheses: int | None = DEFAULT_MAX_HYPOTHESES,
-                    order: str = "gate_count") -> Iterator[tuple[np.ndarray, float]]:
+def iter_hypotheses(
+    L, miss, *, max_hypotheses: int | None = DEFAULT_MAX_HYPOTHESES, order: str = "gate_count"
+) -> Iterator[tuple[np.ndarray, float]]:
     """Yield every feasible joint hypothesis with its probability P(H) of eq. (6).
 
     Hypotheses come in Bojilov's depth-first order (targets by increasing gate

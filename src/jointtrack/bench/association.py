@@ -101,8 +101,9 @@ def _median_time(fn, min_total=0.3, min_reps=3, max_reps=2000):
     fn()
     times = []
     t_start = time.perf_counter()
-    while len(times) < min_reps or (time.perf_counter() - t_start < min_total
-                                    and len(times) < max_reps):
+    while len(times) < min_reps or (
+        time.perf_counter() - t_start < min_total and len(times) < max_reps
+    ):
         t = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t)
@@ -189,17 +190,26 @@ class _StoneSoupCluster:
         self.tracks = [Track() for _ in range(N)]
         self.dets = [Detection(np.array([[float(j)]]), timestamp=ts) for j in range(M)]
         pred = GaussianStatePrediction(np.array([[0.0]]), np.array([[1.0]]), timestamp=ts)
-        mpred = GaussianMeasurementPrediction(np.array([[0.0]]), np.array([[1.0]]),
-                                              timestamp=ts)
+        mpred = GaussianMeasurementPrediction(np.array([[0.0]]), np.array([[1.0]]), timestamp=ts)
         table = {}
         for i, tr in enumerate(self.tracks):
-            hyps = [SingleProbabilityHypothesis(pred, MissedDetection(timestamp=ts),
-                                                measurement_prediction=mpred,
-                                                probability=Probability(float(miss[i])))]
+            hyps = [
+                SingleProbabilityHypothesis(
+                    pred,
+                    MissedDetection(timestamp=ts),
+                    measurement_prediction=mpred,
+                    probability=Probability(float(miss[i])),
+                )
+            ]
             for j in np.flatnonzero(L[i] > 0):
-                hyps.append(SingleProbabilityHypothesis(
-                    pred, self.dets[j], measurement_prediction=mpred,
-                    probability=Probability(float(L[i, j]))))
+                hyps.append(
+                    SingleProbabilityHypothesis(
+                        pred,
+                        self.dets[j],
+                        measurement_prediction=mpred,
+                        probability=Probability(float(L[i, j])),
+                    )
+                )
             table[tr] = MultipleHypothesis(hyps, normalise=False, total_weight=1)
         self.hypothesiser = FixedHypothesiser(table=table)
         self.shape = (N, M)
@@ -256,8 +266,9 @@ def _peak_rss(N, M, seed=0):
     """(RSS before the solve, peak RSS during it) of a fresh process, in bytes."""
     code = _RSS_CODE.format(seed=seed, N=N, M=M)
     try:
-        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                             timeout=600, check=True).stdout.split()
+        out = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=True
+        ).stdout.split()
         return int(out[0]), int(out[1])
     except (subprocess.SubprocessError, ValueError, IndexError):
         return None, None
@@ -293,8 +304,7 @@ def _kalman_innovations(rng, n, sigma_r=1.0, q=0.5):
     return S, HPH
 
 
-def sparse_scene(seed=0, n=200, spacing=1.5, width="half", P_D=0.9, P_G=0.99,
-                 clutter_per_gate=1.0):
+def sparse_scene(seed=0, n=200, spacing=1.5, width="half", P_D=0.9, P_G=0.99, clutter_per_gate=1.0):
     """DESIGN.md's sparse JPDA scene; returns (L, miss, info)."""
     from scipy import stats
 
@@ -307,8 +317,11 @@ def sparse_scene(seed=0, n=200, spacing=1.5, width="half", P_D=0.9, P_G=0.99,
     gw = half if width == "half" else 2 * half
     truth = np.column_stack((np.arange(n) * spacing * gw, np.zeros(n)))
     z_pred = truth + np.array([rng.multivariate_normal([0, 0], HPH[i]) for i in range(n)])
-    det = [truth[i] + rng.multivariate_normal([0, 0], S[i] - HPH[i])
-           for i in range(n) for _ in range(2)]
+    det = [
+        truth[i] + rng.multivariate_normal([0, 0], S[i] - HPH[i])
+        for i in range(n)
+        for _ in range(2)
+    ]
     vol_med = math.pi * gamma * math.sqrt(np.linalg.det(np.median(S, axis=0)))
     lam = clutter_per_gate / vol_med
     x0, x1 = truth[0, 0] - 3 * half, truth[-1, 0] + 3 * half
@@ -318,8 +331,16 @@ def sparse_scene(seed=0, n=200, spacing=1.5, width="half", P_D=0.9, P_G=0.99,
     z = np.vstack((np.array(det), clutter))
     g = gate_measurements(z_pred, S, z, P_G=P_G)
     L, miss = likelihood_ratios(g, P_D, lam)
-    return L, miss, {"n_measurements": int(z.shape[0]), "n_clutter": int(nc),
-                     "clutter_density": lam, "gate_width": gw}
+    return (
+        L,
+        miss,
+        {
+            "n_measurements": int(z.shape[0]),
+            "n_clutter": int(nc),
+            "clutter_density": lam,
+            "gate_width": gw,
+        },
+    )
 
 
 def bojilov_cluster(n_targets, beta, rng, sigma=0.35, spacing=0.5, P_D=0.9, P_G=0.99):
@@ -364,28 +385,41 @@ def _dense(quick, results, log):
         from stonesoup.dataassociator.probability import JPDAwithEHM2
     pyehm_sizes = PYEHM_SIZES_QUICK if quick else PYEHM_SIZES_FULL
     log("## Dense clusters (L = 5·U[0,1], miss = 0.1, all gated; seed 0)\n")
-    log("| N/M | exact | DP state | peak RSS | Stone Soup EHM2 | ratio | max|Δβ| "
-        "| pyehm EHM2 | ratio | max|Δβ| |")
+    log(
+        "| N/M | exact | DP state | peak RSS | Stone Soup EHM2 | ratio | max|Δβ| "
+        "| pyehm EHM2 | ratio | max|Δβ| |"
+    )
     log("|---|---|---|---|---|---|---|---|---|---|")
     rows = []
     for N, M in DENSE_SIZES:
         L, miss = dense_cluster(N, M)
         res = exact_jpda(L, miss)
-        t_ours, reps = _median_time(lambda L=L, miss=miss: exact_jpda(L, miss),
-                                    min_total=0.2 if quick else 0.5)
-        row = {"N": N, "M": M, "exact_s": t_ours, "exact_reps": reps,
-               "state_bytes": res.state_bytes, "max_frontier": res.max_frontier}
+        t_ours, reps = _median_time(
+            lambda L=L, miss=miss: exact_jpda(L, miss), min_total=0.2 if quick else 0.5
+        )
+        row = {
+            "N": N,
+            "M": M,
+            "exact_s": t_ours,
+            "exact_reps": reps,
+            "state_bytes": res.state_bytes,
+            "max_frontier": res.max_frontier,
+        }
         if N >= 16:
             base, peak = _peak_rss(N, M)
             row["peak_rss_bytes"] = peak
             row["rss_before_bytes"] = base
         rss = "-"
         if row.get("peak_rss_bytes"):
-            rss = (f"{_fmt_b(row['peak_rss_bytes'])} "
-                   f"(+{_fmt_b(row['peak_rss_bytes'] - row['rss_before_bytes'])})")
+            rss = (
+                f"{_fmt_b(row['peak_rss_bytes'])} "
+                f"(+{_fmt_b(row['peak_rss_bytes'] - row['rss_before_bytes'])})"
+            )
         cells = [f"{N}/{M}", _fmt_t(t_ours), _fmt_b(res.state_bytes), rss]
-        for peer, avail, sizes in (("stonesoup", have_ss, SS_EHM2_SIZES),
-                                   ("pyehm", have_pe, pyehm_sizes)):
+        for peer, avail, sizes in (
+            ("stonesoup", have_ss, SS_EHM2_SIZES),
+            ("pyehm", have_pe, pyehm_sizes),
+        ):
             if not avail:
                 cells += ["not installed", "-", "-"]
                 continue
@@ -397,7 +431,7 @@ def _dense(quick, results, log):
             if peer == "stonesoup":
                 t_p, beta_p = _StoneSoupCluster(L, miss).run(JPDAwithEHM2)
             else:
-                _pyehm_run(L[:2, :3], miss[:2])          # load the extension once
+                _pyehm_run(L[:2, :3], miss[:2])  # load the extension once
                 t_p, beta_p = _pyehm_run(L, miss)
             diff = float(np.abs(beta_p - res.beta).max())
             row[f"{peer}_s"] = t_p
@@ -408,14 +442,18 @@ def _dense(quick, results, log):
         log("| " + " | ".join(cells) + " |")
     results["dense"] = rows
     log("")
-    log("exact: median over repeats of `exact_jpda(L, miss)` (validation + leaf folding + "
+    log(
+        "exact: median over repeats of `exact_jpda(L, miss)` (validation + leaf folding + "
         "dual scaling + planning + forward–backward DP), single thread. DP state = bytes "
         "of the DP arrays allocated; peak RSS = peak resident memory of a fresh Python "
         "process (numpy, numba, jointtrack loaded) while it solves the cluster, with the "
-        "increase over its resident memory just before in parentheses.")
-    log("Stone Soup: one `JPDAwithEHM2.associate(tracks, detections, t)` call with a "
+        "increase over its resident memory just before in parentheses."
+    )
+    log(
+        "Stone Soup: one `JPDAwithEHM2.associate(tracks, detections, t)` call with a "
         "hypothesiser returning prebuilt SingleProbabilityHypothesis objects (probabilities "
-        "= miss, L). pyehm: one `EHM2().run(validation, [miss | L])` call.\n")
+        "= miss, L). pyehm: one `EHM2().run(validation, [miss | L])` call.\n"
+    )
     return rows
 
 
@@ -437,8 +475,10 @@ def _lbp(quick, results, log):
     log("## LBP at 20/40 (same matrix as the dense row)\n")
     log("| method | time | iterations | max |β − exact| |")
     log("|---|---|---|---|")
-    log(f"| jointtrack lbp (tol 1e-9, certified) | {_fmt_t(t_ours)} | {info.iterations} "
-        f"| {err:.2e} |")
+    log(
+        f"| jointtrack lbp (tol 1e-9, certified) | {_fmt_t(t_ours)} | {info.iterations} "
+        f"| {err:.2e} |"
+    )
     if _stonesoup_available():
         from stonesoup.dataassociator.probability import JPDAwithLBP
 
@@ -463,9 +503,11 @@ def _sparse(quick, results, log):
     from jointtrack.association.clustering import clusters
 
     log("## Sparse scene (200 targets on a line, 2 detections each, Poisson clutter)\n")
-    log("| variant | measurements | clusters | tracks per cluster (count) | largest "
+    log(
+        "| variant | measurements | clusters | tracks per cluster (count) | largest "
         "| exact, all clusters | exact, one call | pyehm EHM2, all clusters "
-        "| Stone Soup EHM2, scene | max|Δβ| |")
+        "| Stone Soup EHM2, scene | max|Δβ| |"
+    )
     log("|---|---|---|---|---|---|---|---|---|---|")
     out = []
     for width in ("half", "full"):
@@ -486,13 +528,24 @@ def _sparse(quick, results, log):
         t_all, _ = _median_time(all_clusters)
         t_one, _ = _median_time(lambda L=L, miss=miss: exact_jpda(L, miss))
         beta = exact_jpda(L, miss).beta
-        row = {"variant": width, "n_measurements": info["n_measurements"],
-               "n_clusters": len(cl), "cluster_size_hist": hist.tolist(),
-               "largest": [len(largest.tracks), len(largest.measurements)],
-               "exact_all_clusters_s": t_all, "exact_one_call_s": t_one}
-        cells = [f"gate width = {width} width", str(info["n_measurements"]), str(len(cl)),
-                 hist_s, f"{len(largest.tracks)}×{len(largest.measurements)}",
-                 _fmt_t(t_all), _fmt_t(t_one)]
+        row = {
+            "variant": width,
+            "n_measurements": info["n_measurements"],
+            "n_clusters": len(cl),
+            "cluster_size_hist": hist.tolist(),
+            "largest": [len(largest.tracks), len(largest.measurements)],
+            "exact_all_clusters_s": t_all,
+            "exact_one_call_s": t_one,
+        }
+        cells = [
+            f"gate width = {width} width",
+            str(info["n_measurements"]),
+            str(len(cl)),
+            hist_s,
+            f"{len(largest.tracks)}×{len(largest.measurements)}",
+            _fmt_t(t_all),
+            _fmt_t(t_one),
+        ]
         diffs = []
         if _pyehm_available():
             tp = 0.0
@@ -520,12 +573,14 @@ def _sparse(quick, results, log):
         log("| " + " | ".join(cells) + " |")
         out.append(row)
     log("")
-    log("Gate width read as the median gate's half-width along the line ('half', the "
+    log(
+        "Gate width read as the median gate's half-width along the line ('half', the "
         "headline: overlapping gates, chains of clusters) or its full width ('full': "
         "gates almost never overlap). exact, all clusters: sum over the clusters from "
         "`clusters(L > 0)` of `exact_marginals` on each sub-problem (per-call overhead "
         "included); one call: `exact_jpda` on the whole scene matrix, which splits it "
-        "itself.\n")
+        "itself.\n"
+    )
     results["sparse"] = out
 
 
@@ -534,12 +589,16 @@ def _table2(quick, results, log):
     from jointtrack.association.hypotheses import enumerate_jpda
 
     log("## Bojilov Table 2 trend: multiplications per cluster, naive vs incremental\n")
-    log("Ours: mean over 10 random Bojilov-like clusters (targets side by side on parallel "
+    log(
+        "Ours: mean over 10 random Bojilov-like clusters (targets side by side on parallel "
         "tracks, σ = 0.35, spacing 0.5, P_D = 0.9, clutter β per unit area); counts are "
         "multiplications for hypothesis products only. Paper: floating point operations "
-        "per cluster (all operations), averaged over ten runs of its scenario.\n")
-    log("| targets | β | hypotheses | naive mults | incremental mults | ratio "
-        "| paper nonopt | paper opt | paper ratio | enumerate vs exact max|Δβ| |")
+        "per cluster (all operations), averaged over ten runs of its scenario.\n"
+    )
+    log(
+        "| targets | β | hypotheses | naive mults | incremental mults | ratio "
+        "| paper nonopt | paper opt | paper ratio | enumerate vs exact max|Δβ| |"
+    )
     log("|---|---|---|---|---|---|---|---|---|---|")
     rng = np.random.default_rng(2024)
     rows = []
@@ -555,47 +614,70 @@ def _table2(quick, results, log):
                 L, miss = bojilov_cluster(n, beta, rng)
                 a = enumerate_jpda(L, miss, max_hypotheses=None)
                 b = enumerate_jpda(L, miss, naive=True, max_hypotheses=None)
-                t_opt.append(_median_time(
-                    lambda L=L, miss=miss: enumerate_jpda(L, miss, max_hypotheses=None),
-                    min_total=0.0)[0])
-                t_naive.append(_median_time(
-                    lambda L=L, miss=miss: enumerate_jpda(L, miss, naive=True,
-                                                          max_hypotheses=None),
-                    min_total=0.0)[0])
+                t_opt.append(
+                    _median_time(
+                        lambda L=L, miss=miss: enumerate_jpda(L, miss, max_hypotheses=None),
+                        min_total=0.0,
+                    )[0]
+                )
+                t_naive.append(
+                    _median_time(
+                        lambda L=L, miss=miss: enumerate_jpda(
+                            L, miss, naive=True, max_hypotheses=None
+                        ),
+                        min_total=0.0,
+                    )[0]
+                )
                 dmax = max(dmax, float(np.abs(a.beta - exact_marginals(L, miss)).max()))
                 hyp.append(a.n_hypotheses)
                 naive.append(b.n_multiplications)
                 opt.append(a.n_multiplications)
-            paper = BOJILOV_TABLE2[n][3 * beta_idx:3 * beta_idx + 3]
+            paper = BOJILOV_TABLE2[n][3 * beta_idx : 3 * beta_idx + 3]
             ratio = float(np.mean(naive) / np.mean(opt)) if np.mean(opt) else float("nan")
-            rows.append({"targets": n, "beta": beta, "hypotheses": float(np.mean(hyp)),
-                         "naive_mults": float(np.mean(naive)),
-                         "incremental_mults": float(np.mean(opt)), "ratio": ratio,
-                         "paper": paper, "max_diff_vs_exact": dmax,
-                         "naive_s": float(np.mean(t_naive)),
-                         "incremental_s": float(np.mean(t_opt))})
-            log(f"| {n} | {beta:g} | {np.mean(hyp):,.0f} | {np.mean(naive):,.0f} "
+            rows.append(
+                {
+                    "targets": n,
+                    "beta": beta,
+                    "hypotheses": float(np.mean(hyp)),
+                    "naive_mults": float(np.mean(naive)),
+                    "incremental_mults": float(np.mean(opt)),
+                    "ratio": ratio,
+                    "paper": paper,
+                    "max_diff_vs_exact": dmax,
+                    "naive_s": float(np.mean(t_naive)),
+                    "incremental_s": float(np.mean(t_opt)),
+                }
+            )
+            log(
+                f"| {n} | {beta:g} | {np.mean(hyp):,.0f} | {np.mean(naive):,.0f} "
                 f"| {np.mean(opt):,.0f} | {ratio:.2f} | {paper[0]:,} | {paper[1]:,} "
-                f"| {paper[2]:.2f} | {dmax:.1e} |")
+                f"| {paper[2]:.2f} | {dmax:.1e} |"
+            )
     log("")
-    log("For 2 targets both schemes need one multiplication per hypothesis (ratio 1); the "
+    log(
+        "For 2 targets both schemes need one multiplication per hypothesis (ratio 1); the "
         "ratio grows with the cluster size as in the paper (towards (N−1)(n−1)/n when "
         "conflicts are rare). The paper's ratios are smaller because its counts include "
-        "every other floating point operation of the cluster processing.\n")
+        "every other floating point operation of the cluster processing.\n"
+    )
     results["table2"] = rows
     log("### Table 3 analogue: seconds per cluster (same clusters)\n")
-    log("Ours: `enumerate_jpda` per cluster (validation, ordering, scaling, depth-first "
+    log(
+        "Ours: `enumerate_jpda` per cluster (validation, ordering, scaling, depth-first "
         "generation, normalisation), median of 3 calls, mean over the 10 clusters. Paper: "
-        "its whole JPDA cluster processing on 2003 hardware.\n")
+        "its whole JPDA cluster processing on 2003 hardware.\n"
+    )
     log("| targets | β | naive | incremental | ratio | paper nonopt | paper opt | paper ratio |")
     log("|---|---|---|---|---|---|---|---|")
     for r in rows:
         p3 = BOJILOV_TABLE3.get(r["targets"])
         k = 0 if r["beta"] == 1.0 else 3
-        paper = (f"{p3[k]} s | {p3[k + 1]} s | {p3[k + 2]:.2f}" if p3 else "- | - | -")
-        log(f"| {r['targets']} | {r['beta']:g} | {_fmt_t(r['naive_s'])} "
+        paper = f"{p3[k]} s | {p3[k + 1]} s | {p3[k + 2]:.2f}" if p3 else "- | - | -"
+        log(
+            f"| {r['targets']} | {r['beta']:g} | {_fmt_t(r['naive_s'])} "
             f"| {_fmt_t(r['incremental_s'])} | {r['naive_s'] / r['incremental_s']:.2f} "
-            f"| {paper} |")
+            f"| {paper} |"
+        )
     log("")
 
 
@@ -604,11 +686,21 @@ def _verdicts(results, log):
     checks = []
     r8 = rows[(8, 16)]
     if r8.get("stonesoup_ratio"):
-        checks.append(("8/16 ≥ 1000× faster than Stone Soup JPDAwithEHM2",
-                       r8["stonesoup_ratio"] >= TARGET_SS_RATIO, f"{r8['stonesoup_ratio']:,.0f}×"))
+        checks.append(
+            (
+                "8/16 ≥ 1000× faster than Stone Soup JPDAwithEHM2",
+                r8["stonesoup_ratio"] >= TARGET_SS_RATIO,
+                f"{r8['stonesoup_ratio']:,.0f}×",
+            )
+        )
     if r8.get("pyehm_ratio"):
-        checks.append(("8/16 ≥ 100× faster than pyehm EHM2",
-                       r8["pyehm_ratio"] >= TARGET_PYEHM_RATIO, f"{r8['pyehm_ratio']:,.0f}×"))
+        checks.append(
+            (
+                "8/16 ≥ 100× faster than pyehm EHM2",
+                r8["pyehm_ratio"] >= TARGET_PYEHM_RATIO,
+                f"{r8['pyehm_ratio']:,.0f}×",
+            )
+        )
     r16 = rows[(16, 32)]
     checks.append(("16/32 ≤ 0.1 s", r16["exact_s"] <= TARGET_16_32, _fmt_t(r16["exact_s"])))
     r20 = rows[(20, 40)]
@@ -618,20 +710,28 @@ def _verdicts(results, log):
     sp = results.get("sparse")
     if sp:
         t = sp[0]["exact_all_clusters_s"]
-        checks.append(("sparse scene, all clusters exact ≤ 50 ms", t <= TARGET_SPARSE,
-                       _fmt_t(t)))
+        checks.append(("sparse scene, all clusters exact ≤ 50 ms", t <= TARGET_SPARSE, _fmt_t(t)))
     lb = results.get("lbp_20_40")
     if lb and "stonesoup_lbp_s" in lb:
-        checks.append(("lbp 20/40 faster than Stone Soup JPDAwithLBP",
-                       lb["lbp_s"] < lb["stonesoup_lbp_s"],
-                       f"{_fmt_t(lb['lbp_s'])} vs {_fmt_t(lb['stonesoup_lbp_s'])}"))
+        checks.append(
+            (
+                "lbp 20/40 faster than Stone Soup JPDAwithLBP",
+                lb["lbp_s"] < lb["stonesoup_lbp_s"],
+                f"{_fmt_t(lb['lbp_s'])} vs {_fmt_t(lb['stonesoup_lbp_s'])}",
+            )
+        )
     t2 = results.get("table2")
     if t2:
         r1 = [r["ratio"] for r in t2 if r["beta"] == 1.0]
         r2 = [r["ratio"] for r in t2 if r["beta"] == 2.0]
         ok = all(np.diff(r1) > 0) and all(np.diff(r2) > 0)
-        checks.append(("Table 2 trend: ratio grows with cluster size", ok,
-                       " / ".join(f"{x:.2f}" for x in r1 + r2)))
+        checks.append(
+            (
+                "Table 2 trend: ratio grows with cluster size",
+                ok,
+                " / ".join(f"{x:.2f}" for x in r1 + r2),
+            )
+        )
     log("## Targets (issue 3)\n")
     for name, ok, val in checks:
         log(f"- {'PASS' if ok else 'FAIL'}: {name} ({val})")
@@ -649,8 +749,12 @@ def run(quick: bool = False, out: str | None = None) -> dict:
         print(s, flush=True)
 
     results: dict = {"quick": quick}
-    versions = {"jointtrack": jointtrack.__version__, "numpy": np.__version__,
-                "numba": numba.__version__, "python": platform.python_version()}
+    versions = {
+        "jointtrack": jointtrack.__version__,
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "python": platform.python_version(),
+    }
     try:
         import stonesoup
 

@@ -486,9 +486,10 @@ def run(quick: bool = False, out: str | None = None) -> dict:
         times in seconds (medians), errors relative (or a string saying why not).
     """
     import numba
-    from rich.console import Console
 
-    console = Console()
+    from jointtrack._console import make_console
+
+    console = make_console()
     tw_perm, tw_version = _load_thewalrus()
     meta = {
         "quick": quick,

@@ -30,9 +30,9 @@ import statistics
 import time
 
 import numpy as np
-from rich.console import Console
 from rich.table import Table
 
+from jointtrack._console import make_console
 from jointtrack.metrics import gospa_series, track_statistics
 from jointtrack.scenarios import bojilov, many_targets
 from jointtrack.trackers import JPDATracker, TrackerConfig
@@ -195,9 +195,7 @@ def _bojilov(console, quick, results):
 
 
 def run(quick: bool = False, out: str | None = None) -> dict:
-    console = Console()
-    if not console.is_terminal:  # logs and CI: do not squeeze the tables into 80 columns
-        console = Console(width=160)
+    console = make_console()
     results: dict = {"quick": quick}
     _many(console, quick, results)
     _bojilov(console, quick, results)

@@ -242,11 +242,7 @@ def sample_permanent(A, n_samples: int = 10_000, *, rng=None) -> SampledPermanen
         if no assignment of the rows to distinct columns has positive weight.
     """
     A = check_matrix(A)
-    if (
-        isinstance(n_samples, bool)
-        or not isinstance(n_samples, (int, np.integer))
-        or n_samples < 2
-    ):
+    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 2:
         raise ValueError(f"n_samples must be an integer ≥ 2, got {n_samples!r}")
     n_samples = int(n_samples)
     gen = _make_rng(rng)

@@ -30,14 +30,25 @@ from scipy.optimize import linear_sum_assignment
 from jointtrack.association import marginals
 from jointtrack.association.clustering import clusters
 from jointtrack.association.gating import gate_measurements
-from jointtrack.filters import pda_update, predict, predict_measurement
-from jointtrack.models import ConstantAcceleration, ConstantVelocity, LinearPosition
+from jointtrack.filters import (
+    ekf_predict_measurement,
+    pda_ekf_update,
+    pda_update,
+    predict,
+    predict_measurement,
+)
+from jointtrack.models import (
+    ConstantAcceleration,
+    ConstantVelocity,
+    LinearPosition,
+    RangeBearing,
+)
 
 __all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackerConfig"]
 
 log = logging.getLogger("jointtrack.tracker")
 
-_STATE_VERSION = 1
+_STATE_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -49,7 +60,14 @@ class TrackerConfig:
     dim : 2 or 3, spatial dimension; measurements are positions ``[x, y(, z)]``.
     motion : ``"cv"`` (nearly constant velocity) or ``"ca"`` (constant acceleration).
     process_noise : q of the motion model (m²/s³ for CV, m²/s⁵ for CA).
-    measurement_noise : σ² of each position coordinate (R = σ² I).
+    measurement_noise : σ² of each position coordinate (R = σ² I), for
+        ``sensor="position"``.
+    sensor : ``"position"`` (linear, measurements ``[x, y(, z)]``) or
+        ``"range-bearing"`` (2-D only; measurements ``[r, θ]`` from a sensor at
+        ``sensor_position``, EKF with the bearing residual wrapped to (−π, π]).
+    sensor_position : position of the range–bearing sensor.
+    range_noise, bearing_noise : σ_r² (m²) and σ_θ² (rad²) of the range–bearing
+        sensor; ``clutter_density`` is then per unit of range × bearing.
     p_d : detection probability P_D.
     p_g : gate probability P_G (chi-square gate γ = χ²_d⁻¹(P_G)).
     clutter_density : λ, false returns per unit volume; ``None`` estimates it per
@@ -80,6 +98,10 @@ class TrackerConfig:
     motion: str = "cv"
     process_noise: float = 1.0
     measurement_noise: float = 100.0
+    sensor: str = "position"
+    sensor_position: tuple = (0.0, 0.0)
+    range_noise: float = 25.0
+    bearing_noise: float = 1e-4
     p_d: float = 0.9
     p_g: float = 0.99
     clutter_density: float | None = None
@@ -105,8 +127,25 @@ class TrackerConfig:
                 raise ValueError(f"TrackerConfig: {msg}")
 
         need(self.dim in (2, 3), f"dim must be 2 or 3, got {self.dim}")
+        need(
+            self.sensor in ("position", "range-bearing"),
+            f"sensor must be 'position' or 'range-bearing', got {self.sensor!r}",
+        )
+        need(self.sensor == "position" or self.dim == 2, "the range-bearing sensor is 2-D")
+        try:
+            pos = tuple(float(v) for v in self.sensor_position)
+        except (TypeError, ValueError):
+            pos = ()
+        need(len(pos) == 2 and all(map(math.isfinite, pos)), "sensor_position must be (x, y)")
+        object.__setattr__(self, "sensor_position", pos)
         need(self.motion in ("cv", "ca"), f"motion must be 'cv' or 'ca', got {self.motion!r}")
-        for name in ("process_noise", "measurement_noise", "max_speed"):
+        for name in (
+            "process_noise",
+            "measurement_noise",
+            "max_speed",
+            "range_noise",
+            "bearing_noise",
+        ):
             v = getattr(self, name)
             need(math.isfinite(v) and v > 0, f"{name} must be positive and finite, got {v}")
         for name in ("p_d", "p_g", "p_survive"):
@@ -208,7 +247,12 @@ class JPDATracker:
         model = ConstantVelocity if c.motion == "cv" else ConstantAcceleration
         self._motion = model(dim=c.dim, q=c.process_noise)
         n = self._motion.state_dim
-        self._sensor = LinearPosition(c.dim, c.measurement_noise, state_dim=n)
+        if c.sensor == "position":
+            self._sensor = LinearPosition(c.dim, c.measurement_noise, state_dim=n)
+        else:
+            self._sensor = RangeBearing(
+                [c.range_noise, c.bearing_noise], sensor_position=c.sensor_position, state_dim=n
+            )
         self.rng = np.random.default_rng(c.seed)
         self.time: float | None = None
         self.x = np.zeros((0, n))
@@ -219,7 +263,9 @@ class JPDATracker:
         self.age = np.zeros(0, np.int64)
         self.misses = np.zeros(0, np.int64)
         self.existence = np.zeros(0)
-        self.seeds = np.zeros((0, c.dim))  # unassociated returns of the previous scan
+        # unassociated returns of the previous scan (positions, covariances): two-point seeds
+        self.seeds = np.zeros((0, c.dim))
+        self.seed_covs = np.zeros((0, c.dim, c.dim))
         self.next_id = 1
         self.n_scans = 0
 
@@ -233,8 +279,11 @@ class JPDATracker:
         z = np.asarray(z, dtype=float)
         if z.size == 0:
             z = z.reshape(0, c.dim)
-        if z.ndim != 2 or z.shape[1] != c.dim:
-            raise ValueError(f"measurements must have shape (M, {c.dim}), got {z.shape}")
+        mdim = 2 if c.sensor == "range-bearing" else c.dim
+        if z.size == 0:
+            z = z.reshape(0, mdim)
+        if z.ndim != 2 or z.shape[1] != mdim:
+            raise ValueError(f"measurements must have shape (M, {mdim}), got {z.shape}")
         if not np.all(np.isfinite(z)):
             raise ValueError(f"scan at t={t} has a non-finite measurement")
         if self.time is not None and not t > self.time:
@@ -272,7 +321,10 @@ class JPDATracker:
             free = free[free_local]
         unassoc = free
         if N:
-            self.x, self.P = pda_update(self.x, self.P, z, self._sensor.H, self._sensor.R, beta)
+            if c.sensor == "position":
+                self.x, self.P = pda_update(self.x, self.P, z, self._sensor.H, self._sensor.R, beta)
+            else:
+                self.x, self.P = pda_ekf_update(self.x, self.P, z, self._sensor, beta)
             self._track_logic(hit)
         self._initiate(z[unassoc], dt)
         self.time = t
@@ -303,8 +355,12 @@ class JPDATracker:
         c = self.config
         n, M = len(tracks), len(z)
         x, P = self.x[tracks], self.P[tracks]
-        z_pred, S = predict_measurement(x, P, self._sensor.H, self._sensor.R)
-        g = gate_measurements(z_pred, S, z, P_G=c.p_g)
+        if c.sensor == "position":
+            z_pred, S = predict_measurement(x, P, self._sensor.H, self._sensor.R)
+            g = gate_measurements(z_pred, S, z, P_G=c.p_g)
+        else:
+            z_pred, S = ekf_predict_measurement(x, P, self._sensor)
+            g = gate_measurements(z_pred, S, z, P_G=c.p_g, residual=self._sensor.residual)
         mask = g.mask
         groups = clusters(mask)
         lam = np.full(M, c.clutter_density if c.clutter_density else 1.0)
@@ -393,61 +449,76 @@ class JPDATracker:
         for name in ("x", "P", "ids", "confirmed", "history", "age", "misses", "existence"):
             setattr(self, name, getattr(self, name)[keep])
 
+    def _positions(self, z):
+        """Cartesian positions (k, d) and their covariances (k, d, d) of returns ``z``."""
+        c = self.config
+        if c.sensor == "position":
+            cov = np.broadcast_to(self._sensor.R, (len(z), c.dim, c.dim)).copy()
+            return z.copy(), cov
+        r, th = z[:, 0], z[:, 1]
+        J = np.empty((len(z), 2, 2))  # ∂(x, y)/∂(r, θ)
+        J[:, 0, 0], J[:, 0, 1] = np.cos(th), -r * np.sin(th)
+        J[:, 1, 0], J[:, 1, 1] = np.sin(th), r * np.cos(th)
+        return self._sensor.to_position(z), J @ self._sensor.R @ J.transpose(0, 2, 1)
+
     def _initiate(self, z_new, dt):
         """Start tentative tracks from returns no track claimed (two- or one-point)."""
         c = self.config
         n = self._motion.state_dim
         d = c.dim
-        R = c.measurement_noise
+        pos, cov = self._positions(z_new)
         if c.initiation == "one-point":
-            starts = z_new
-            vel = np.zeros_like(z_new)
-            var_v = np.full(len(z_new), (c.max_speed / 2.0) ** 2)
-            cov_pv = np.zeros(len(z_new))
-            self.seeds = np.zeros((0, d))
+            vel = np.zeros_like(pos)
+            cov_vv = np.broadcast_to(np.eye(d) * (c.max_speed / 2.0) ** 2, cov.shape).copy()
+            cov_pv = np.zeros_like(cov)
+            self.seeds, self.seed_covs = np.zeros((0, d)), np.zeros((0, d, d))
+        elif dt is not None and len(self.seeds) and len(pos):
+            both = cov[:, None] + self.seed_covs[None, :]  # (new, seed, d, d)
+            dist = np.linalg.norm(pos[:, None, :] - self.seeds[None, :, :], axis=2)
+            spread = np.sqrt(np.trace(both, axis1=2, axis2=3))
+            cost = np.where(dist <= c.max_speed * dt + 3.0 * spread, dist, 1e12)
+            rows, cols = linear_sum_assignment(cost)
+            ok = cost[rows, cols] < 1e12
+            rows, cols = rows[ok], cols[ok]
+            unused = np.ones(len(pos), bool)
+            unused[rows] = False
+            vel = (pos[rows] - self.seeds[cols]) / dt
+            self.seeds, self.seed_covs = pos[unused], cov[unused]
+            cov_vv = both[rows, cols] / dt**2
+            cov_pv = cov[rows] / dt
+            pos, cov = pos[rows], cov[rows]
         else:
-            starts = vel = np.zeros((0, d))
-            var_v = cov_pv = np.zeros(0)
-            if dt is not None and len(self.seeds) and len(z_new):
-                dist = np.linalg.norm(z_new[:, None, :] - self.seeds[None, :, :], axis=2)
-                reach = c.max_speed * dt + 3.0 * math.sqrt(2.0 * R)
-                cost = np.where(dist <= reach, dist, 1e12)
-                rows, cols = linear_sum_assignment(cost)
-                ok = cost[rows, cols] < 1e12
-                rows, cols = rows[ok], cols[ok]
-                starts = z_new[rows]
-                vel = (z_new[rows] - self.seeds[cols]) / dt
-                var_v = np.full(len(rows), 2.0 * R / dt**2)
-                cov_pv = np.full(len(rows), R / dt)
-                unused = np.ones(len(z_new), bool)
-                unused[rows] = False
-                self.seeds = z_new[unused]
-            else:
-                self.seeds = z_new
-        k = len(starts)
+            self.seeds, self.seed_covs = pos, cov
+            return
+        k = len(pos)
         if k == 0:
             return
         x0 = np.zeros((k, n))
-        x0[:, :d] = starts
+        x0[:, :d] = pos
         x0[:, d : 2 * d] = vel
         P0 = np.zeros((k, n, n))
-        idx = np.arange(d)
-        P0[:, idx, idx] = R
-        P0[:, d + idx, d + idx] = var_v[:, None]
-        P0[:, idx, d + idx] = cov_pv[:, None]
-        P0[:, d + idx, idx] = cov_pv[:, None]
+        P0[:, :d, :d] = cov
+        P0[:, d : 2 * d, d : 2 * d] = cov_vv
+        P0[:, :d, d : 2 * d] = cov_pv
+        P0[:, d : 2 * d, :d] = cov_pv.transpose(0, 2, 1)
         if n > 2 * d:  # constant acceleration: acceleration unknown
-            a = 2 * d + idx
+            a = np.arange(2 * d, 3 * d)
             P0[:, a, a] = (c.max_speed / 2.0) ** 2
+        self._append(x0, P0, confirmed=False, existence=c.r_init)
+
+    def _append(self, x0, P0, *, confirmed, existence):
+        k = len(x0)
+        ids = np.arange(self.next_id, self.next_id + k)
+        self.next_id += k
         self.x = np.concatenate([self.x, x0])
         self.P = np.concatenate([self.P, P0])
-        self.ids = np.concatenate([self.ids, np.arange(self.next_id, self.next_id + k)])
-        self.next_id += k
-        self.confirmed = np.concatenate([self.confirmed, np.zeros(k, bool)])
+        self.ids = np.concatenate([self.ids, ids])
+        self.confirmed = np.concatenate([self.confirmed, np.full(k, confirmed)])
         self.history = np.concatenate([self.history, np.ones(k, np.int64)])
         self.age = np.concatenate([self.age, np.zeros(k, np.int64)])
         self.misses = np.concatenate([self.misses, np.zeros(k, np.int64)])
-        self.existence = np.concatenate([self.existence, np.full(k, c.r_init)])
+        self.existence = np.concatenate([self.existence, np.full(k, float(existence))])
+        return ids
 
     def start_tracks(self, x0, P0, *, confirmed: bool = True, existence: float = 0.99):
         """Add tracks with known states (e.g. from a previous stage or ground truth).
@@ -465,18 +536,7 @@ class JPDATracker:
             raise ValueError("x0 and P0 must be finite")
         if np.any(np.linalg.eigvalsh(0.5 * (P0 + P0.transpose(0, 2, 1))) <= 0):
             raise ValueError("every P0 must be symmetric positive definite")
-        k = len(x0)
-        ids = np.arange(self.next_id, self.next_id + k)
-        self.next_id += k
-        self.x = np.concatenate([self.x, x0])
-        self.P = np.concatenate([self.P, P0])
-        self.ids = np.concatenate([self.ids, ids])
-        self.confirmed = np.concatenate([self.confirmed, np.full(k, confirmed)])
-        self.history = np.concatenate([self.history, np.ones(k, np.int64)])
-        self.age = np.concatenate([self.age, np.zeros(k, np.int64)])
-        self.misses = np.concatenate([self.misses, np.zeros(k, np.int64)])
-        self.existence = np.concatenate([self.existence, np.full(k, float(existence))])
-        return ids
+        return self._append(x0, P0, confirmed=confirmed, existence=existence)
 
     # ------------------------------------------------------------ save/load
     _FIELDS = (
@@ -490,6 +550,7 @@ class JPDATracker:
         "misses",
         "existence",
         "seeds",
+        "seed_covs",
         "next_id",
         "n_scans",
     )
