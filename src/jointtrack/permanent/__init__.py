@@ -24,10 +24,25 @@ Approximations
 
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent.balance import sinkhorn
-from jointtrack.permanent.bethe import BethePermanent, bethe_permanent
 from jointtrack.permanent.exact import log_permanent, permanent
 from jointtrack.permanent.marginals import assignment_marginals
-from jointtrack.permanent.sampling import SampledPermanent, sample_permanent
+
+# The approximations pull in scipy.optimize (~0.2 s); import them on first use so
+# that a process computing exact permanents starts fast.
+_LAZY = {
+    "BethePermanent": "bethe",
+    "bethe_permanent": "bethe",
+    "SampledPermanent": "sampling",
+    "sample_permanent": "sampling",
+}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f"jointtrack.permanent.{_LAZY[name]}"), name)
+    raise AttributeError(f"module 'jointtrack.permanent' has no attribute {name!r}")
 
 __all__ = [
     "BethePermanent",
