@@ -44,6 +44,7 @@ def __getattr__(name):
         return getattr(importlib.import_module(f"jointtrack.permanent.{_LAZY[name]}"), name)
     raise AttributeError(f"module 'jointtrack.permanent' has no attribute {name!r}")
 
+
 __all__ = [
     "BethePermanent",
     "InfeasibleAssignmentError",

@@ -99,3 +99,11 @@ def expand(A: np.ndarray, row_counts, col_counts) -> np.ndarray:
     r = np.ones(A.shape[0], int) if row_counts is None else np.asarray(row_counts, int)
     c = np.ones(A.shape[1], int) if col_counts is None else np.asarray(col_counts, int)
     return np.repeat(np.repeat(A, r, axis=0), c, axis=1)
+
+
+def check_problem(A, row_counts=None, col_counts=None):
+    """``(A, rows, cols)`` for plain or compressed input, group sizes as int64 arrays."""
+    if row_counts is None and col_counts is None:
+        A = check_matrix(A)
+        return A, np.ones(A.shape[0], np.int64), np.ones(A.shape[1], np.int64)
+    return check_compressed(A, row_counts, col_counts)

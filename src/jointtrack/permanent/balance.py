@@ -17,7 +17,7 @@ import numba as nb
 import numpy as np
 
 from jointtrack.errors import InfeasibleAssignmentError
-from jointtrack.permanent._validate import check_compressed, check_matrix
+from jointtrack.permanent._validate import check_problem
 
 
 @nb.njit(cache=True)
@@ -189,12 +189,7 @@ def sinkhorn(A, *, tol: float = 1e-12, max_iter: int = 10_000, row_counts=None, 
         lacks total support and no exact doubly stochastic scaling exists
         (some entries of the limit are 0 that are positive in A).
     """
-    if row_counts is None and col_counts is None:
-        A = check_matrix(A)
-        rows = np.ones(A.shape[0], np.int64)
-        cols = np.ones(A.shape[1], np.int64)
-    else:
-        A, rows, cols = check_compressed(A, row_counts, col_counts)
+    A, rows, cols = check_problem(A, row_counts, col_counts)
     n, m = A.shape
     if n == 0:
         return np.ones(0), A.copy(), np.ones(m)

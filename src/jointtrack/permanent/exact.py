@@ -30,7 +30,7 @@ import numpy as np
 from jointtrack.permanent import inclusion_exclusion as _ie
 from jointtrack.permanent import multiset as _ms
 from jointtrack.permanent import subset as _ss
-from jointtrack.permanent._validate import check_compressed, check_matrix, expand
+from jointtrack.permanent._validate import check_problem, expand
 from jointtrack.permanent.balance import apply_pow2, balance_pow2
 from jointtrack.permanent.structure import has_feasible_assignment
 
@@ -49,20 +49,21 @@ MAX_TABLE = 2**28
 SUBSET_MAX_N = 27
 
 
-def _prepare(A, row_counts, col_counts):
-    if row_counts is None and col_counts is None:
-        A = check_matrix(A)
-        rows = np.ones(A.shape[0], np.int64)
-        cols = np.ones(A.shape[1], np.int64)
-    else:
-        A, rows, cols = check_compressed(A, row_counts, col_counts)
-    return A, rows, cols
-
-
-def _checked(A, method, row_counts, col_counts):
+def _permanent_parts(A, method, row_counts, col_counts):
+    """Validate, then ``("value", v)`` for the reference or a trivial case, or
+    ``("scaled", (mantissa, e))`` with Per = mantissa · 2^e (mantissa 0: Per = 0)."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    return _prepare(A, row_counts, col_counts)
+    A, rows, cols = check_problem(A, row_counts, col_counts)
+    if method == "reference":
+        from jointtrack.permanent.reference import reference_log_permanent
+
+        return "log", reference_log_permanent(A, row_counts=rows, col_counts=cols)
+    if int(rows.sum()) == 0:
+        return "scaled", (1.0, 0)
+    if not has_feasible_assignment(A > 0, rows, cols):
+        return "scaled", (0.0, 0)
+    return "scaled", _scaled_permanent(A, rows, cols, method)
 
 
 def make_square(A, rows, cols):
@@ -259,16 +260,10 @@ def log_permanent(A, method: str = "auto", *, row_counts=None, col_counts=None) 
     ValueError
         bad input, an unknown method, or a problem too large for exact methods.
     """
-    A, rows, cols = _checked(A, method, row_counts, col_counts)
-    if method == "reference":
-        from jointtrack.permanent.reference import reference_log_permanent
-
-        return reference_log_permanent(A, row_counts=rows, col_counts=cols)
-    if int(rows.sum()) == 0:
-        return 0.0
-    if not has_feasible_assignment(A > 0, rows, cols):
-        return -math.inf
-    value, e = _scaled_permanent(A, rows, cols, method)
+    kind, result = _permanent_parts(A, method, row_counts, col_counts)
+    if kind == "log":
+        return result
+    value, e = result
     if value <= 0.0:
         return -math.inf
     return math.log(value) + e * _LN2
@@ -285,16 +280,12 @@ def permanent(A, method: str = "auto", *, row_counts=None, col_counts=None) -> f
         if the permanent is positive but outside the float64 range (it neither
         silently becomes ``inf`` nor ``0.0``); use :func:`log_permanent`.
     """
-    A, rows, cols = _checked(A, method, row_counts, col_counts)
     if method == "reference":
         from jointtrack.permanent.reference import reference_permanent
 
+        A, rows, cols = check_problem(A, row_counts, col_counts)
         return reference_permanent(A, row_counts=rows, col_counts=cols)
-    if int(rows.sum()) == 0:
-        return 1.0
-    if not has_feasible_assignment(A > 0, rows, cols):
-        return 0.0
-    value, e = _scaled_permanent(A, rows, cols, method)
+    _, (value, e) = _permanent_parts(A, method, row_counts, col_counts)
     if value <= 0.0:
         return 0.0
     mant, e2 = math.frexp(value)

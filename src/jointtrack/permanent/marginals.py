@@ -14,11 +14,11 @@ import numpy as np
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent import multiset as _ms
 from jointtrack.permanent import subset as _ss
+from jointtrack.permanent._validate import check_problem
 from jointtrack.permanent.exact import (
     _balanced,
     _multiset_check,
     _plan,
-    _prepare,
     make_square,
     multiset_items,
 )
@@ -55,7 +55,7 @@ def assignment_marginals(A, row_counts=None, col_counts=None) -> np.ndarray:
     ValueError
         bad input, or a problem too large for the exact programme.
     """
-    A, rows, cols = _prepare(A, row_counts, col_counts)
+    A, rows, cols = check_problem(A, row_counts, col_counts)
     if int(rows.sum()) == 0:
         return np.zeros(A.shape)
     if not has_feasible_assignment(A > 0, rows, cols):

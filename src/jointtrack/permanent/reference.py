@@ -76,7 +76,7 @@ from fractions import Fraction
 import numpy as np
 
 from jointtrack.errors import InfeasibleAssignmentError
-from jointtrack.permanent._validate import check_compressed, check_matrix
+from jointtrack.permanent._validate import check_problem
 
 __all__ = ["reference_log_permanent", "reference_marginals", "reference_permanent"]
 
@@ -126,14 +126,6 @@ def _integerise(A: np.ndarray, square: bool) -> tuple[list[list[int]], list[int]
             s[j] = min(exps) if exps else 0
     M = [[(mu << (e - s[j])) if mu else 0 for j, (mu, e) in enumerate(rel[q])] for q in range(g)]
     return M, r, s
-
-
-def _prepare(A, row_counts, col_counts):
-    """Validate; return (A, rows, cols) with rows/cols int64 group sizes."""
-    if row_counts is None and col_counts is None:
-        A = check_matrix(A)
-        return A, np.ones(A.shape[0], np.int64), np.ones(A.shape[1], np.int64)
-    return check_compressed(A, row_counts, col_counts)
 
 
 # --------------------------------------------------------------------------- planning
@@ -322,7 +314,7 @@ def _backward(plan: _Plan, space: _Space, weights, wanted: set[int]):
 
 
 def _exact_setup(A, row_counts, col_counts):
-    A, rows, cols = _prepare(A, row_counts, col_counts)
+    A, rows, cols = check_problem(A, row_counts, col_counts)
     n, m = int(rows.sum()), int(cols.sum())
     M, r, s = _integerise(A, square=(n == m))
     exp2 = sum(int(c) * e for c, e in zip(rows, r, strict=True))
