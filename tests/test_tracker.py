@@ -213,3 +213,48 @@ def test_range_bearing_ekf_tracks_across_the_bearing_branch_cut():
         assert stats.n_true_tracks == 2 and stats.n_false_tracks == 0, stats.as_dict()
         assert stats.coverage >= 0.85, stats.as_dict()
     assert np.mean(gospas) <= 12.5, gospas
+
+
+@pytest.mark.parametrize("motion, dim", [("cv", 3), ("ca", 2), ("ca", 3)])
+def test_other_motion_models_and_dimensions(motion, dim):
+    # Two targets on straight lines (the CA model must also follow a constant
+    # velocity), P_D = 0.9, uniform clutter; no tracks at the start.
+    rng = np.random.default_rng(17)
+    sigma, n_scans, clutter = 5.0, 40, 5.0
+    lo, hi = np.full(dim, -300.0), np.full(dim, 300.0)
+    x0 = np.zeros((2, dim))
+    x0[:, 0] = -200.0
+    x0[1, 1] = 80.0
+    v = np.zeros((2, dim))
+    v[:, 0] = 10.0
+    v[1, -1] = 2.0
+    scans, truth_t, truth_id, truth_p = [], [], [], []
+    for k in range(n_scans):
+        pos = x0 + k * v
+        seen = rng.random(2) < 0.9
+        det = pos[seen] + rng.normal(scale=sigma, size=(int(seen.sum()), dim))
+        cl = rng.uniform(lo, hi, size=(rng.poisson(clutter), dim))
+        scans.append(np.vstack([det, cl]))
+        truth_t += [k, k]
+        truth_id += [1, 2]
+        truth_p += list(pos)
+    cfg = TrackerConfig(
+        dim=dim,
+        motion=motion,
+        process_noise=0.01,
+        measurement_noise=sigma**2,
+        p_d=0.9,
+        clutter_density=clutter / np.prod(hi - lo),
+        max_speed=15.0,
+    )
+    trk = JPDATracker(cfg)
+    rows = []
+    for k, z in enumerate(scans):
+        r = trk.step(float(k), z)
+        assert r.x.shape[1] == (2 if motion == "cv" else 3) * dim
+        rows += [(k, i, *x[:dim]) for i, x in zip(r.ids, r.x, strict=True)]
+    rows = np.array(rows)
+    truth = (np.array(truth_t, float), np.array(truth_id), np.array(truth_p))
+    stats = track_statistics(*truth, rows[:, 0], rows[:, 1].astype(int), rows[:, 2:], gate=20)
+    assert stats.n_true_tracks == 2 and stats.n_false_tracks == 0, stats.as_dict()
+    assert stats.coverage >= 0.85 and stats.rmse <= 2 * sigma, stats.as_dict()

@@ -80,6 +80,8 @@ class TrackerConfig:
         consecutive scans no further apart than ``max_speed·dt``) or
         ``"one-point"`` (zero velocity, σ_v = max_speed/2).
     max_speed : largest target speed, m/s.
+    max_acceleration : largest target acceleration, m/s² (initial acceleration
+        uncertainty σ_a = max_acceleration/2 of constant-acceleration tracks).
     confirm_m, confirm_n : M-of-N confirmation (hits = scans with a gated return).
     delete_misses : consecutive scans without a gated return that delete a
         confirmed track.
@@ -110,6 +112,7 @@ class TrackerConfig:
     approximation: str = "lbp"
     initiation: str = "two-point"
     max_speed: float = 50.0
+    max_acceleration: float = 10.0
     confirm_m: int = 2
     confirm_n: int = 3
     delete_misses: int = 3
@@ -143,6 +146,7 @@ class TrackerConfig:
             "process_noise",
             "measurement_noise",
             "max_speed",
+            "max_acceleration",
             "range_noise",
             "bearing_noise",
         ):
@@ -503,7 +507,7 @@ class JPDATracker:
         P0[:, d : 2 * d, :d] = cov_pv.transpose(0, 2, 1)
         if n > 2 * d:  # constant acceleration: acceleration unknown
             a = np.arange(2 * d, 3 * d)
-            P0[:, a, a] = (c.max_speed / 2.0) ** 2
+            P0[:, a, a] = (c.max_acceleration / 2.0) ** 2
         self._append(x0, P0, confirmed=False, existence=c.r_init)
 
     def _append(self, x0, P0, *, confirmed, existence):
