@@ -1,7 +1,10 @@
 """Experiments: the main job (``jointtrack run``) and reproductions of the papers' tables.
 
 * :mod:`jointtrack.experiments.run` — :func:`run_scenario`, :func:`run_detections`:
-  tracker on a built-in scenario or a detections file; tracks, metrics, plots.
+  tracker on a built-in scenario or a detections file; tracks, metrics, plots. Its
+  parts: :mod:`~jointtrack.experiments.config` (config file, scenarios, tracker
+  settings), :mod:`~jointtrack.experiments.writers` (tracks file, checkpoint
+  bookkeeping), :mod:`~jointtrack.experiments.summary` (metrics, summary tables).
 * :mod:`jointtrack.experiments.bojilov` — :func:`reproduce`: Bojilov et al.'s
   Tables 2–3 (hypotheses, multiplications, seconds per cluster) beside the paper's.
 * :mod:`jointtrack.experiments.plots` — the figures (matplotlib, Agg backend).

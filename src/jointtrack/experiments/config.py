@@ -1,0 +1,280 @@
+"""Run configuration: the ``--config`` TOML file, scenarios and tracker settings.
+
+:func:`load_config` reads and checks the TOML file (its format is documented in
+:mod:`jointtrack.experiments.run`); :func:`make_scenario` builds a built-in
+scenario and :func:`make_tracker_config` the tracker configuration;
+:func:`scenario_tracker_settings` derives tracker settings from a scenario and
+:func:`start_truth_tracks` starts tracks at the true states with the
+steady-state covariance (:func:`steady_state_covariance`). Bad settings raise
+:class:`RunConfigError` with a one-line message.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from jointtrack.trackers import JPDATracker, TrackerConfig
+
+__all__ = [
+    "SCENARIOS",
+    "TRUTH_START_NOTE",
+    "RunConfig",
+    "RunConfigError",
+    "load_config",
+    "make_scenario",
+    "make_tracker_config",
+    "scenario_tracker_settings",
+    "start_truth_tracks",
+    "steady_state_covariance",
+]
+
+SCENARIOS = ("bojilov", "crossing", "many")
+_GENERATOR_NAMES = {"bojilov": "bojilov", "crossing": "crossing", "many": "many_targets"}
+TRUTH_START_NOTE = (
+    "tracks started from the truth at the first scan: Bojilov's experiment studies "
+    "track maintenance and association, not initiation"
+)
+
+
+class RunConfigError(ValueError):
+    """A bad run configuration (config file, scenario or option); one-line message."""
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """A parsed ``--config`` file: the three optional tables, as plain dicts."""
+
+    tracker: dict = field(default_factory=dict)
+    scenario: dict = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)
+    source: str | None = None
+
+
+_TABLES = ("tracker", "scenario", "metrics")
+_METRIC_KEYS = {"c": "number > 0", "p": "number ≥ 1", "switch_penalty": "number ≥ 0"}
+
+
+def load_config(path) -> RunConfig:
+    """Read a TOML run configuration (format: :mod:`jointtrack.experiments.run`).
+
+    Checks the table names, the ``[tracker]`` keys and value types and the
+    ``[metrics]`` values here; ``[scenario]`` keywords are checked against the
+    scenario function when the scenario is made (:func:`make_scenario`).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise RunConfigError(f"{path}: no such config file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RunConfigError(f"{path}: cannot read config file ({exc})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise RunConfigError(f"{path}: not valid TOML: {_one_line(exc)}") from None
+    for key, value in data.items():
+        if key not in _TABLES:
+            raise RunConfigError(
+                f"{path}: unknown key '{key}' (known tables: {', '.join(_TABLES)})"
+            )
+        if not isinstance(value, dict):
+            raise RunConfigError(f"{path}: '{key}' must be a table ([{key}])")
+    tracker = dict(data.get("tracker", {}))
+    _check_tracker_keys(tracker, str(path))
+    metrics = dict(data.get("metrics", {}))
+    for key, value in metrics.items():
+        if key not in _METRIC_KEYS:
+            raise RunConfigError(
+                f"{path}: unknown key '{key}' in [metrics] (known: {', '.join(_METRIC_KEYS)})"
+            )
+        ok = isinstance(value, int | float) and not isinstance(value, bool)
+        ok = ok and math.isfinite(value)
+        ok = ok and {"c": value > 0, "p": value >= 1, "switch_penalty": value >= 0}[key]
+        if not ok:
+            raise RunConfigError(
+                f"{path}: [metrics] key '{key}' must be a {_METRIC_KEYS[key]}, got {value!r}"
+            )
+    scenario = dict(data.get("scenario", {}))
+    if "name" in scenario and scenario["name"] not in SCENARIOS:
+        raise RunConfigError(
+            f"{path}: [scenario] key 'name' must be one of {', '.join(SCENARIOS)}, "
+            f"got {scenario['name']!r}"
+        )
+    if "seed" in scenario and not _is_int(scenario["seed"]):
+        raise RunConfigError(f"{path}: [scenario] key 'seed' must be an integer")
+    if "start_from_truth" in scenario and not isinstance(scenario["start_from_truth"], bool):
+        raise RunConfigError(f"{path}: [scenario] key 'start_from_truth' must be true or false")
+    return RunConfig(tracker=tracker, scenario=scenario, metrics=metrics, source=str(path))
+
+
+def _one_line(exc) -> str:
+    return " ".join(str(exc).split())
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _check_tracker_keys(d: Mapping, where: str) -> None:
+    """Known keys and TOML-level value types of a ``[tracker]`` table."""
+    ann = {f.name: str(f.type) for f in dataclasses.fields(TrackerConfig)}
+    for key, value in d.items():
+        if key not in ann:
+            raise RunConfigError(
+                f"{where}: unknown key '{key}' in [tracker] (known: {', '.join(sorted(ann))})"
+            )
+        a = ann[key]
+        if key == "clutter_density" and value == "estimate":
+            continue
+        if "bool" in a:
+            ok = isinstance(value, bool)
+            want = "true or false"
+        elif "int" in a:
+            ok = _is_int(value)
+            want = "an integer"
+        elif "float" in a:
+            ok = isinstance(value, int | float) and not isinstance(value, bool)
+            want = "a number" + (' or "estimate"' if key == "clutter_density" else "")
+        else:
+            ok = isinstance(value, str)
+            want = "a string"
+        if not ok:
+            raise RunConfigError(f"{where}: [tracker] key '{key}' must be {want}, got {value!r}")
+
+
+def make_tracker_config(
+    base: Mapping | None = None, overrides: Mapping | None = None, *, source: str | None = None
+) -> TrackerConfig:
+    """``TrackerConfig`` from derived settings ``base`` updated by ``overrides``.
+
+    ``clutter_density = "estimate"`` in the overrides means ``None`` (Bojilov's
+    heuristic (8)). Errors name ``source`` (the config file) when given.
+    """
+    where = source or "tracker settings"
+    overrides = dict(overrides or {})
+    _check_tracker_keys(overrides, where)
+    if overrides.get("clutter_density") == "estimate":
+        overrides["clutter_density"] = None
+    d = {**TrackerConfig().to_dict(), **dict(base or {}), **overrides}
+    try:
+        return TrackerConfig.from_dict(d)
+    except (ValueError, TypeError) as exc:
+        raise RunConfigError(f"{where}: [tracker] {_one_line(exc)}") from None
+
+
+def make_scenario(
+    name: str = "bojilov",
+    seed: int = 0,
+    kwargs: Mapping | None = None,
+    *,
+    source: str | None = None,
+):
+    """Build a built-in scenario by name (``bojilov | crossing | many``).
+
+    ``kwargs`` are passed to the scenario function (:mod:`jointtrack.scenarios`);
+    unknown keywords and bad values raise :class:`RunConfigError` naming them.
+    """
+    from jointtrack import scenarios
+
+    where = f"{source}: [scenario]" if source else "scenario"
+    if name not in SCENARIOS:
+        raise RunConfigError(
+            f"{where}: unknown scenario {name!r}; choose one of {', '.join(SCENARIOS)}"
+        )
+    fn = getattr(scenarios, _GENERATOR_NAMES[name])
+    params = [p for p in inspect.signature(fn).parameters if p != "seed"]
+    kwargs = dict(kwargs or {})
+    for key in kwargs:
+        if key not in params:
+            raise RunConfigError(
+                f"{where} unknown key '{key}' for scenario {name} (known: name, seed, "
+                f"start_from_truth, {', '.join(params)})"
+            )
+    try:
+        return fn(seed=seed, **kwargs)
+    except (ValueError, TypeError) as exc:
+        raise RunConfigError(f"{where} scenario {name}: {_one_line(exc)}") from None
+
+
+def scenario_tracker_settings(scenario) -> dict:
+    """Tracker settings derived from a scenario's parameters.
+
+    See :mod:`jointtrack.experiments.run` for how they are derived.
+    """
+    speeds = [np.linalg.norm(s[:, scenario.dim :], axis=1) for s in scenario.truth_states if len(s)]
+    vmax = float(max((v.max() for v in speeds), default=0.0))
+    d = {
+        "dim": scenario.dim,
+        "motion": "cv",
+        "process_noise": max(float(scenario.process_noise), 1e-9),
+        "measurement_noise": float(np.mean(np.diag(scenario.R))),
+        "p_d": float(scenario.p_d),
+        "p_g": float(scenario.info.get("p_g", 0.99)),
+        "clutter_density": float(scenario.clutter_density)
+        if scenario.clutter_density > 0
+        else None,
+        "max_speed": 1.5 * vmax if vmax > 0 else 1.0,
+    }
+    return d
+
+
+def steady_state_covariance(dt: float, q: float, r: float, dim: int = 2) -> np.ndarray:
+    """Steady-state updated covariance of the NCV Kalman filter, layout [pos…, vel…].
+
+    Per axis: the discrete Riccati equation for F = [[1, T], [0, 1]],
+    Q = q [[T³/3, T²/2], [T²/2, T]], H = [1 0], R = r gives the predicted P⁻;
+    the updated P = P⁻ − P⁻Hᵀ S⁻¹ H P⁻ with S = P⁻ₓₓ + r.
+    """
+    from scipy import linalg
+
+    from jointtrack.scenarios import ncv_matrices
+
+    F, Q = ncv_matrices(dt, max(q, 1e-12), 1)
+    H = np.array([[1.0, 0.0]])
+    Pp = linalg.solve_discrete_are(F.T, H.T, Q, np.array([[r]]))
+    S = Pp[0, 0] + r
+    Pu = Pp - np.outer(Pp[:, 0], Pp[0, :]) / S
+    Pu = 0.5 * (Pu + Pu.T)
+    P = np.zeros((2 * dim, 2 * dim))
+    for a in range(dim):
+        idx = [a, dim + a]
+        P[np.ix_(idx, idx)] = Pu
+    return P
+
+
+def start_truth_tracks(trk: JPDATracker, states, dt: float) -> np.ndarray:
+    """Start confirmed tracks at the true NCV ``states`` (K, 2·dim) of the first scan.
+
+    Covariance: :func:`steady_state_covariance` of the tracker's own q and σ²
+    (what a track that has been followed for long has), so the first gates are
+    the nominal steady-state gates; a constant-acceleration tracker gets zero
+    acceleration with unit variance. Returns the track ids.
+    """
+    c = trk.config
+    n = trk._motion.state_dim
+    d = c.dim
+    states = np.atleast_2d(np.asarray(states, dtype=float))
+    x0 = np.zeros((len(states), n))
+    x0[:, : 2 * d] = states[:, : 2 * d]
+    P0 = np.eye(n)
+    P0[: 2 * d, : 2 * d] = steady_state_covariance(dt, c.process_noise, c.measurement_noise, d)
+    return trk.start_tracks(x0, P0)
+
+
+def _describe(identity) -> str:
+    """One-line description of a run's source (scenario and seed, or detections file)."""
+    if not isinstance(identity, Mapping):
+        return "an unknown run"
+    if "detections" in identity:
+        return f"detections {identity['detections']}"
+    kw = identity.get("kwargs") or {}
+    extra = "".join(f", {k}={v}" for k, v in kw.items())
+    return f"scenario {identity.get('scenario')} (seed {identity.get('seed')}{extra})"
