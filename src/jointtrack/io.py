@@ -304,6 +304,18 @@ def _read_csv(path: Path, err) -> tuple[list[str], list[list[str]], np.ndarray]:
     return header, rows, np.asarray(lines, dtype=np.int64)
 
 
+def _row_error(err, path, reason: str, i: int, lines, column: str) -> DataFileError:
+    """``err`` for data row ``i`` (0-based) of ``column``; ``lines``: CSV line numbers or None."""
+    return err(
+        path, reason, row=i + 1, line=None if lines is None else int(lines[i]), column=column
+    )
+
+
+def _bad_cell(s: str) -> str:
+    """Why the text ``s`` of a cell is not a number."""
+    return "empty value" if not s.strip() else f"non-numeric value {s.strip()!r}"
+
+
 def _csv_column(path, err, rows, lines, j: int, name: str) -> np.ndarray:
     col = [r[j] for r in rows]
     try:
@@ -315,8 +327,7 @@ def _csv_column(path, err, rows, lines, j: int, name: str) -> np.ndarray:
             try:
                 float(s)
             except ValueError:
-                what = "empty value" if not s.strip() else f"non-numeric value {s.strip()!r}"
-                raise err(path, what, row=i + 1, line=int(lines[i]), column=name) from None
+                raise _row_error(err, path, _bad_cell(s), i, lines, name) from None
     return vals
 
 
@@ -349,7 +360,7 @@ def _parquet_column(path, err, table, j: int, name: str) -> np.ndarray:
     if col.null_count:
         mask = np.asarray(col.is_null().to_numpy(zero_copy_only=False), dtype=bool)
         i = int(np.flatnonzero(mask)[0])
-        raise err(path, "missing (null) value", row=i + 1, column=name)
+        raise _row_error(err, path, "missing (null) value", i, None, name)
     t = col.type
     if pa.types.is_integer(t) or pa.types.is_floating(t) or pa.types.is_decimal(t):
         return np.asarray(col.to_numpy(zero_copy_only=False), dtype=np.float64)
@@ -360,8 +371,7 @@ def _parquet_column(path, err, table, j: int, name: str) -> np.ndarray:
             try:
                 out[i] = float(s)
             except ValueError:
-                what = "empty value" if not s.strip() else f"non-numeric value {s.strip()!r}"
-                raise err(path, what, row=i + 1, column=name) from None
+                raise _row_error(err, path, _bad_cell(s), i, None, name) from None
         return out
     raise err(path, f"has type {t}, expected a numeric column", column=name)
 
@@ -408,13 +418,7 @@ def _load(path, err, required: Sequence[str], optional: Sequence[str], parse_ext
             bad = ~np.isfinite(v)
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
-                raise err(
-                    path,
-                    f"non-finite value {v[i]}",
-                    row=i + 1,
-                    line=None if lines is None else int(lines[i]),
-                    column=name,
-                )
+                raise _row_error(err, path, f"non-finite value {v[i]}", i, lines, name)
         cols[name] = v
     extras = [n for _, n in extras]
     return path, cols, extras, lines
@@ -424,13 +428,7 @@ def _check_integer(path, err, v: np.ndarray, name: str, lines) -> np.ndarray:
     bad = v != np.round(v)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise err(
-            path,
-            f"value {v[i]!r} is not an integer",
-            row=i + 1,
-            line=None if lines is None else int(lines[i]),
-            column=name,
-        )
+        raise _row_error(err, path, f"value {v[i]!r} is not an integer", i, lines, name)
     return v.astype(np.int64)
 
 
@@ -455,13 +453,14 @@ def read_detections(path) -> Detections:
         back = np.flatnonzero(np.diff(t) < 0)
         if back.size:
             i = int(back[0]) + 1
-            raise err(
+            raise _row_error(
+                err,
                 path,
                 f"time {t[i]!r} is earlier than the previous row's {t[i - 1]!r} "
                 "(rows must be in non-decreasing time order)",
-                row=i + 1,
-                line=None if lines is None else int(lines[i]),
-                column="time",
+                i,
+                lines,
+                "time",
             )
     coords = ["x", "y"] + (["z"] if "z" in cols else [])
     Z = np.column_stack([cols[c] for c in coords]) if t.size else np.zeros((0, len(coords)))

@@ -270,7 +270,15 @@ def _components(E, alive_r, alive_c):
 
 @numba.njit(cache=True)
 def _prepare(L, miss):
-    """Split floats, leaf folding, components (everything before the block DPs)."""
+    """Split floats, leaf folding, components (everything before the block DPs).
+
+    Returns ``(folds, graph, ncomp, infeasible, logz)``: ``folds`` = (rk, rn, ro,
+    rm, re, kill_t), the fold records that :func:`_finish` takes first;
+    ``graph`` = (lab_r, lab_c, E, Wm, We, um, ue, vm, ve), the component labels,
+    alive gating graph and split-float weights that
+    :func:`~._dual_scaling._block` takes after the block index; ``logz`` the log
+    weight of the isolated nodes summed out.
+    """
     N, M = L.shape
     Wm = np.empty((N, M))
     We = np.empty((N, M), np.int64)
@@ -298,24 +306,11 @@ def _prepare(L, miss):
     E = kill_t > rk.size
     lab_r, lab_c, ncomp = _components(E, alive_r, alive_c)
     return (
-        Wm,
-        We,
-        um,
-        ue,
-        vm,
-        ve,
-        rk,
-        rn,
-        ro,
-        rm,
-        re,
-        kill_t,
+        (rk, rn, ro, rm, re, kill_t),
+        (lab_r, lab_c, E, Wm, We, um, ue, vm, ve),
+        ncomp,
         infeasible,
         logz,
-        E,
-        lab_r,
-        lab_c,
-        ncomp,
     )
 
 

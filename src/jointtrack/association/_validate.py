@@ -10,7 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from jointtrack.association.clustering import has_feasible_event
 from jointtrack.errors import InfeasibleAssignmentError
+
+NO_FEASIBLE_EVENT = (
+    "no feasible joint association event: the certainly detected tracks (miss = 0) "
+    "cannot all receive distinct gated measurements"
+)
 
 
 def check_cluster(L, miss) -> tuple[np.ndarray, np.ndarray]:
@@ -63,3 +69,17 @@ def check_cluster(L, miss) -> tuple[np.ndarray, np.ndarray]:
             "no feasible joint association event exists"
         )
     return np.ascontiguousarray(L), np.ascontiguousarray(miss)
+
+
+def check_integer(value, name: str, minimum: int = 1) -> int:
+    """``value`` as an int; ValueError unless it is a whole number ≥ ``minimum`` (0 or 1)."""
+    if int(value) != value or value < minimum:
+        kind = "positive" if minimum == 1 else "non-negative"
+        raise ValueError(f"{name} must be a {kind} integer, got {value}")
+    return int(value)
+
+
+def require_feasible_event(L, miss) -> None:
+    """Raise :class:`InfeasibleAssignmentError` if no joint event has positive weight."""
+    if not has_feasible_event(L, miss):
+        raise InfeasibleAssignmentError(NO_FEASIBLE_EVENT)

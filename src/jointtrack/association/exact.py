@@ -174,26 +174,7 @@ def _solve(L, miss, max_bits=DEFAULT_MAX_BITS, max_memory=DEFAULT_MAX_MEMORY, pa
     N, M = L.shape
     if N == 0:
         return ExactResult(np.zeros((0, M + 1)), 0.0, 0, 0, 0, 0)
-    (
-        Wm,
-        We,
-        um,
-        ue,
-        vm,
-        ve,
-        rk,
-        rn,
-        ro,
-        rm,
-        re,
-        kill_t,
-        infeasible,
-        logZ,
-        E,
-        lab_r,
-        lab_c,
-        ncomp,
-    ) = _prepare(L, miss)
+    folds, graph, ncomp, infeasible, logZ = _prepare(L, miss)
     if infeasible:
         raise InfeasibleAssignmentError(_INFEASIBLE_MSG)
     pu = np.zeros(N)
@@ -202,7 +183,7 @@ def _solve(L, miss, max_bits=DEFAULT_MAX_BITS, max_memory=DEFAULT_MAX_MEMORY, pa
     kmax = 0
     peak = 0
     for k in range(ncomp):
-        rows, cols, W, u, v, shift, ok = _block(k, lab_r, lab_c, E, Wm, We, um, ue, vm, ve)
+        rows, cols, W, u, v, shift, ok = _block(k, *graph)
         if not ok:
             raise InfeasibleAssignmentError(_INFEASIBLE_MSG)
         bu, bv, be, lz, K, sb = _solve_block(W, u, v, max_bits, max_memory, parallel)
@@ -210,8 +191,9 @@ def _solve(L, miss, max_bits=DEFAULT_MAX_BITS, max_memory=DEFAULT_MAX_MEMORY, pa
         logZ += lz - shift
         kmax = max(kmax, K)
         peak = max(peak, sb)
-    beta = _finish(rk, rn, ro, rm, re, kill_t, pu, pv, pe)
-    return ExactResult(beta, float(logZ), int(ncomp), int(kmax), int(len(rk)), int(peak))
+    beta = _finish(*folds, pu, pv, pe)
+    n_folded = len(folds[0])
+    return ExactResult(beta, float(logZ), int(ncomp), int(kmax), int(n_folded), int(peak))
 
 
 def exact_jpda(

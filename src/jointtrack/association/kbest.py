@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from jointtrack.association._validate import check_cluster
+from jointtrack.association._validate import NO_FEASIBLE_EVENT, check_cluster, check_integer
 from jointtrack.errors import InfeasibleAssignmentError
 
 __all__ = ["KBestHypotheses", "kbest_hypotheses", "kbest_marginals"]
@@ -113,19 +113,14 @@ def kbest_hypotheses(L, miss, *, k: int = 100) -> KBestHypotheses:
         no joint event has positive weight.
     """
     L, miss = check_cluster(L, miss)
-    if int(k) != k or k < 1:
-        raise ValueError(f"k must be a positive integer, got {k}")
-    k = int(k)
+    k = check_integer(k, "k")
     n, m = L.shape
     if n == 0:
         return KBestHypotheses(np.zeros((1, 0), dtype=np.int64), np.zeros(1), k > 1)
     C = _augmented_cost(L, miss)
     root = _solve(C, (), ())
     if root is None:
-        raise InfeasibleAssignmentError(
-            "no feasible joint association event: the certainly detected tracks (miss = 0) "
-            "cannot all receive distinct gated measurements"
-        )
+        raise InfeasibleAssignmentError(NO_FEASIBLE_EVENT)
     counter = 0
     heap = [(root[0], counter, root[1], (), ())]
     out_cols = []

@@ -61,8 +61,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from jointtrack.association._validate import check_cluster
-from jointtrack.association.clustering import has_feasible_event
+from jointtrack.association._validate import check_cluster, check_integer, require_feasible_event
 from jointtrack.errors import InfeasibleAssignmentError
 
 __all__ = ["LBPInfo", "lbp_marginals"]
@@ -218,13 +217,8 @@ def lbp_marginals(L, miss, *, tol: float = 1e-9, max_iter: int = 1000):
     tol = float(tol)
     if not tol > 0 or not np.isfinite(tol):
         raise ValueError(f"tol must be positive and finite, got {tol}")
-    if int(max_iter) != max_iter or max_iter < 1:
-        raise ValueError(f"max_iter must be a positive integer, got {max_iter}")
-    if not has_feasible_event(L, miss):
-        raise InfeasibleAssignmentError(
-            "no feasible joint association event: the certainly detected tracks (miss = 0) "
-            "cannot all receive distinct gated measurements"
-        )
+    max_iter = check_integer(max_iter, "max_iter")
+    require_feasible_event(L, miss)
     n, mm = L.shape
     beta = np.zeros((n, mm + 1))
     if n == 0:
@@ -250,7 +244,7 @@ def lbp_marginals(L, miss, *, tol: float = 1e-9, max_iter: int = 1000):
     if mm == 0 or not gated.any():
         beta[:, 0] = 1.0
         return beta, LBPInfo(0, True, 0.0, 0.0, certified)
-    nu, it, conv, d, bound = _lbp_kernel(W, m, A, B, tol, int(max_iter), certified)
+    nu, it, conv, d, bound = _lbp_kernel(W, m, A, B, tol, max_iter, certified)
     if not certified:
         bound = np.inf
     un = np.empty((n, mm + 1))

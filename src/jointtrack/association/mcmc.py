@@ -47,9 +47,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from jointtrack.association._validate import check_cluster
-from jointtrack.association.clustering import has_feasible_event
-from jointtrack.errors import InfeasibleAssignmentError
+from jointtrack.association._validate import check_cluster, check_integer, require_feasible_event
 
 __all__ = ["mcmc_marginals"]
 
@@ -136,20 +134,12 @@ def mcmc_marginals(L, miss, *, n_samples: int = 10_000, burn_in: int | None = No
         no joint event has positive weight.
     """
     L, miss = check_cluster(L, miss)
-    if int(n_samples) != n_samples or n_samples < 1:
-        raise ValueError(f"n_samples must be a positive integer, got {n_samples}")
-    n_samples = int(n_samples)
+    n_samples = check_integer(n_samples, "n_samples")
     if burn_in is None:
         burn_in = n_samples // 10
-    if int(burn_in) != burn_in or burn_in < 0:
-        raise ValueError(f"burn_in must be a non-negative integer, got {burn_in}")
-    burn_in = int(burn_in)
+    burn_in = check_integer(burn_in, "burn_in", 0)
     rng = np.random.default_rng(rng)
-    if not has_feasible_event(L, miss):
-        raise InfeasibleAssignmentError(
-            "no feasible joint association event: the certainly detected tracks (miss = 0) "
-            "cannot all receive distinct gated measurements"
-        )
+    require_feasible_event(L, miss)
     n, m = L.shape
     beta = np.zeros((n, m + 1))
     ei, ej = np.nonzero(L > 0)

@@ -55,26 +55,13 @@ def plot_scene(
         if origins is not None:
             org = np.concatenate([o for o, z in zip(origins, scans, strict=True) if len(z)])
             clutter = org < 0
-            ax.scatter(
-                Z[clutter, 0],
-                Z[clutter, 1],
-                s=2,
-                c="0.82",
-                lw=0,
-                label="clutter",
-                zorder=1,
-                rasterized=True,
-            )
-            ax.scatter(
-                Z[~clutter, 0],
-                Z[~clutter, 1],
-                s=4,
-                c="0.45",
-                lw=0,
-                label="target detections",
-                zorder=2,
-                rasterized=True,
-            )
+            for sel, sz, grey, lab, zo in (
+                (clutter, 2, "0.82", "clutter", 1),
+                (~clutter, 4, "0.45", "target detections", 2),
+            ):
+                ax.scatter(
+                    Z[sel, 0], Z[sel, 1], s=sz, c=grey, lw=0, label=lab, zorder=zo, rasterized=True
+                )
         else:
             ax.scatter(
                 Z[:, 0], Z[:, 1], s=3, c="0.6", lw=0, label="detections", zorder=1, rasterized=True
@@ -179,6 +166,39 @@ _METHOD_STYLE = {
 }
 
 
+def _ours_vs_paper(ax, n, rows, keys, paper_rows, off, ours_note="", paper_note=""):
+    """Our means (lines, ``keys``: (method, result key)) and the paper's values (hollow).
+
+    ``paper_rows``: the paper's table rows by cluster size; ``off``: its column
+    offset for this β (naive at ``off``, optimised at ``off + 1``).
+    """
+    for m, key in keys:
+        c, lab = _METHOD_STYLE[m]
+        ax.plot(n, [r[key] for r in rows], "o-", c=c, label=f"ours: {lab}{ours_note}")
+    for m, j in (("naive", 0), ("optimised", 1)):
+        c, lab = _METHOD_STYLE[m]
+        xs = sorted(paper_rows)
+        ax.plot(
+            xs,
+            [paper_rows[x][off + j] for x in xs],
+            "s--",
+            mfc="none",
+            c=c,
+            ms=8,
+            label=f"paper: {lab}{paper_note}",
+        )
+
+
+def _log_panel(ax, title: str, ylabel: str) -> None:
+    """Log y axis, title, labels, ticks at 2–5 targets, grid and legend of a Bojilov panel."""
+    ax.set_yscale("log")
+    ax.set_title(title)
+    ax.set_ylabel(ylabel)
+    ax.set_xticks([2, 3, 4, 5])
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7, loc="upper left")
+
+
 def plot_bojilov(path, result: dict) -> Path:
     """Seconds and multiplications per cluster vs targets in the cluster, ours and the paper's.
 
@@ -198,56 +218,34 @@ def plot_bojilov(path, result: dict) -> Path:
         n = [r["targets"] for r in rows]
         off = 1 if float(beta) == 1.0 else 4  # paper column offset (beta1 / beta2)
         ax = axes[0, col]
-        for m, key in (
-            ("naive", "mean_seconds_naive"),
-            ("optimised", "mean_seconds_optimised"),
-            ("exact", "mean_seconds_exact"),
-        ):
-            c, lab = _METHOD_STYLE[m]
-            ax.plot(n, [r[key] for r in rows], "o-", c=c, label=f"ours: {lab}")
-        for m, j in (("naive", 0), ("optimised", 1)):
-            c, lab = _METHOD_STYLE[m]
-            xs = sorted(p3)
-            ax.plot(
-                xs,
-                [p3[x][off + j] for x in xs],
-                "s--",
-                mfc="none",
-                c=c,
-                ms=8,
-                label=f"paper: {lab}",
-            )
+        _ours_vs_paper(
+            ax,
+            n,
+            rows,
+            (
+                ("naive", "mean_seconds_naive"),
+                ("optimised", "mean_seconds_optimised"),
+                ("exact", "mean_seconds_exact"),
+            ),
+            p3,
+            off,
+        )
         ax.axhline(1e-3, c="0.5", ls=":", lw=1)
         ax.text(2.0, 1.15e-3, "target 1 ms", fontsize=8, color="0.4")
-        ax.set_yscale("log")
-        ax.set_title(f"Table 3: seconds per cluster, β = {beta:g}")
-        ax.set_ylabel("seconds per cluster")
-        ax.set_xticks([2, 3, 4, 5])
-        ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=7, loc="upper left")
+        _log_panel(ax, f"Table 3: seconds per cluster, β = {beta:g}", "seconds per cluster")
         ax = axes[1, col]
-        for m, key in (("naive", "mean_mult_naive"), ("optimised", "mean_mult_optimised")):
-            c, lab = _METHOD_STYLE[m]
-            ax.plot(n, [r[key] for r in rows], "o-", c=c, label=f"ours: {lab} (multiplications)")
-        for m, j in (("naive", 0), ("optimised", 1)):
-            c, lab = _METHOD_STYLE[m]
-            xs = sorted(p2)
-            ax.plot(
-                xs,
-                [p2[x][off + j] for x in xs],
-                "s--",
-                mfc="none",
-                c=c,
-                ms=8,
-                label=f"paper: {lab} (flops)",
-            )
-        ax.set_yscale("log")
-        ax.set_title(f"Table 2: operations per cluster, β = {beta:g}")
+        _ours_vs_paper(
+            ax,
+            n,
+            rows,
+            (("naive", "mean_mult_naive"), ("optimised", "mean_mult_optimised")),
+            p2,
+            off,
+            ours_note=" (multiplications)",
+            paper_note=" (flops)",
+        )
         ax.set_xlabel("targets (tracks) in cluster")
-        ax.set_ylabel("operations per cluster")
-        ax.set_xticks([2, 3, 4, 5])
-        ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=7, loc="upper left")
+        _log_panel(ax, f"Table 2: operations per cluster, β = {beta:g}", "operations per cluster")
     fig.suptitle(
         f"Bojilov et al. Tables 2–3 vs jointtrack ({result['settings']['runs']} runs per β; "
         "β units differ, compare trends)",

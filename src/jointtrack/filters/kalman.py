@@ -238,6 +238,14 @@ def _linear_model(H, R, xshape, single):
     return H, R
 
 
+def _linear_inputs(x, P, z, H, R):
+    """Validate and batch a linear update's inputs: (x, P, z, H, R, single)."""
+    x, P, single = _state(x, P)
+    H, R = _linear_model(H, R, x.shape, single)
+    z = _meas(z, x.shape[0], H.shape[1], single)
+    return x, P, z, H, R, single
+
+
 def _apply(A, x):
     """A x for a shared (1, r, c) or per-track (N, r, c) matrix and x (N, c)."""
     if A.shape[0] == 1:
@@ -282,6 +290,11 @@ def _sym(A: np.ndarray) -> np.ndarray:
     return 0.5 * (A + np.swapaxes(A, -1, -2))
 
 
+def _congruence(A, P, Q):
+    """A P Aᵀ + Q, symmetrised: the predicted covariance (A = F) or the innovation one (A = H)."""
+    return _sym(A @ P @ np.swapaxes(A, -1, -2) + Q)
+
+
 def _gain(P, H, R, batched: bool):
     """S = H P Hᵀ + R, its Cholesky factor L and the gain K = P Hᵀ S⁻¹.
 
@@ -324,7 +337,7 @@ def predict(x, P, F, Q):
     F = _model_matrix(F, N, (n, n), "F", single)
     Q = _model_matrix(Q, N, (n, n), "Q", single, kind="psd")
     xp = _apply(F, x)
-    Pp = _sym(F @ P @ np.swapaxes(F, -1, -2) + Q)
+    Pp = _congruence(F, P, Q)
     return _out(xp, Pp, single)
 
 
@@ -342,7 +355,7 @@ def predict_measurement(x, P, H, R):
     """
     x, P, single = _state(x, P)
     H, R = _linear_model(H, R, x.shape, single)
-    S = _sym(H @ P @ np.swapaxes(H, -1, -2) + R)
+    S = _congruence(H, P, R)
     return _out(_apply(H, x), S, single)
 
 
@@ -364,10 +377,8 @@ def innovation(x, P, z, H, R):
     -------
     (ν, S): (m,), (m, m) or (N, m), (N, m, m).
     """
-    x, P, single = _state(x, P)
-    H, R = _linear_model(H, R, x.shape, single)
-    z = _meas(z, x.shape[0], H.shape[1], single)
-    S = _sym(H @ P @ np.swapaxes(H, -1, -2) + R)
+    x, P, z, H, R, single = _linear_inputs(x, P, z, H, R)
+    S = _congruence(H, P, R)
     return _out(z - _apply(H, x), S, single)
 
 
@@ -390,9 +401,7 @@ def update(x, P, z, H, R):
     -------
     (x⁺, P⁺) shaped like (x, P).
     """
-    x, P, single = _state(x, P)
-    H, R = _linear_model(H, R, x.shape, single)
-    z = _meas(z, x.shape[0], H.shape[1], single)
+    x, P, z, H, R, single = _linear_inputs(x, P, z, H, R)
     return _update_core(x, P, z - _apply(H, x), H, R, single)
 
 
@@ -491,6 +500,15 @@ def _linearise(x, model, single):
     return zhat, H, R
 
 
+def _ekf_inputs(x, P, z, model):
+    """Validate and batch an EKF update's inputs, linearise: (x, P, ν, H, R, single)."""
+    x, P, single = _state(x, P)
+    zhat, H, R = _linearise(x, model, single)
+    z = _meas(z, x.shape[0], zhat.shape[1], single)
+    nu = np.asarray(model.residual(z, zhat), dtype=np.float64)
+    return x, P, nu, H, R, single
+
+
 def ekf_predict_measurement(x, P, model):
     """EKF predicted measurement and innovation covariance (Bar-Shalom & Li 1995):
 
@@ -502,7 +520,7 @@ def ekf_predict_measurement(x, P, model):
     """
     x, P, single = _state(x, P)
     zhat, H, R = _linearise(x, model, single)
-    S = _sym(H @ P @ np.swapaxes(H, -1, -2) + R)
+    S = _congruence(H, P, R)
     return _out(zhat, S, single)
 
 
@@ -513,11 +531,8 @@ def ekf_innovation(x, P, z, model):
 
     with ``H`` the Jacobian of ``h`` at ``x``. Shapes as :func:`innovation`.
     """
-    x, P, single = _state(x, P)
-    zhat, H, R = _linearise(x, model, single)
-    z = _meas(z, x.shape[0], zhat.shape[1], single)
-    nu = np.asarray(model.residual(z, zhat), dtype=np.float64)
-    S = _sym(H @ P @ np.swapaxes(H, -1, -2) + R)
+    x, P, nu, H, R, single = _ekf_inputs(x, P, z, model)
+    S = _congruence(H, P, R)
     return _out(nu, S, single)
 
 
@@ -541,8 +556,5 @@ def ekf_update(x, P, z, model):
     -------
     (x⁺, P⁺) shaped like (x, P).
     """
-    x, P, single = _state(x, P)
-    zhat, H, R = _linearise(x, model, single)
-    z = _meas(z, x.shape[0], zhat.shape[1], single)
-    nu = np.asarray(model.residual(z, zhat), dtype=np.float64)
+    x, P, nu, H, R, single = _ekf_inputs(x, P, z, model)
     return _update_core(x, P, nu, H, R, single)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from jointtrack.filters.kalman import (
+    _apply,
     _arr,
     _gain,
     _joseph,
@@ -143,7 +144,7 @@ def pda_update(x, P, z, H, R, beta):
     H, R = _linear_model(H, R, x.shape, single)
     z = _measurements(z, H.shape[1])
     beta = _beta(beta, x.shape[0], z.shape[0], single)
-    zhat = x @ H[0].T if H.shape[0] == 1 else np.einsum("kij,kj->ki", H, x)
+    zhat = _apply(H, x)
     return _pda_core(x, P, zhat, H, R, z, beta, np.subtract, single)
 
 

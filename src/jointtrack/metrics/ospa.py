@@ -98,34 +98,29 @@ def _pair(X, Y) -> tuple[np.ndarray, np.ndarray]:
     return X, Y
 
 
-def _check_c(c) -> float:
+def _number(x, name: str, ok, requirement: str) -> float:
+    """``x`` as a float; ValueError naming ``name`` if it is not a number or fails ``ok``."""
     try:
-        c = float(c)
+        x = float(x)
     except (TypeError, ValueError):
-        raise ValueError(f"cut-off c must be a number, got {c!r}") from None
-    if not (math.isfinite(c) and c > 0):
-        raise ValueError(f"cut-off c must be finite and > 0, got {c}")
-    return c
+        raise ValueError(f"{name} must be a number, got {x!r}") from None
+    if not ok(x):
+        raise ValueError(f"{name} must be {requirement}, got {x}")
+    return x
+
+
+def _check_c(c) -> float:
+    return _number(c, "cut-off c", lambda v: math.isfinite(v) and v > 0, "finite and > 0")
 
 
 def _check_p(p) -> float:
-    try:
-        p = float(p)
-    except (TypeError, ValueError):
-        raise ValueError(f"order p must be a number, got {p!r}") from None
-    if not (math.isfinite(p) and p >= 1):
-        raise ValueError(f"order p must be finite and >= 1 (metric requirement), got {p}")
-    return p
+    return _number(
+        p, "order p", lambda v: math.isfinite(v) and v >= 1, "finite and >= 1 (metric requirement)"
+    )
 
 
 def _check_alpha(alpha) -> float:
-    try:
-        alpha = float(alpha)
-    except (TypeError, ValueError):
-        raise ValueError(f"alpha must be a number, got {alpha!r}") from None
-    if not (0 < alpha <= 2):
-        raise ValueError(f"alpha must be in (0, 2], got {alpha}")
-    return alpha
+    return _number(alpha, "alpha", lambda v: 0 < v <= 2, "in (0, 2]")
 
 
 def _cutoff_assignment(X: np.ndarray, Y: np.ndarray, c: float, p: float):
@@ -327,6 +322,18 @@ def _scans(truth, tracks):
         yield k, t, o1[s1[k] : e1[k]], o2[s2[k] : e2[k]]
 
 
+def _scan_gospa(truth, tracks, c: float, p: float):
+    """Per scan, GOSPA (α = 2) between the truths and tracks present.
+
+    Yields ``(k, time, g, rows, track_ids)``: ``g`` the :class:`GOSPA` of scan k,
+    ``rows`` the truth-table rows of its assigned pairs and ``track_ids`` their
+    partner track ids.
+    """
+    for k, t, r1, r2 in _scans(truth, tracks):
+        g = gospa(truth[2][r1], tracks[2][r2], c, p, 2)
+        yield k, t, g, r1[g.assignment[:, 0]], tracks[1][r2[g.assignment[:, 1]]]
+
+
 def _count_switches(last: dict, truth_ids: np.ndarray, track_ids: np.ndarray) -> int:
     """Update ``last`` (truth id → last partner track id); return new switches."""
     n = 0
@@ -396,12 +403,9 @@ def gospa_series(
     """
     c = _check_c(c)
     p = _check_p(p)
-    try:
-        gamma = float(switch_penalty)
-    except (TypeError, ValueError):
-        raise ValueError(f"switch_penalty must be a number, got {switch_penalty!r}") from None
-    if not (math.isfinite(gamma) and gamma >= 0):
-        raise ValueError(f"switch_penalty must be finite and >= 0, got {gamma}")
+    gamma = _number(
+        switch_penalty, "switch_penalty", lambda v: math.isfinite(v) and v >= 0, "finite and >= 0"
+    )
     truth, tracks = _pair_tables(
         (truth_times, truth_ids, truth_positions), (track_times, track_ids, track_positions)
     )
@@ -412,8 +416,7 @@ def gospa_series(
     n_false = np.zeros(K, dtype=np.int64)
     switches = np.zeros(K, dtype=np.int64)
     last: dict = {}
-    for k, _t, r1, r2 in _scans(truth, tracks):
-        g = gospa(truth[2][r1], tracks[2][r2], c, p, 2)
+    for k, _t, g, rows, partners in _scan_gospa(truth, tracks, c, p):
         out["gospa"][k] = g.total
         out["localisation"][k] = g.localisation
         out["missed"][k] = g.missed
@@ -421,8 +424,7 @@ def gospa_series(
         n_missed[k] = g.n_missed
         n_false[k] = g.n_false
         if g.n_assigned:
-            a, b = g.assignment[:, 0], g.assignment[:, 1]
-            switches[k] = _count_switches(last, truth[1][r1][a], tracks[1][r2][b])
+            switches[k] = _count_switches(last, truth[1][rows], partners)
     switch_cost = gamma**p * float(switches.sum())
     total = (float(np.sum(out["gospa"] ** p)) + switch_cost) ** (1.0 / p)
     return GOSPASeries(

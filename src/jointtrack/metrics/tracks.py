@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from jointtrack.metrics.ospa import _pair_tables, _scans, gospa
+from jointtrack.metrics.ospa import _pair_tables, _scan_gospa
 
 __all__ = ["TrackStatistics", "track_statistics"]
 
@@ -117,13 +117,12 @@ def track_statistics(
     a_t, a_x, a_y, a_e = [], [], [], []
     # partner[r] = track id associated with truth row r, or -1
     partner = np.full(truth[0].size, -1, dtype=np.int64)
-    for _k, t, r1, r2 in _scans(truth, tracks):
-        g = gospa(truth[2][r1], tracks[2][r2], gate, 2, 2)
+    for _k, t, g, rows, partners in _scan_gospa(truth, tracks, gate, 2):
         if g.n_assigned:
-            partner[r1[g.assignment[:, 0]]] = tracks[1][r2][g.assignment[:, 1]]
+            partner[rows] = partners
             a_t.append(np.full(g.n_assigned, t))
-            a_x.append(truth[1][r1][g.assignment[:, 0]])
-            a_y.append(tracks[1][r2][g.assignment[:, 1]])
+            a_x.append(truth[1][rows])
+            a_y.append(partners)
             a_e.append(g.distances)
     if a_t:
         at, ax, ay, ae = (np.concatenate(v) for v in (a_t, a_x, a_y, a_e))

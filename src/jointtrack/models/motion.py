@@ -38,6 +38,7 @@ matrix) or a 1-D array of ``N`` steps (an ``(N, n, n)`` stack, e.g. one per trac
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -228,7 +229,40 @@ def ca_noise(dt, q: float = 1.0, dim: int = 2) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class ConstantVelocity:
+class _KinematicModel:
+    """Fields, checks and state indices shared by the kinematic models.
+
+    A subclass sets ``_order``, the number of derivative blocks in its state
+    (positions, velocities, …; see the module docstring), and provides
+    ``transition`` and ``noise``.
+    """
+
+    dim: int = 2
+    q: float = 1.0
+    _order: ClassVar[int]
+
+    def __post_init__(self):
+        object.__setattr__(self, "dim", _check_dim(self.dim))
+        object.__setattr__(self, "q", _check_q(self.q))
+
+    @property
+    def state_dim(self) -> int:
+        """Length of the state vector, ``2·dim`` (velocity) or ``3·dim`` (acceleration)."""
+        return self._order * self.dim
+
+    @property
+    def position_indices(self) -> np.ndarray:
+        """Indices of the position components, ``[0, …, dim−1]``."""
+        return np.arange(self.dim)
+
+    @property
+    def velocity_indices(self) -> np.ndarray:
+        """Indices of the velocity components, ``[dim, …, 2·dim−1]``."""
+        return np.arange(self.dim, 2 * self.dim)
+
+
+@dataclass(frozen=True)
+class ConstantVelocity(_KinematicModel):
     """Nearly-constant-velocity motion (continuous white-noise acceleration).
 
     State ``[x, y(, z), vx, vy(, vz)]`` (positions first, see module docstring).
@@ -246,27 +280,7 @@ class ConstantVelocity:
     >>> F, Q = m.transition(1.0), m.noise(1.0)   # (4, 4) each
     """
 
-    dim: int = 2
-    q: float = 1.0
-
-    def __post_init__(self):
-        object.__setattr__(self, "dim", _check_dim(self.dim))
-        object.__setattr__(self, "q", _check_q(self.q))
-
-    @property
-    def state_dim(self) -> int:
-        """Length of the state vector, ``2·dim``."""
-        return 2 * self.dim
-
-    @property
-    def position_indices(self) -> np.ndarray:
-        """Indices of the position components, ``[0, …, dim−1]``."""
-        return np.arange(self.dim)
-
-    @property
-    def velocity_indices(self) -> np.ndarray:
-        """Indices of the velocity components, ``[dim, …, 2·dim−1]``."""
-        return np.arange(self.dim, 2 * self.dim)
+    _order = 2
 
     def transition(self, dt) -> np.ndarray:
         """F(Δt), see :func:`cv_transition`."""
@@ -278,7 +292,7 @@ class ConstantVelocity:
 
 
 @dataclass(frozen=True)
-class ConstantAcceleration:
+class ConstantAcceleration(_KinematicModel):
     """Constant-acceleration motion (continuous Wiener-process acceleration).
 
     State ``[x, y(, z), vx, vy(, vz), ax, ay(, az)]`` (positions first, see the
@@ -292,27 +306,7 @@ class ConstantAcceleration:
         power spectral density of the white jerk noise (m²/s⁵), per axis.
     """
 
-    dim: int = 2
-    q: float = 1.0
-
-    def __post_init__(self):
-        object.__setattr__(self, "dim", _check_dim(self.dim))
-        object.__setattr__(self, "q", _check_q(self.q))
-
-    @property
-    def state_dim(self) -> int:
-        """Length of the state vector, ``3·dim``."""
-        return 3 * self.dim
-
-    @property
-    def position_indices(self) -> np.ndarray:
-        """Indices of the position components, ``[0, …, dim−1]``."""
-        return np.arange(self.dim)
-
-    @property
-    def velocity_indices(self) -> np.ndarray:
-        """Indices of the velocity components, ``[dim, …, 2·dim−1]``."""
-        return np.arange(self.dim, 2 * self.dim)
+    _order = 3
 
     @property
     def acceleration_indices(self) -> np.ndarray:

@@ -246,14 +246,20 @@ def _items(plan: _Plan, M: list[list[int]]) -> tuple[list[list[int]], list[int]]
     return weights, firsts
 
 
-def _step(f: np.ndarray, space: _Space, sig: int, w: list[int]) -> None:
-    """Push layer σ of f into layer σ+1 for one item with group weights w (in place)."""
+def _step(f: np.ndarray, space: _Space, sig: int, w: list[int], pull: bool = False) -> None:
+    """One item with group weights w between layers σ and σ+1 of f (in place).
+
+    Forward: push layer σ into layer σ+1. ``pull``: the adjoint (backward)
+    step, pulling layer σ+1 into layer σ.
+    """
     for g, wg in enumerate(w):
         if wg == 0:
             continue
         src, dst, mult = space.moves(sig, g)
         if src.size == 0:
             continue
+        if pull:
+            src, dst = dst, src
         vals = f[src] * wg
         if mult is not None:
             vals *= mult
@@ -292,18 +298,8 @@ def _backward(plan: _Plan, space: _Space, weights, wanted: set[int]):
             if plan.skip:  # layers overlap in time: keep a copy of the window of B_{i+1}
                 lo, hi = plan.window(i + 1)
                 snaps[i] = {sig: b[space.layers[sig]].copy() for sig in range(lo, hi + 1)}
-        w = weights[i]
         for sig in plan.source_layers(i):  # ascending: pulls read B_{i+1} of layer σ+1
-            for g, wg in enumerate(w):
-                if wg == 0:
-                    continue
-                src, dst, mult = space.moves(sig, g)
-                if src.size == 0:
-                    continue
-                vals = b[dst] * wg
-                if mult is not None:
-                    vals *= mult
-                b[src] += vals
+            _step(b, space, sig, weights[i], pull=True)
 
     def lookup(i: int, states: np.ndarray, sig: int) -> np.ndarray:
         if plan.skip:

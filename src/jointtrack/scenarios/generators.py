@@ -59,6 +59,7 @@ from scipy import linalg, stats
 from jointtrack.scenarios.simulate import (
     Scenario,
     _count,
+    _noise_factor,
     _pos_float,
     _prob,
     _rng,
@@ -311,8 +312,7 @@ def many_targets(
         return np.column_stack([pos, spd * np.cos(head), spd * np.sin(head)])
 
     F, Q = ncv_matrices(dt, q, 2)
-    w, V = np.linalg.eigh(Q)
-    L = V * np.sqrt(np.clip(w, 0, None))
+    L = _noise_factor(Q)
     X = spawn(n_targets)
     ids = np.arange(n_targets, dtype=np.int64)
     next_id = n_targets

@@ -281,8 +281,6 @@ class JPDATracker:
         if not math.isfinite(t):
             raise ValueError(f"scan time must be finite, got {t}")
         z = np.asarray(z, dtype=float)
-        if z.size == 0:
-            z = z.reshape(0, c.dim)
         mdim = 2 if c.sensor == "range-bearing" else c.dim
         if z.size == 0:
             z = z.reshape(0, mdim)
