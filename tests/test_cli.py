@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 from jointtrack import __version__
 from jointtrack.cli import app
-from jointtrack.io import read_tracks, write_detections
+from jointtrack.io import Detections, read_tracks, write_detections
 from jointtrack.scenarios import crossing
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -211,6 +211,140 @@ def test_detections_with_scenario_is_an_error(tmp_path):
     sc = crossing(seed=1, n_scans=3)
     det = write_detections(sc.as_detections(), tmp_path / "det.csv")
     _one_line_error(_run("--detections", det, "--scenario", "crossing"), "--detections")
+
+
+# ----------------------------------------------------------------------------- range–bearing
+
+SENSOR = (2000.0, 0.0)
+RB_TRACKER = """
+[tracker]
+sensor = "range-bearing"
+sensor_position = [2000.0, 0.0]
+range_noise = 100.0
+bearing_noise = 2.5e-5
+process_noise = 0.05
+max_speed = 15.0
+"""
+
+
+def _range_bearing_file(tmp_path, n_scans=20, seed=0, name="rb.csv"):
+    """The crossing targets turned so that target 1 flies along y = 0 towards a
+    range–bearing sensor due east (its bearing sits on the ±π branch cut), as
+    ``range_bearing_scene`` of test_tracker.py, with fewer scans; σ_r = 10 m,
+    σ_θ = 0.005 rad, 4 clutter returns per scan uniform in r ∈ [1500, 2500],
+    θ ∈ π ± 0.25. Returns the file and the true positions per scan."""
+    sc = crossing(seed=seed, n_scans=n_scans)
+    v = sc.truth_states[0][0, 2:4]
+    phi = np.arctan2(v[1], v[0])
+    rot = np.array([[np.cos(phi), np.sin(phi)], [-np.sin(phi), np.cos(phi)]])
+    positions = [s[:, :2] @ rot.T for s in sc.truth_states]
+    rng = np.random.default_rng(1000 + seed)
+    scans = []
+    for pos in positions:
+        d = pos[rng.random(len(pos)) < sc.p_d] - np.asarray(SENSOR)
+        z = np.column_stack([np.hypot(d[:, 0], d[:, 1]), np.arctan2(d[:, 1], d[:, 0])])
+        z += rng.normal(size=z.shape) * [10.0, 0.005]
+        k = rng.poisson(4.0)
+        cz = np.column_stack([rng.uniform(1500, 2500, k), np.pi + rng.uniform(-0.25, 0.25, k)])
+        z = np.vstack([z, cz])
+        z[:, 1] = np.angle(np.exp(1j * z[:, 1]))  # bearings in (−π, π]
+        scans.append(z)
+    det = Detections(times=sc.times, scans=scans, kind="range-bearing")
+    return write_detections(det, tmp_path / name), sc.times, positions
+
+
+@pytest.mark.parametrize(
+    ("clutter", "n_scans", "min_rows"),
+    [
+        # 4 returns per scan over 1000 m × 0.5 rad
+        ("clutter_density = 0.008\n", 20, 15),
+        # omitted: Bojilov's heuristic (8) per cluster, λ = Σ m_i / Σ V_i in r × θ
+        # units; it confirms later (as with positions), hence more scans
+        ("", 30, 5),
+    ],
+)
+def test_run_on_range_bearing_detections_file(tmp_path, clutter, n_scans, min_rows):
+    det, times, truth = _range_bearing_file(tmp_path, n_scans=n_scans)
+    assert det.read_text().splitlines()[0] == "time,range,bearing"
+    cfg = _config(tmp_path, RB_TRACKER + clutter)
+    out = tmp_path / "out"
+    r = _run("--detections", det, "--config", cfg, "--out", out)
+    assert r.exit_code == 0, r.output
+    assert "no truth" in r.output
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["source"] == {"detections": str(det.resolve())}
+    assert m["tracker"]["sensor"] == "range-bearing"
+    assert m["tracker"]["sensor_position"] == list(SENSOR)
+    assert m["tracker"]["clutter_density"] == (0.008 if clutter else None)
+    assert m["n_scans"] == n_scans and m["tracks"]["n_tracks"] >= 1
+    tracks = read_tracks(out / "tracks.csv")
+    assert list(tracks) == TRACK_COLUMNS  # Cartesian states, as for positions
+    assert len(tracks["time"]) >= min_rows
+    # distance of every track position to the nearest target at its scan
+    k = np.searchsorted(times, tracks["time"])
+    miss = np.array(
+        [
+            np.hypot(*(truth[i] - [x, y]).T).min()
+            for i, x, y in zip(k, tracks["x"], tracks["y"], strict=True)
+        ]
+    )
+    assert np.mean(miss < 30.0) >= 0.8, miss
+    _png(out / "scene.png")
+    assert not (out / "gospa.png").exists()
+
+
+def test_range_bearing_parquet_detections(tmp_path):
+    det, _, _ = _range_bearing_file(tmp_path, n_scans=8, name="rb.parquet")
+    cfg = _config(tmp_path, RB_TRACKER + "clutter_density = 0.008\n")
+    r = _run("--detections", det, "--config", cfg, "--out", tmp_path / "o", "--format", "parquet")
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "o" / "tracks.parquet").exists()
+
+
+def test_bad_range_bearing_files_one_line_exit_2(tmp_path):
+    cfg = _config(tmp_path, RB_TRACKER)
+    mixed = tmp_path / "mixed.csv"
+    mixed.write_text("time,x,y,range,bearing\n0,1,2,3,0.1\n")
+    r = _run("--detections", mixed, "--config", cfg, "--out", tmp_path / "o")
+    _one_line_error(r, "mixed.csv", "x, y", "range, bearing", "one kind")
+    neither = tmp_path / "neither.csv"
+    neither.write_text("time,lat,lon\n0,1,2\n")
+    r = _run("--detections", neither, "--config", cfg, "--out", tmp_path / "o")
+    _one_line_error(r, "neither.csv", "x, y", "range, bearing", "lat, lon")
+    neg = tmp_path / "neg.csv"
+    neg.write_text("time,range,bearing\n0,10,0.1\n1,-3,0.1\n")
+    r = _run("--detections", neg, "--config", cfg, "--out", tmp_path / "o")
+    _one_line_error(r, "neg.csv", "row 2", "'range'", "negative range")
+
+
+def test_sensor_must_match_the_detections(tmp_path):
+    rb, _, _ = _range_bearing_file(tmp_path, n_scans=4)
+    # range–bearing file, position sensor: say what to set
+    r = _run("--detections", rb, "--out", tmp_path / "o")
+    _one_line_error(r, "rb.csv", 'sensor = "range-bearing"', "sensor_position", "--config")
+    cfg = _config(tmp_path, "[tracker]\nclutter_density = 0.008\n", "pos.toml")
+    r = _run("--detections", rb, "--config", cfg, "--out", tmp_path / "o")
+    _one_line_error(r, "rb.csv", "pos.toml", 'sensor = "range-bearing"', "range_noise")
+    # position file or scenario, range–bearing sensor
+    sc = crossing(seed=1, n_scans=3)
+    pos = write_detections(sc.as_detections(), tmp_path / "pos.csv")
+    cfg = _config(tmp_path, RB_TRACKER, "rb.toml")
+    r = _run("--detections", pos, "--config", cfg, "--out", tmp_path / "o")
+    _one_line_error(r, "rb.toml", "pos.csv", "position detections", 'sensor = "position"')
+    r = _run("--config", cfg, "--scenario", "crossing", "--out", tmp_path / "o")
+    _one_line_error(r, "rb.toml", "scenario crossing", 'sensor = "position"')
+    # range–bearing settings are checked like the others
+    for text, needle in (
+        ("[tracker]\nsensor_position = 3\n", "'sensor_position'"),
+        ("[tracker]\nsensor_position = [1.0]\n", "'sensor_position'"),
+        ('[tracker]\nsensor = "sonar"\n', "sensor"),
+        ('[tracker]\nsensor = "range-bearing"\nbearing_noise = -1.0\n', "bearing_noise"),
+        ('[tracker]\nsensor = "range-bearing"\ndim = 3\n', "2-D"),
+    ):
+        cfg = _config(tmp_path, text, "bad.toml")
+        r = _run("--detections", rb, "--config", cfg, "--out", tmp_path / "o")
+        _one_line_error(r, "bad.toml", needle)
+    assert not (tmp_path / "o").exists()
 
 
 # ----------------------------------------------------------------------------- config errors

@@ -21,7 +21,7 @@ from jointtrack.experiments.run import (
     scenario_tracker_settings,
     steady_state_covariance,
 )
-from jointtrack.io import read_tracks
+from jointtrack.io import Detections, read_tracks
 from jointtrack.scenarios import bojilov, crossing, ncv_matrices
 from jointtrack.trackers import TrackerConfig
 
@@ -143,6 +143,46 @@ def test_run_detections_without_truth(tmp_path):
     assert (tmp_path / "scene.png").read_bytes()[:8] == PNG_MAGIC
     with pytest.raises(RunConfigError, match="2-D"):
         run_detections(sc.as_detections(), {"dim": 3}, tmp_path)
+
+
+def test_run_detections_range_bearing(tmp_path):
+    # two targets 1 km north of a sensor at (500, -1000), 10 scans, no clutter
+    sensor = (500.0, -1000.0)
+    times = np.arange(10.0)
+    truth = [np.array([[0.0 + 5 * t, 0.0], [300.0, 100.0 - 5 * t]]) for t in times]
+    rng = np.random.default_rng(0)
+    scans = []
+    for pos in truth:
+        d = pos - sensor
+        z = np.column_stack([np.hypot(d[:, 0], d[:, 1]), np.arctan2(d[:, 1], d[:, 0])])
+        scans.append(z + rng.normal(size=z.shape) * [5.0, 0.002])
+    det = Detections(times=times, scans=scans, kind="range-bearing")
+    over = {
+        "sensor": "range-bearing",
+        "sensor_position": sensor,  # a tuple is fine from Python
+        "range_noise": 25.0,
+        "bearing_noise": 4e-6,
+        "clutter_density": 1e-3,
+        "max_speed": 15.0,
+    }
+    ck = tmp_path / "ck.pkl"
+    m = run_detections(det, over, tmp_path / "rb", checkpoint=ck)
+    assert m["tracker"]["sensor"] == "range-bearing" and m["tracks"]["n_tracks"] == 2
+    tracks = read_tracks(tmp_path / "rb" / "tracks.csv")
+    k = tracks["time"].astype(int)
+    err = [
+        np.hypot(*(truth[i] - [x, y]).T).min()
+        for i, x, y in zip(k, tracks["x"], tracks["y"], strict=True)
+    ]
+    assert len(err) >= 10 and max(err) < 15.0, err
+    assert (tmp_path / "rb" / "scene.png").read_bytes()[:8] == PNG_MAGIC
+    with pytest.raises(RunConfigError, match='sensor = "range-bearing"'):
+        run_detections(det, {"clutter_density": 1e-3}, tmp_path / "x")
+    pos = crossing(seed=4, n_scans=4).as_detections()
+    with pytest.raises(RunConfigError, match="position detections"):
+        run_detections(pos, over, tmp_path / "x")
+    with pytest.raises(RunConfigError, match="checkpoint"):  # a range–bearing checkpoint
+        run_detections(pos, {}, tmp_path / "x", resume=ck)
 
 
 def test_resume_with_other_settings_warns_and_keeps_the_checkpoint(tmp_path):

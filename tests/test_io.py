@@ -219,6 +219,134 @@ def test_error_hierarchy():
     assert issubclass(DataFileError, ValueError)
 
 
+# ----------------------------------------------------------------------------- range–bearing
+
+
+def test_read_range_bearing_csv(tmp_path):
+    p = _csv(
+        tmp_path,
+        " Time , Range,BEARING,sensor, snr\n0,1250.5,0.785,1,30\n0,980,-3.1,2,12\n2,0,3.14,1,9\n",
+    )
+    d = read_detections(p)
+    assert d.kind == "range-bearing" and d.dim == 2
+    assert d.times.tolist() == [0.0, 2.0]
+    assert d.scans[0].tolist() == [[1250.5, 0.785], [980.0, -3.1]]  # [r, θ] rows
+    assert d.scans[1].tolist() == [[0.0, 3.14]]  # zero range is allowed
+    assert [s.tolist() for s in d.sensors] == [[1, 2], [1]]
+    assert d.to_table().keys() == {"time", "range", "bearing", "sensor"}
+
+
+def test_position_files_are_of_kind_position(tmp_path):
+    assert read_detections(_csv(tmp_path, "time,x,y\n0,1,2\n")).kind == "position"
+    assert Detections(times=[0.0], scans=[np.zeros((1, 3))], dim=3).kind == "position"
+
+
+def _range_bearing_detections(seed=0, sensors=False):
+    rng = np.random.default_rng(seed)
+    scans = [
+        np.column_stack([rng.uniform(0, 3000, m), rng.uniform(-np.pi, np.pi, m)])
+        for m in (3, 1, 4, 2)
+    ]
+    sens = [rng.integers(0, 3, len(z)) for z in scans] if sensors else None
+    return Detections(times=[0.0, 0.5, 1.5, 2.0], scans=scans, sensors=sens, kind="range-bearing")
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".csv.gz", ".parquet"])
+@pytest.mark.parametrize("sensors", [False, True])
+def test_range_bearing_round_trip(tmp_path, suffix, sensors):
+    det = _range_bearing_detections(sensors=sensors)
+    p = write_detections(det, tmp_path / f"rb{suffix}")
+    back = read_detections(p)
+    assert back.kind == "range-bearing" and back.dim == 2
+    assert np.array_equal(back.times, det.times)
+    for a, b in zip(back.scans, det.scans, strict=True):
+        assert np.array_equal(a, b)  # bit-exact, also through CSV
+    if sensors:
+        for a, b in zip(back.sensors, det.sensors, strict=True):
+            assert np.array_equal(a, b)
+    else:
+        assert back.sensors is None
+    if suffix == ".csv":
+        header = "time,range,bearing" + (",sensor" if sensors else "")
+        assert p.read_text().splitlines()[0] == header
+
+
+def test_range_bearing_parquet_with_int_and_string_columns(tmp_path):
+    p = _parquet(
+        tmp_path,
+        {
+            "time": pa.array([0, 0, 1], pa.int32()),
+            "range": pa.array([100, 200, 300], pa.int16()),
+            "bearing": pa.array(["0.5", "-1", "3"]),
+        },
+    )
+    d = read_detections(p)
+    assert d.kind == "range-bearing"
+    assert d.scans[0].tolist() == [[100.0, 0.5], [200.0, -1.0]]
+
+
+@pytest.mark.parametrize(
+    "header",
+    ["time,x,y,range,bearing", "time,range,bearing,z", "time,X,Bearing", "time,range,y"],
+)
+def test_position_and_range_bearing_columns_together(tmp_path, header):
+    n = header.count(",")
+    p = _csv(tmp_path, header + "\n" + ",".join(["1"] * (n + 1)) + "\n")
+    e = _err(p)
+    msg = str(e)
+    assert "both position column(s)" in msg and "range-bearing column(s)" in msg
+    for name in header.split(",")[1:]:  # every offending column is named as spelled
+        assert name in msg
+
+
+def test_neither_position_nor_range_bearing_columns(tmp_path):
+    e = _err(_csv(tmp_path, "time,lat,lon\n0,1,2\n"))
+    msg = str(e)
+    assert "missing required column(s): x, y (found: time, lat, lon)" in msg
+    assert "range, bearing" in msg
+    # a range–bearing file missing one of its columns names that one
+    e = _err(_csv(tmp_path, "time,range\n0,1\n"))
+    assert "missing required column(s): bearing (found: time, range)" in str(e)
+    e = _err(_parquet(tmp_path, {"bearing": [1.0], "range": [2.0]}))
+    assert "missing required column(s): time" in str(e)
+
+
+def test_negative_range_names_the_row(tmp_path):
+    p = _csv(tmp_path, "time,range,bearing\n0,10,0.1\n\n0,-0.5,0.2\n")
+    e = _err(p)
+    assert (e.row, e.line, e.column) == (2, 4, "range")
+    assert "line 4 (data row 2)" in str(e) and "negative range -0.5" in str(e)
+    e = _err(_parquet(tmp_path, {"time": [0.0, 1.0], "range": [1.0, -2.0], "bearing": [0.0, 0]}))
+    assert (e.row, e.line, e.column) == (2, None, "range") and "negative" in str(e)
+
+
+def test_bearing_in_degrees_is_rejected(tmp_path):
+    e = _err(_csv(tmp_path, "time,range,bearing\n0,10,6.28\n1,10,45\n"))
+    assert (e.row, e.column) == (2, "bearing") and "radians" in str(e)
+
+
+def test_range_bearing_cells_are_checked_like_positions(tmp_path):
+    e = _err(_csv(tmp_path, "time,range,bearing\n0,10,abc\n"))
+    assert (e.row, e.column) == (1, "bearing") and "'abc'" in str(e)
+    e = _err(_csv(tmp_path, "time,range,bearing\n0,inf,0\n"))
+    assert (e.row, e.column) == (1, "range") and "non-finite" in str(e)
+    e = _err(_csv(tmp_path, "time,range,bearing\n1,10,0\n0,10,0\n"))
+    assert (e.row, e.column) == (2, "time") and "earlier" in str(e)
+
+
+def test_range_bearing_detections_validation():
+    with pytest.raises(ValueError, match="kind"):
+        Detections(times=[0.0], scans=[np.zeros((1, 2))], kind="polar")
+    with pytest.raises(ValueError, match="dim 2"):
+        Detections(times=[0.0], scans=[np.zeros((1, 3))], dim=3, kind="range-bearing")
+    with pytest.raises(ValueError, match="negative range"):
+        Detections(times=[0.0], scans=[[[-1.0, 0.0]]], kind="range-bearing")
+    with pytest.raises(ValueError, match="radians"):
+        Detections(times=[0.0], scans=[[[1.0, 90.0]]], kind="range-bearing")
+    # positions may be negative and large, as before
+    Detections(times=[0.0], scans=[[[-1.0, 90.0]]])
+
+
 # ----------------------------------------------------------------------------- tracks
 
 

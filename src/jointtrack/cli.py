@@ -91,7 +91,9 @@ def run_command(
     detections: Annotated[
         Path | None,
         typer.Option(
-            "--detections", help="Detections file (CSV or Parquet: time, x, y[, z][, sensor])."
+            "--detections",
+            help="Detections file (CSV or Parquet: time, x, y[, z][, sensor], or time, "
+            'range, bearing[, sensor] with sensor = "range-bearing" in the config).',
         ),
     ] = None,
     config: Annotated[
@@ -169,6 +171,7 @@ def run_command(
             tracker_cfg = runmod.make_tracker_config(
                 {"dim": dets.dim}, cfg.tracker, source=cfg.source
             )
+            runmod.check_sensor(tracker_cfg, dets.kind, str(detections), cfg.source)
             if tracker_cfg.dim != dets.dim:
                 raise runmod.RunConfigError(
                     f"{cfg.source}: [tracker] key 'dim' = {tracker_cfg.dim} but {detections} "
@@ -199,6 +202,7 @@ def run_command(
                     f"{cfg.source}: [tracker] key 'dim' = {tracker_cfg.dim} but scenario "
                     f"{name} is {sc.dim}-D"
                 )
+            runmod.check_sensor(tracker_cfg, "position", f"scenario {name}", cfg.source)
             metrics = runmod.run_scenario(
                 sc, tracker_cfg, scenario_kwargs=sc_table, start_from_truth=from_truth, **common
             )

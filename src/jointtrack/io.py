@@ -2,8 +2,9 @@
 
 Detections file format
 ----------------------
-One row per detection (a measured position), as CSV (``.csv``, optionally
-gzip-compressed ``.csv.gz``) or Parquet (``.parquet`` / ``.pq``):
+One row per detection, as CSV (``.csv``, optionally gzip-compressed
+``.csv.gz``) or Parquet (``.parquet`` / ``.pq``). A detection is either a
+measured position (``x, y[, z]``):
 
 =========  ========  ==========================================================
 column     required  meaning
@@ -14,6 +15,24 @@ column     required  meaning
 ``z``      no        third coordinate; its presence makes the detections 3-D
 ``sensor`` no        integer sensor id (e.g. for several radars)
 =========  ========  ==========================================================
+
+or a range–bearing measurement of a 2-D sensor (``range, bearing``; track it
+with ``TrackerConfig(sensor="range-bearing", sensor_position=…)``):
+
+===========  ========  ========================================================
+column       required  meaning
+===========  ========  ========================================================
+``time``     yes       scan time stamp; finite
+``range``    yes       distance from the sensor (e.g. metres); finite, ≥ 0
+``bearing``  yes       angle in **radians**, anticlockwise from the +x axis;
+                       finite, within [−2π, 2π] (larger values are taken for
+                       degrees and rejected); not wrapped on reading
+``sensor``   no        integer sensor id
+===========  ========  ========================================================
+
+The columns decide the kind (:attr:`Detections.kind`: ``"position"`` or
+``"range-bearing"``); a file with columns of both kinds (``x``/``y``/``z``
+and ``range``/``bearing``) or of neither is an error.
 
 * CSV: comma-separated, the first non-blank line is the header; column names
   are matched case-insensitively, surrounding spaces ignored; blank lines are
@@ -28,15 +47,21 @@ column     required  meaning
   line, R the 1-based row after the header), ``data row R`` for Parquet —
   and the column: missing or unreadable file, unknown extension, missing
   required columns (all listed), a non-numeric, empty, NaN or infinite value,
-  a non-integer sensor id, a row with the wrong number of fields, or a time
-  earlier than the row before it.
+  a non-integer sensor id, a row with the wrong number of fields, a time
+  earlier than the row before it, position and range–bearing columns together
+  (or neither), a negative range or a bearing outside [−2π, 2π].
 
-Example::
+Examples::
 
     time,x,y,sensor
     0.0,12.5,-3.0,1
     0.0,250.1,40.2,1
     1.0,13.4,-2.1,1
+
+    time,range,bearing
+    0.0,1250.0,0.7854
+    0.0,980.5,-2.9671
+    1.0,1243.2,0.7860
 
 Tracks file format (:func:`write_tracks`, :func:`read_tracks`)
 ---------------------------------------------------------------
@@ -69,6 +94,7 @@ __all__ = [
     "DataFileError",
     "DetectionFileError",
     "Detections",
+    "KINDS",
     "TrackFileError",
     "read_detections",
     "read_tracks",
@@ -76,6 +102,11 @@ __all__ = [
     "write_metrics",
     "write_tracks",
 ]
+
+#: the kinds of :class:`Detections` (:attr:`Detections.kind`)
+KINDS = ("position", "range-bearing")
+_POS_COLUMNS = ("x", "y", "z")
+_RB_COLUMNS = ("range", "bearing")
 
 _CSV_SUFFIXES = (".csv", ".csv.gz")
 _PARQUET_SUFFIXES = (".parquet", ".pq")
@@ -137,11 +168,16 @@ class Detections:
     ----------
     times : (K,) float64, strictly increasing scan times.
     scans : tuple of K float64 arrays, ``scans[k]`` of shape ``(M_k, dim)`` —
-        the detected positions at ``times[k]`` (``M_k`` may be 0).
+        the detections at ``times[k]`` (``M_k`` may be 0): positions, or
+        ``[r, θ]`` rows (range, bearing in radians) when ``kind`` is
+        ``"range-bearing"``.
     sensors : tuple of K int64 arrays ``(M_k,)`` with the sensor id of each
         detection, or ``None`` when there is no sensor information.
-    dim : spatial dimension (2 or 3 from files; any ≥ 1 when built directly).
+    dim : columns of a detection: the spatial dimension for positions (2 or 3
+        from files; any ≥ 1 when built directly), 2 for range–bearing.
     source : the file the detections were read from, if any.
+    kind : ``"position"`` (default) or ``"range-bearing"`` (ranges ≥ 0,
+        bearings within [−2π, 2π]).
 
     ``len(d)`` is K; iterating yields ``(time, z)`` pairs; ``d[k]`` is
     ``(times[k], scans[k])``.
@@ -152,6 +188,7 @@ class Detections:
     sensors: tuple | None = None
     dim: int = 2
     source: str | None = None
+    kind: str = "position"
 
     def __post_init__(self):
         times = np.asarray(self.times, dtype=np.float64)
@@ -168,6 +205,10 @@ class Detections:
         if isinstance(self.dim, bool) or int(self.dim) != self.dim or self.dim < 1:
             raise ValueError(f"dim must be a positive integer, got {self.dim!r}")
         dim = int(self.dim)
+        if self.kind not in KINDS:
+            raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
+        if self.kind == "range-bearing" and dim != 2:
+            raise ValueError(f"range-bearing detections have dim 2 (range, bearing), got {dim}")
         scans = tuple(self.scans)
         if len(scans) != times.size:
             raise ValueError(f"{times.size} scan times but {len(scans)} scans")
@@ -180,6 +221,10 @@ class Detections:
                 raise ValueError(f"scans[{k}] must have shape (M, {dim}), got {z.shape}")
             if not np.all(np.isfinite(z)):
                 raise ValueError(f"scans[{k}] has a non-finite coordinate")
+            if self.kind == "range-bearing" and np.any(z[:, 0] < 0):
+                raise ValueError(f"scans[{k}] has a negative range")
+            if self.kind == "range-bearing" and np.any(np.abs(z[:, 1]) > 2 * np.pi):
+                raise ValueError(f"scans[{k}] has a bearing outside [-2π, 2π] (radians expected)")
             fixed.append(z)
         sensors = self.sensors
         if sensors is not None:
@@ -217,7 +262,8 @@ class Detections:
         return int(sum(z.shape[0] for z in self.scans))
 
     def to_table(self) -> dict[str, np.ndarray]:
-        """Flat columns ``time, x, y[, z][, sensor]`` (the file layout)."""
+        """Flat columns ``time, x, y[, z][, sensor]`` or ``time, range, bearing[, sensor]``
+        (the file layout)."""
         n = [z.shape[0] for z in self.scans]
         Z = (
             np.concatenate(self.scans, axis=0)
@@ -225,7 +271,7 @@ class Detections:
             else np.zeros((0, self.dim), dtype=np.float64)
         )
         out = {"time": np.repeat(self.times, n)}
-        names = _coord_names(self.dim)
+        names = list(_RB_COLUMNS) if self.kind == "range-bearing" else _coord_names(self.dim)
         for a in range(self.dim):
             out[names[a]] = Z[:, a].copy()
         if self.sensors is not None:
@@ -376,11 +422,21 @@ def _parquet_column(path, err, table, j: int, name: str) -> np.ndarray:
     raise err(path, f"has type {t}, expected a numeric column", column=name)
 
 
-def _load(path, err, required: Sequence[str], optional: Sequence[str], parse_extras: bool):
+def _load(
+    path,
+    err,
+    required: Sequence[str],
+    optional: Sequence[str],
+    parse_extras: bool,
+    pick=None,
+):
     """Read the named columns of a CSV/Parquet file as float64 arrays.
 
     Required and optional columns must be finite; other columns are ignored
     unless ``parse_extras`` (then they must be numeric, NaN allowed).
+    ``pick(path, names)``, if given, chooses ``(required, optional, hint)`` from
+    the file's column names instead (``hint`` is appended to a missing-column
+    message; it may raise ``err``).
     Returns ``(path, columns dict, extra column names in file order, lines or None)``.
     """
     path = Path(os.fspath(path))
@@ -400,12 +456,15 @@ def _load(path, err, required: Sequence[str], optional: Sequence[str], parse_ext
             return _parquet_column(path, err, table, j, name)
 
     low = [n.lower() for n in names]
+    hint = ""
+    if pick is not None:
+        required, optional, hint = pick(path, names)
     missing = [c for c in required if c not in low]
     if missing:
         raise err(
             path,
             f"missing required column(s): {', '.join(missing)} "
-            f"(found: {', '.join(n for n in names if n) or 'none'})",
+            f"(found: {', '.join(n for n in names if n) or 'none'}){hint}",
         )
     cols = {}
     wanted = list(required) + [c for c in optional if c in low]
@@ -428,16 +487,36 @@ def _check_integer(path, err, v: np.ndarray, name: str, lines) -> np.ndarray:
     bad = v != np.round(v)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise _row_error(err, path, f"value {v[i]!r} is not an integer", i, lines, name)
+        raise _row_error(err, path, f"value {float(v[i])!r} is not an integer", i, lines, name)
     return v.astype(np.int64)
+
+
+def _pick_detection_columns(path, names):
+    """Required/optional columns of a detections file from its header: position
+    (``x, y[, z]``) or range–bearing (``range, bearing``), never both."""
+    pos = [n for n in names if n.lower() in _POS_COLUMNS]
+    rb = [n for n in names if n.lower() in _RB_COLUMNS]
+    if pos and rb:
+        raise DetectionFileError(
+            path,
+            f"has both position column(s) ({', '.join(pos)}) and range-bearing column(s) "
+            f"({', '.join(rb)}); a detections file holds one kind: time, x, y[, z] or "
+            "time, range, bearing",
+        )
+    if rb:
+        return ("time", *_RB_COLUMNS), ("sensor",), ""
+    hint = "" if pos else f"; or, for range-bearing detections: {', '.join(_RB_COLUMNS)}"
+    return ("time", "x", "y"), ("z", "sensor"), hint
 
 
 def read_detections(path) -> Detections:
     """Read a detections file (CSV or Parquet; format in the module docstring).
 
     Returns a :class:`Detections`: rows grouped into scans by equal
-    consecutive ``time`` values; ``dim`` is 3 when a ``z`` column is present,
-    else 2; ``sensors`` is set when a ``sensor`` column is present.
+    consecutive ``time`` values; ``kind`` is ``"range-bearing"`` when the file
+    has ``range, bearing`` columns (``scans`` rows are then ``[r, θ]``), else
+    ``"position"``; ``dim`` is 3 when a ``z`` column is present, else 2;
+    ``sensors`` is set when a ``sensor`` column is present.
 
     Raises
     ------
@@ -446,8 +525,9 @@ def read_detections(path) -> Detections:
     """
     err = DetectionFileError
     path, cols, _extras, lines = _load(
-        path, err, ("time", "x", "y"), ("z", "sensor"), parse_extras=False
+        path, err, (), (), parse_extras=False, pick=_pick_detection_columns
     )
+    kind = "range-bearing" if "range" in cols else "position"
     t = cols["time"]
     if t.size > 1:
         back = np.flatnonzero(np.diff(t) < 0)
@@ -456,13 +536,34 @@ def read_detections(path) -> Detections:
             raise _row_error(
                 err,
                 path,
-                f"time {t[i]!r} is earlier than the previous row's {t[i - 1]!r} "
+                f"time {float(t[i])!r} is earlier than the previous row's {float(t[i - 1])!r} "
                 "(rows must be in non-decreasing time order)",
                 i,
                 lines,
                 "time",
             )
-    coords = ["x", "y"] + (["z"] if "z" in cols else [])
+    if kind == "range-bearing":
+        coords = list(_RB_COLUMNS)
+        neg = np.flatnonzero(cols["range"] < 0)
+        if neg.size:
+            i = int(neg[0])
+            raise _row_error(
+                err, path, f"negative range {float(cols['range'][i])!r}", i, lines, "range"
+            )
+        big = np.flatnonzero(np.abs(cols["bearing"]) > 2 * np.pi)
+        if big.size:
+            i = int(big[0])
+            raise _row_error(
+                err,
+                path,
+                f"bearing {float(cols['bearing'][i])!r} is outside [-2π, 2π]; bearings are in "
+                "radians (degrees? multiply by π/180)",
+                i,
+                lines,
+                "bearing",
+            )
+    else:
+        coords = ["x", "y"] + (["z"] if "z" in cols else [])
     Z = np.column_stack([cols[c] for c in coords]) if t.size else np.zeros((0, len(coords)))
     sensor = None
     if "sensor" in cols:
@@ -474,7 +575,12 @@ def read_detections(path) -> Detections:
     if sensor is not None:
         sensors = tuple(sensor[s:e] for s, e in zip(starts, ends, strict=True))
     return Detections(
-        times=t[starts], scans=scans, sensors=sensors, dim=len(coords), source=str(path)
+        times=t[starts],
+        scans=scans,
+        sensors=sensors,
+        dim=len(coords),
+        source=str(path),
+        kind=kind,
     )
 
 
@@ -621,7 +727,9 @@ def read_tracks(path) -> dict[str, np.ndarray]:
 def write_detections(detections: Detections, path) -> Path:
     """Write :class:`Detections` in the file format of :func:`read_detections`.
 
-    Empty scans are lost (a scan exists in the file only through its rows).
+    Positions as ``time, x, y[, z][, sensor]``, range–bearing detections as
+    ``time, range, bearing[, sensor]``. Empty scans are lost (a scan exists in
+    the file only through its rows).
     """
     if not isinstance(detections, Detections):
         raise ValueError(f"expected Detections, got {type(detections).__name__}")

@@ -28,6 +28,7 @@ __all__ = [
     "TRUTH_START_NOTE",
     "RunConfig",
     "RunConfigError",
+    "check_sensor",
     "load_config",
     "make_scenario",
     "make_tracker_config",
@@ -134,7 +135,14 @@ def _check_tracker_keys(d: Mapping, where: str) -> None:
         a = ann[key]
         if key == "clutter_density" and value == "estimate":
             continue
-        if "bool" in a:
+        if a == "tuple":  # sensor_position
+            ok = (
+                isinstance(value, list | tuple)
+                and len(value) == 2
+                and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+            )
+            want = "an array of two numbers, e.g. [0.0, 0.0]"
+        elif "bool" in a:
             ok = isinstance(value, bool)
             want = "true or false"
         elif "int" in a:
@@ -168,6 +176,33 @@ def make_tracker_config(
         return TrackerConfig.from_dict(d)
     except (ValueError, TypeError) as exc:
         raise RunConfigError(f"{where}: [tracker] {_one_line(exc)}") from None
+
+
+_RB_SETTINGS = (
+    'sensor = "range-bearing", sensor_position = [x, y], range_noise = σ_r² and '
+    "bearing_noise = σ_θ² (rad²)"
+)
+
+
+def check_sensor(cfg: TrackerConfig, kind: str, data: str, source: str | None = None) -> None:
+    """A :class:`RunConfigError` unless the tracker's sensor reads detections of ``kind``.
+
+    ``kind``: :attr:`jointtrack.io.Detections.kind` (``"position"`` or
+    ``"range-bearing"``); ``data``: what holds the detections (for the
+    message); ``source``: the config file, if any.
+    """
+    if kind == "range-bearing" and cfg.sensor != "range-bearing":
+        where = f"the [tracker] table of {source}" if source else "[tracker] of a --config file"
+        raise RunConfigError(
+            f"{data} holds range-bearing detections (range, bearing) but the tracker's sensor "
+            f'is "{cfg.sensor}": set {_RB_SETTINGS} in {where}'
+        )
+    if kind == "position" and cfg.sensor != "position":
+        where = f"{source}: [tracker]" if source else "[tracker]"
+        raise RunConfigError(
+            f'{where} sensor = "{cfg.sensor}" but {data} holds position detections '
+            '(x, y): remove that key or set sensor = "position"'
+        )
 
 
 def make_scenario(

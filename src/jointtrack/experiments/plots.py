@@ -39,13 +39,24 @@ def _figsize(region) -> tuple[float, float]:
 
 
 def plot_scene(
-    path, *, times, scans, tracks, origins=None, truth=None, region=None, title: str = ""
+    path,
+    *,
+    times,
+    scans,
+    tracks,
+    origins=None,
+    truth=None,
+    region=None,
+    title: str = "",
+    sensor=None,
 ) -> Path:
     """Truth lines, detections (grey dots, clutter lighter) and confirmed tracks with ids.
 
-    ``scans``: per-scan (M_k, d) detections; ``origins``: per-scan target id or
+    ``scans``: per-scan (M_k, d) detections as Cartesian positions (convert
+    range–bearing measurements first); ``origins``: per-scan target id or
     −1 (clutter), or ``None`` (unknown); ``truth`` and ``tracks``: flat tables
-    ``(times, ids, positions)``; ``region``: (d, 2) box for the axis limits.
+    ``(times, ids, positions)``; ``region``: (d, 2) box for the axis limits;
+    ``sensor``: (x, y) of a sensor to mark, or ``None``.
     Only the first two coordinates are drawn.
     """
     fig, ax = plt.subplots(figsize=_figsize(region))
@@ -83,6 +94,12 @@ def plot_scene(
                 label="truth" if first else None,
             )
             first = False
+    if sensor is not None:  # marked and named in place (the legend scales markers ×3)
+        sx, sy = (float(v) for v in np.asarray(sensor, dtype=float)[:2])
+        ax.plot([sx], [sy], "^", ms=9, c="k", mec="w", zorder=6)
+        ax.annotate(
+            "sensor", (sx, sy), xytext=(6, -4), textcoords="offset points", fontsize=8, zorder=6
+        )
     et, ei, ep = tracks
     ids = np.unique(ei)
     cmap = plt.get_cmap("tab10" if len(ids) <= 10 else "tab20")

@@ -20,7 +20,9 @@ read from a file (no truth: tracks and timing only). Both write into ``out_dir``
   truth (``--detections``) there is no GOSPA/OSPA and the track counts are the
   numbers of confirmed tracks.
 * ``scene.png``: truth trajectories, detections (grey; clutter lighter),
-  confirmed tracks as coloured lines labelled with their ids.
+  confirmed tracks as coloured lines labelled with their ids. Range–bearing
+  detections are drawn at their Cartesian positions ``s + r (cos θ, sin θ)``,
+  with the sensor ``s`` marked.
 * ``gospa.png``: GOSPA per scan and its decomposition (only with a truth).
 
 Tracker settings for a built-in scenario are derived from the scenario
@@ -42,6 +44,12 @@ Config file (``--config FILE``, TOML)
     clutter_density = "estimate"   # a number (per unit area), or "estimate" =
                                    # Bojilov's heuristic (8)
     exact_max_tracks = 12
+    # range–bearing detections (columns time, range, bearing) need:
+    # sensor = "range-bearing"
+    # sensor_position = [2000.0, 0.0]
+    # range_noise = 100.0          # σ_r², m²
+    # bearing_noise = 2.5e-5       # σ_θ², rad²; clutter_density is then per
+    #                              # unit range × radian
 
     [scenario]             # built-in scenario (ignored with --detections)
     name = "crossing"      # bojilov | crossing | many
@@ -55,8 +63,11 @@ Config file (``--config FILE``, TOML)
     switch_penalty = 0.0   # GOSPA identity-switch penalty
 
 Unknown tables or keys, wrong types and bad values raise :class:`RunConfigError`
-with a one-line message naming the file and the key. ``--scenario`` and
-``--seed`` on the command line override ``name`` and ``seed``.
+with a one-line message naming the file and the key; so does a sensor that does
+not match the detections (range–bearing detections without ``sensor =
+"range-bearing"``, or positions with it). ``tracks.csv`` holds Cartesian states
+for either sensor. ``--scenario`` and ``--seed`` on the command line override
+``name`` and ``seed``.
 
 Checkpoints: with ``checkpoint=FILE`` the tracker state is saved every
 ``checkpoint_every`` scans and at the end (:meth:`JPDATracker.save`; the run's
@@ -96,6 +107,7 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     _describe,
     _is_int,
     _one_line,
+    check_sensor,
     load_config,
     make_scenario,
     make_tracker_config,
@@ -128,6 +140,7 @@ __all__ = [
     "SCENARIOS",
     "RunConfig",
     "RunConfigError",
+    "check_sensor",
     "load_config",
     "make_scenario",
     "make_tracker_config",
@@ -156,6 +169,17 @@ class _Source:
     x0: np.ndarray | None = None  # start tracks from these states at the first scan
     sigma: float = 10.0
     notes: list = field(default_factory=list)
+    kind: str = "position"  # of the scans: "position" or "range-bearing" ([r, θ] rows)
+
+
+def _cartesian(scans, sensor_position) -> list:
+    """Range–bearing scans ``[r, θ]`` as Cartesian positions ``s + r (cos θ, sin θ)``."""
+    s = np.asarray(sensor_position, dtype=float)
+    out = []
+    for z in scans:
+        z = np.asarray(z, dtype=float).reshape(-1, 2)
+        out.append(s + np.column_stack([z[:, 0] * np.cos(z[:, 1]), z[:, 0] * np.sin(z[:, 1])]))
+    return out
 
 
 def _jsonify(obj):
@@ -233,6 +257,11 @@ def _run(
             raise RunConfigError(
                 f"{resume}: the checkpoint tracks {trk.config.dim}-D data, these scans are "
                 f"{src.dim}-D"
+            )
+        if (trk.config.sensor == "range-bearing") != (src.kind == "range-bearing"):
+            raise RunConfigError(
+                f"{resume}: the checkpoint's tracker reads {trk.config.sensor} measurements, "
+                f"these scans are {src.kind} detections"
             )
         clusters, elapsed_before = _load_bookkeeping(resume, trk, identity, warn)
         if trk.config != cfg:
@@ -334,16 +363,21 @@ def _run(
     if plots:
         from jointtrack.experiments import plots as _plots
 
+        scans, sensor = src.scans[:stop], None
+        if src.kind == "range-bearing":
+            sensor = cfg.sensor_position
+            scans = _cartesian(scans, sensor)
         files["scene"] = str(
             _plots.plot_scene(
                 out_dir / "scene.png",
                 times=scan_times,
-                scans=src.scans[:stop],
+                scans=scans,
                 origins=src.origins[:stop] if src.origins is not None else None,
                 truth=truth,
                 tracks=tracks,
                 region=src.region,
                 title=_describe(identity),
+                sensor=sensor,
             )
         )
         if series is not None:
@@ -413,6 +447,7 @@ def run_scenario(
         raise RunConfigError(
             f"[tracker] dim = {cfg.dim} but scenario {scenario.name} is {scenario.dim}-D"
         )
+    check_sensor(cfg, "position", f"scenario {scenario.name}")
     identity["start_from_truth"] = bool(start_from_truth)
     sigma = float(math.sqrt(np.mean(np.diag(scenario.R))))
     src = _Source(
@@ -455,8 +490,12 @@ def run_detections(
     """Run the tracker on detections (e.g. from :func:`jointtrack.io.read_detections`).
 
     ``config``: a :class:`TrackerConfig` or a mapping of overrides on the
-    defaults (``dim`` is taken from the detections). No truth: the metrics hold
-    track counts and timing only. Other options as :func:`run_scenario`
+    defaults (``dim`` is taken from the detections). Range–bearing detections
+    (``detections.kind == "range-bearing"``) need ``sensor="range-bearing"``
+    with ``sensor_position``, ``range_noise`` and ``bearing_noise``; position
+    detections need the position sensor (else :class:`RunConfigError`); the
+    tracks are Cartesian states either way. No truth: the metrics hold track
+    counts and timing only. Other options as :func:`run_scenario`
     (``checkpoint``, ``checkpoint_every``, ``resume``, ``max_scans``,
     ``console``, ``plots``).
     """
@@ -471,12 +510,21 @@ def run_detections(
                 f"[tracker] dim = {over['dim']} but the detections are {detections.dim}-D"
             )
         cfg = make_tracker_config({"dim": detections.dim}, over)
+    kind = detections.kind
+    check_sensor(cfg, kind, detections.source or "the detections")
     if cfg.dim != detections.dim:
         raise RunConfigError(f"tracker dim = {cfg.dim} but the detections are {detections.dim}-D")
-    pts = [z for z in detections.scans if len(z)]
+    scans = detections.scans
+    sigma = math.sqrt(cfg.measurement_noise)
+    if kind == "range-bearing":
+        scans = _cartesian(scans, cfg.sensor_position)
+        sigma = math.sqrt(cfg.range_noise)
+    pts = [z for z in scans if len(z)]
     region = None
     if pts:
         allz = np.concatenate(pts)
+        if kind == "range-bearing":  # keep the sensor in view
+            allz = np.vstack([allz, cfg.sensor_position])
         region = np.stack([allz.min(axis=0), allz.max(axis=0)], axis=1)
     src = _Source(
         identity={
@@ -488,6 +536,7 @@ def run_detections(
         scans=detections.scans,
         dim=detections.dim,
         region=region,
-        sigma=math.sqrt(cfg.measurement_noise),
+        sigma=sigma,
+        kind=kind,
     )
     return _run(src, cfg, out_dir, fmt=fmt, progress=progress, **options)
