@@ -62,3 +62,77 @@ def _log_fraction(x: Fraction) -> float:
 def brute_log_permanent(A) -> float:
     """log of the exact permanent (finite even when the value under/overflows float64)."""
     return _log_fraction(_exact_permanent(A))
+
+
+def _matchings(R: int, C: int, allow_null):
+    """Every partial matching: tuples of a column index or None per row."""
+
+    def rec(r, used):
+        if r == R:
+            yield ()
+            return
+        if allow_null[r]:
+            for rest in rec(r + 1, used):
+                yield (None, *rest)
+        for c in range(C):
+            if c not in used:
+                for rest in rec(r + 1, used | {c}):
+                    yield (c, *rest)
+
+    yield from rec(0, frozenset())
+
+
+def brute_assignment(W, null=None, row_counts=None, col_counts=None):
+    """Exact (Fraction) Z, pair marginals and null marginals of the assignment sum.
+
+    Compressed input is expanded; the marginals returned are those of the first
+    member of each row group and column group (any member gives the same).
+    Returns ``(Z, P, Pnull)`` with P, Pnull as lists of Fractions (None if Z = 0).
+    """
+    W = np.asarray(W, dtype=float)
+    R0, C0 = W.shape
+    rc = [1] * R0 if row_counts is None else [int(x) for x in row_counts]
+    cc = [1] * C0 if col_counts is None else [int(x) for x in col_counts]
+    nl = [0.0] * R0 if null is None else [float(x) for x in np.broadcast_to(null, (R0,))]
+    rows = [q for q in range(R0) for _ in range(rc[q])]
+    cols = [j for j in range(C0) for _ in range(cc[j])]
+    F = [[Fraction(float(W[q, j])) for j in cols] for q in rows]
+    U = [Fraction(nl[q]) for q in rows]
+    R, C = len(rows), len(cols)
+    acc = [[Fraction(0)] * C for _ in range(R)]
+    accn = [Fraction(0)] * R
+    total = Fraction(0)
+    for sigma in _matchings(R, C, [u != 0 for u in U]):
+        p = Fraction(1)
+        for r, c in enumerate(sigma):
+            p *= U[r] if c is None else F[r][c]
+            if p == 0:
+                break
+        if p == 0:
+            continue
+        total += p
+        for r, c in enumerate(sigma):
+            if c is None:
+                accn[r] += p
+            else:
+                acc[r][c] += p
+    if total == 0:
+        return total, None, None
+    first_r = np.concatenate([[0], np.cumsum(rc)[:-1]]).astype(int)
+    first_c = np.concatenate([[0], np.cumsum(cc)[:-1]]).astype(int)
+    P = [[acc[r][c] / total for c in first_c] for r in first_r]
+    Pn = [accn[r] / total for r in first_r]
+    return total, P, Pn
+
+
+def log_fraction(x: Fraction) -> float:
+    """Natural log of a non-negative Fraction (−inf for 0), correct beyond the float range."""
+    return _log_fraction(x)
+
+
+def expand(A, row_counts=None, col_counts=None) -> np.ndarray:
+    """Expand a compressed matrix (row group q repeated row_counts[q] times, …)."""
+    A = np.asarray(A, dtype=np.float64)
+    r = np.ones(A.shape[0], int) if row_counts is None else np.asarray(row_counts, int)
+    c = np.ones(A.shape[1], int) if col_counts is None else np.asarray(col_counts, int)
+    return np.repeat(np.repeat(A, r, axis=0), c, axis=1)

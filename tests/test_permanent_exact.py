@@ -18,7 +18,7 @@ from jointtrack.permanent import (
     permanent,
     sinkhorn,
 )
-from jointtrack.permanent._validate import expand
+from brute import expand
 
 EXACT = ["dp", "multiset", "auto"]
 

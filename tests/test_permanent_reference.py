@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from brute import brute_marginals, brute_permanent
 from jointtrack.errors import InfeasibleAssignmentError
-from jointtrack.permanent._validate import expand
+from brute import expand
 from jointtrack.permanent.reference import (
     reference_log_permanent,
     reference_marginals,

@@ -7,3 +7,12 @@ class InfeasibleAssignmentError(ValueError):
     Raised where a probability would otherwise be 0/0: the permanent (or the
     JPDA normaliser) of the input is zero, so no marginal is defined.
     """
+
+
+class ExactLimitError(ValueError):
+    """An exact computation would exceed its state or memory budget.
+
+    Raised before any large allocation; the message says which budget
+    (``max_bits``, ``max_memory``) and how much the problem needs. Callers such as
+    the tracker catch it to switch to an approximation.
+    """

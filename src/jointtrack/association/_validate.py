@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from jointtrack.assignment._checks import _as_real_array, as_int, as_weights
 from jointtrack.association.clustering import has_feasible_event
 from jointtrack.errors import InfeasibleAssignmentError
 
@@ -30,15 +31,10 @@ def check_cluster(L, miss) -> tuple[np.ndarray, np.ndarray]:
         a track with ``miss == 0`` (certainly detected) has no gated measurement,
         or the cluster as a whole has no feasible joint event.
     """
-    try:
-        L = np.asarray(L, dtype=np.float64)
-        miss = np.asarray(miss, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"L and miss must be numeric arrays: {exc}") from None
-    if L.ndim == 1 and L.size == 0:
-        L = L.reshape(0, 0)
-    if L.ndim != 2:
-        raise ValueError(f"L must be 2-D (tracks × measurements), got {L.ndim} dimension(s)")
+    if isinstance(L, (list, tuple)) and len(L) == 0:
+        L = np.zeros((0, 0))
+    L = as_weights(L, "L")
+    miss = _as_real_array(miss, "miss")
     if miss.ndim != 1:
         raise ValueError(f"miss must be 1-D (one entry per track), got {miss.ndim} dimension(s)")
     if miss.shape[0] != L.shape[0]:
@@ -46,12 +42,6 @@ def check_cluster(L, miss) -> tuple[np.ndarray, np.ndarray]:
             f"miss has {miss.shape[0]} entries but L has {L.shape[0]} rows (tracks); "
             "they must match"
         )
-    if not np.all(np.isfinite(L)):
-        bad = tuple(np.argwhere(~np.isfinite(L))[0])
-        raise ValueError(f"L has a non-finite likelihood ratio ({L[bad]}) at {bad}")
-    if np.any(L < 0):
-        bad = tuple(np.argwhere(L < 0)[0])
-        raise ValueError(f"L has a negative likelihood ratio ({L[bad]}) at {bad}")
     if not np.all(np.isfinite(miss)):
         i = int(np.argwhere(~np.isfinite(miss))[0, 0])
         raise ValueError(f"miss[{i}] is not finite ({miss[i]})")
@@ -72,11 +62,8 @@ def check_cluster(L, miss) -> tuple[np.ndarray, np.ndarray]:
 
 
 def check_integer(value, name: str, minimum: int = 1) -> int:
-    """``value`` as an int; ValueError unless it is a whole number ≥ ``minimum`` (0 or 1)."""
-    if int(value) != value or value < minimum:
-        kind = "positive" if minimum == 1 else "non-negative"
-        raise ValueError(f"{name} must be a {kind} integer, got {value}")
-    return int(value)
+    """``value`` as an int; ValueError unless it is a whole number ≥ ``minimum``."""
+    return as_int(value, name, minimum)
 
 
 def require_feasible_event(L, miss) -> None:

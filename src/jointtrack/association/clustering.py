@@ -148,17 +148,10 @@ def has_feasible_event(L, miss) -> bool:
     An event has positive weight iff every track with ``miss == 0`` (certainly
     detected) receives a distinct gated measurement, i.e. the bipartite gating
     graph restricted to those tracks has a matching saturating them (Hall's
-    condition; checked with :func:`scipy.sparse.csgraph.maximum_bipartite_matching`).
+    condition; the package's one test, :func:`jointtrack.assignment.is_feasible`).
     The feasibility constraints are Bojilov et al. §2 (each target at most one
     measurement, each measurement at most one target).
     """
-    L = np.asarray(L)
-    miss = np.asarray(miss)
-    must = np.flatnonzero(miss == 0)
-    if must.size == 0:
-        return True
-    sub = L[must] > 0
-    if not sub.any(axis=1).all():
-        return False
-    match = maximum_bipartite_matching(coo_matrix(sub.astype(np.int8)).tocsr(), perm_type="column")
-    return bool(np.all(match >= 0))
+    from jointtrack.assignment.feasibility import is_feasible
+
+    return is_feasible(np.asarray(L), np.asarray(miss))

@@ -23,7 +23,7 @@ Approximations
 """
 
 from jointtrack.errors import InfeasibleAssignmentError
-from jointtrack.permanent.balance import sinkhorn
+from jointtrack.assignment.sinkhorn import sinkhorn
 from jointtrack.permanent.exact import log_permanent, permanent
 from jointtrack.permanent.marginals import assignment_marginals
 

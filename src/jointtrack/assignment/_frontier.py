@@ -1,6 +1,6 @@
 """Forward–backward frontier subset DP of one dual-scaled block, with checkpointing.
 
-Step 4 of :mod:`jointtrack.association.exact`, driver. Runs the plan of
+Step 4 of :mod:`jointtrack.assignment.core`, driver. Runs the plan of
 :mod:`._exact_plan` (layer steps and item-leave steps) with the block kernels of
 :mod:`._exact_kernels`, on the whole state array or, for large states, split over
 numba threads (:func:`_fwd_par`, :func:`_bwd_par`): the forward pass stores each
@@ -14,7 +14,7 @@ two renormalise an array only if its sum leaves [2^-600, 2^600]; the exponents a
 tracked and added back into log Z and into each contraction's scale.
 
 The ``parallel=True`` kernels and every jitted function that calls them (up to
-:func:`_dp_run`) must stay in this one file. numba does not record a cached
+:func:`frontier_dp`) must stay in this one file. numba does not record a cached
 ``parallel=True`` callee's threading-layer initialisation in a caller compiled in
 another process, so a caller in another file, recompiled alone after an edit,
 would be cached without it and segfault when next loaded from the cache (numba
@@ -28,7 +28,7 @@ import math
 import numba
 import numpy as np
 
-from jointtrack.association._exact_kernels import (
+from jointtrack.assignment._kernels import (
     _bwd_blocks,
     _fwd_blocks,
     _leave_bwd,
@@ -157,7 +157,7 @@ def _op_fwd(k, a, x, y, kb, nchunk, W, u, v, lay_slot, slot_of):
 
 
 @numba.njit(cache=True)
-def _dp_run(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, stride, nchunk):
+def frontier_dp(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, stride, nchunk):
     """Forward–backward frontier DP for layers = rows of W, items = columns.
 
     Returns (pl, pi, pe, logZ') with pl[r] = P(layer r unassigned),
@@ -274,3 +274,33 @@ def _dp_run(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, stride, nchunk
             b = bp
             bp = tmp
     return pl, pi, pe, logZ
+
+
+@numba.njit(cache=True)
+def frontier_value(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, nchunk):
+    """Forward pass only: ``log Z'`` of the block, with two state arrays (no marginals)."""
+    n = np.int64(1) << K
+    kb = min(K, _BLOCK_BITS)
+    nops = op_kind.size
+    x = np.zeros(n)
+    y = np.empty(n)
+    x[0] = 1.0
+    exponent = 0
+    for t in range(nops):
+        mx = _op_fwd(op_kind[t], op_arg[t], x, y, kb, nchunk, W, u, v, lay_slot, slot_of)
+        exponent += _renorm(y, mx)
+        x, y = y, x
+    # terminal: still-open items are left unused with weight v
+    total = 0.0
+    for i in range(n):
+        total += x[i]
+    for q in range(term.size):
+        total = _leave_fwd(x, y, slot_of[term[q]], v[term[q]])
+        exponent += _renorm(y, total)
+        x, y = y, x
+    total = 0.0
+    for i in range(n):
+        total += x[i]
+    if not (total > 0.0):
+        return -np.inf
+    return math.log(total) + exponent * math.log(2.0)

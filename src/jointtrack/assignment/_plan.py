@@ -1,10 +1,10 @@
 """Layer order and frontier slot assignment for the frontier subset DP.
 
-Step 4 of :mod:`jointtrack.association.exact`, planning part. Layers (rows of a
+Step 4 of :mod:`jointtrack.assignment.core`, planning part. Layers (rows of a
 boolean gating matrix) are processed one at a time; the DP state is the subset of
 the *open* items (columns seen and still gated by an unprocessed layer) that are
 already used, so its width is the largest number of simultaneously open items.
-:func:`_plan` picks a greedy layer order that keeps this frontier small, gives
+:func:`frontier_plan` picks a greedy layer order that keeps this frontier small, gives
 each open item a bit position (slot) in the state index, reusing freed slots, and
 records when each item leaves the frontier (is summed out). The DP's cost is about
 ``layers · 2^K`` for a frontier of K slots, so the caller plans both orientations
@@ -18,7 +18,7 @@ import numpy as np
 
 
 @numba.njit(cache=True)
-def _plan(G):
+def frontier_plan(G):
     """Greedy layer order and slot assignment for layers = rows of boolean ``G``.
 
     Picks next the layer that opens the fewest new items net of the items it

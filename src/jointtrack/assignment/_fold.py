@@ -1,6 +1,6 @@
 """Leaf folding on the bipartite gating graph, its inverse, and component splitting.
 
-Steps 1–2 of :mod:`jointtrack.association.exact`. Rows are tracks, columns are
+Steps 1–2 of :mod:`jointtrack.assignment.core`. Rows are tracks, columns are
 measurements; ``W[r, c]`` is the (split-float) likelihood ratio of a gated pair,
 ``u[r]`` a track's unassigned (miss) weight, ``v[c]`` a measurement's unassigned
 (clutter) weight. A node with a single gated partner is summed out exactly into
@@ -23,7 +23,7 @@ import math
 import numba
 import numpy as np
 
-from jointtrack.association._scaled import _sadd, _sn, _sratio
+from jointtrack.assignment._splitfloat import split_add, split_normalize, split_ratio
 
 _ISO_ROW, _ISO_COL, _FOLD_ROW, _FOLD_COL = 0, 1, 2, 3
 
@@ -93,8 +93,8 @@ def _fold_leaves(Wm, We, um, ue, vm, ve):
                 if kill_t[r, cc] > step:
                     c = cc
                     break
-            lm, le = _sn(vm[c] * um[r], ve[c] + ue[r])
-            nm, ne = _sadd(lm, le, Wm[r, c], We[r, c])
+            lm, le = split_normalize(vm[c] * um[r], ve[c] + ue[r])
+            nm, ne = split_add(lm, le, Wm[r, c], We[r, c])
             rec_kind[step] = _FOLD_ROW
             rec_other[step] = c
             rec_m[step, 0] = Wm[r, c]
@@ -115,7 +115,7 @@ def _fold_leaves(Wm, We, um, ue, vm, ve):
                             queue[qt] = rr
                             qt += 1
                     else:
-                        m2, e2 = _sn(Wm[rr, c] * um[r], We[rr, c] + ue[r])
+                        m2, e2 = split_normalize(Wm[rr, c] * um[r], We[rr, c] + ue[r])
                         Wm[rr, c] = m2
                         We[rr, c] = e2
             kill_t[r, c] = step
@@ -144,8 +144,8 @@ def _fold_leaves(Wm, We, um, ue, vm, ve):
                 if kill_t[rr, c] > step:
                     r = rr
                     break
-            lm, le = _sn(um[r] * vm[c], ue[r] + ve[c])
-            nm, ne = _sadd(lm, le, Wm[r, c], We[r, c])
+            lm, le = split_normalize(um[r] * vm[c], ue[r] + ve[c])
+            nm, ne = split_add(lm, le, Wm[r, c], We[r, c])
             rec_kind[step] = _FOLD_COL
             rec_other[step] = r
             rec_m[step, 0] = Wm[r, c]
@@ -166,7 +166,7 @@ def _fold_leaves(Wm, We, um, ue, vm, ve):
                             queue[qt] = R + cc
                             qt += 1
                     else:
-                        m2, e2 = _sn(Wm[r, cc] * vm[c], We[r, cc] + ve[c])
+                        m2, e2 = split_normalize(Wm[r, cc] * vm[c], We[r, cc] + ve[c])
                         Wm[r, cc] = m2
                         We[r, cc] = e2
             kill_t[r, c] = step
@@ -209,8 +209,8 @@ def _unfold(rec_kind, rec_node, rec_other, rec_m, rec_e, kill_t, pu, pv, pe):
             merged = pv[c]
             nm = rec_m[step, 2]
             ne = rec_e[step, 2]
-            pe[r, c] = merged * _sratio(rec_m[step, 0], rec_e[step, 0], nm, ne)
-            pvc = merged * _sratio(rec_m[step, 1], rec_e[step, 1], nm, ne)
+            pe[r, c] = merged * split_ratio(rec_m[step, 0], rec_e[step, 0], nm, ne)
+            pvc = merged * split_ratio(rec_m[step, 1], rec_e[step, 1], nm, ne)
             pv[c] = pvc
             s = pvc
             for rr in range(R):
@@ -223,8 +223,8 @@ def _unfold(rec_kind, rec_node, rec_other, rec_m, rec_e, kill_t, pu, pv, pe):
             merged = pu[r]
             nm = rec_m[step, 2]
             ne = rec_e[step, 2]
-            pe[r, c] = merged * _sratio(rec_m[step, 0], rec_e[step, 0], nm, ne)
-            pur = merged * _sratio(rec_m[step, 1], rec_e[step, 1], nm, ne)
+            pe[r, c] = merged * split_ratio(rec_m[step, 0], rec_e[step, 0], nm, ne)
+            pur = merged * split_ratio(rec_m[step, 1], rec_e[step, 1], nm, ne)
             pu[r] = pur
             s = pur
             for cc in range(C):

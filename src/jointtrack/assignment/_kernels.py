@@ -1,6 +1,6 @@
 """Blocked forward and adjoint kernels of one frontier-DP step.
 
-Step 4 of :mod:`jointtrack.association.exact`, inner loops. The state is an array
+Step 4 of :mod:`jointtrack.assignment.core`, inner loops. The state is an array
 over subsets S of the K frontier slots (bit s of the index = slot s used). A
 layer (an item of the non-state side) with unassigned weight u and gated slots
 s with weights w_s maps

@@ -1,0 +1,38 @@
+"""The one feasibility test: does any assignment have positive weight?
+
+An assignment (every row with null weight 0 gets its own column with a positive
+weight; rows with a positive null weight may stay unassigned) exists exactly
+when the bipartite support graph has a matching covering those rows — a maximum
+bipartite matching (Hopcroft–Karp, :func:`scipy.sparse.csgraph.maximum_bipartite_matching`)
+on the support, with groups of identical rows/columns expanded.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import csr_array
+from scipy.sparse.csgraph import maximum_bipartite_matching
+
+__all__ = ["is_feasible"]
+
+
+def is_feasible(W, null=None, row_counts=None, col_counts=None) -> bool:
+    """True if some assignment of ``W`` (plain arrays, already validated) weighs > 0.
+
+    ``null[r] > 0`` lets row r stay unassigned; group counts expand rows/columns.
+    """
+    support = np.asarray(W) > 0
+    must = np.ones(support.shape[0], bool) if null is None else ~(np.asarray(null) > 0)
+    if row_counts is not None or col_counts is not None:
+        r = np.ones(support.shape[0], int) if row_counts is None else np.asarray(row_counts, int)
+        c = np.ones(support.shape[1], int) if col_counts is None else np.asarray(col_counts, int)
+        support = np.repeat(np.repeat(support, r, axis=0), c, axis=1)
+        must = np.repeat(must, r)
+    support = support[must]
+    n, m = support.shape
+    if n == 0:
+        return True
+    if n > m or not support.any(axis=1).all():
+        return False
+    match = maximum_bipartite_matching(csr_array(support.astype(np.int8)), perm_type="column")
+    return bool(np.all(match >= 0))

@@ -1,0 +1,166 @@
+r"""Power-of-two scaling from the dual of the best assignment: every problem in range.
+
+A row or column scaling multiplies every assignment's weight by the same factor,
+so the marginals are unchanged and the log of the removed scale is added back to
+the log normaliser. The scale factors come from the optimal dual of the
+max-weight assignment (:mod:`jointtrack.assignment.lsap`), with the problem
+embedded in an (R+C)×(C+R) assignment problem (row r ↔ col c; row r ↔ its own
+"null" dummy; col c ↔ its "unused" dummy; dummy ↔ dummy where (r, c) is allowed).
+Writing α_r, γ_c for the log scales, dual feasibility gives
+
+.. math::
+
+    \log W_{rc} \le \alpha_r + \gamma_c, \qquad
+    \log u_r \le \alpha_r, \qquad \log v_c \le \gamma_c,
+
+with equality along the best assignment: after rounding α, γ to multiples of
+log 2 (so applying them is exact in floating point) every factor is ≤ ~1 and the
+best assignment weighs ≈ 1. Every assignment that matters (≥ 1e-300 of the best)
+then has all partial products ≥ ~1e-300 — no underflow anywhere in a DP, for any
+scale of the input (a DP merely normalised per layer by its maximum loses such
+paths).
+
+Repeated rows/columns: the constraints above are symmetric under permuting the
+members of a group and the dual objective is linear, so averaging an optimal
+dual over each group gives an optimal dual that is constant on groups
+(:func:`group_exponents`); the group-count DP needs exactly that.
+
+:func:`scaled_block` extracts one connected component (after leaf folding) and
+scales it; :func:`scatter_block` writes a block's marginals back.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from jointtrack.assignment.lsap import _shortest_augmenting_paths
+
+_LN2 = math.log(2.0)
+#: Largest expanded problem (rows + columns) whose group dual is computed by one
+#: assignment solve on the expansion; the solve is O((R+C)^3) at worst.
+GROUP_SCALING_MAX = 4000
+
+
+@numba.njit(cache=True)
+def _dual_scale(lw, lu, lv):
+    """Row/column log scale factors (α, γ) making every factor ≤ 1 and the best event = 1.
+
+    The association problem is embedded in an (R+C)×(C+R) assignment problem
+    (row r ↔ col c, row r ↔ its own "unassigned" dummy, col c ↔ its dummy, dummy ↔
+    dummy where (r, c) is gated); its optimal dual gives the scales. Returns
+    ``(alpha, gamma, log_best, ok)``.
+    """
+    R, C = lw.shape
+    n = R + C
+    cost = np.full((n, n), np.inf)
+    for r in range(R):
+        for c in range(C):
+            if lw[r, c] > -np.inf:
+                cost[r, c] = -lw[r, c]
+                cost[R + c, C + r] = 0.0
+        if lu[r] > -np.inf:
+            cost[r, C + r] = -lu[r]
+    for c in range(C):
+        if lv[c] > -np.inf:
+            cost[R + c, c] = -lv[c]
+    _, u, v, ok = _shortest_augmenting_paths(cost)
+    alpha = np.empty(R)
+    gamma = np.empty(C)
+    for r in range(R):
+        alpha[r] = u[r] + v[C + r]
+    for c in range(C):
+        gamma[c] = v[c] + u[R + c]
+    return alpha, gamma, -(u.sum() + v.sum()), ok
+
+
+@numba.njit(cache=True)
+def scaled_block(k, lab_r, lab_c, E, Wm, We, um, ue, vm, ve):
+    """Extract block k, dual-scale it by exact powers of two.
+
+    Returns (rows, cols, W, u, v, shift, ok): every scaled factor ≤ ~1, the best
+    event ≈ 1, ``shift`` = log of the scale removed (add back to log Z).
+    """
+    rows = np.flatnonzero(lab_r == k)
+    cols = np.flatnonzero(lab_c == k)
+    R = rows.size
+    C = cols.size
+    ln2 = math.log(2.0)
+    lw = np.full((R, C), -np.inf)
+    lu = np.full(R, -np.inf)
+    lv = np.full(C, -np.inf)
+    for a in range(R):
+        r = rows[a]
+        if um[r] > 0:
+            lu[a] = math.log(um[r]) + ue[r] * ln2
+        for b in range(C):
+            c = cols[b]
+            if E[r, c] and Wm[r, c] > 0:
+                lw[a, b] = math.log(Wm[r, c]) + We[r, c] * ln2
+    for b in range(C):
+        c = cols[b]
+        if vm[c] > 0:
+            lv[b] = math.log(vm[c]) + ve[c] * ln2
+    alpha, gamma, _, ok = _dual_scale(lw, lu, lv)
+    W = np.zeros((R, C))
+    u = np.zeros(R)
+    v = np.zeros(C)
+    ka = np.empty(R, np.int64)
+    kg = np.empty(C, np.int64)
+    for a in range(R):
+        ka[a] = np.int64(np.rint(alpha[a] / ln2)) if ok else 0
+    for b in range(C):
+        kg[b] = np.int64(np.rint(gamma[b] / ln2)) if ok else 0
+    # exact power-of-two scales (a row/column scaling leaves the marginals unchanged)
+    for a in range(R):
+        r = rows[a]
+        u[a] = math.ldexp(um[r], ue[r] + ka[a])
+        for b in range(C):
+            c = cols[b]
+            if E[r, c]:
+                W[a, b] = math.ldexp(Wm[r, c], We[r, c] + ka[a] + kg[b])
+    for b in range(C):
+        c = cols[b]
+        v[b] = math.ldexp(vm[c], ve[c] + kg[b])
+    shift = (ka.sum() + kg.sum()) * ln2
+    return rows, cols, W, u, v, shift, ok
+
+
+@numba.njit(cache=True)
+def scatter_block(rows, cols, bu, bv, be, pu, pv, pe):
+    for a in range(rows.size):
+        pu[rows[a]] = bu[a]
+        for b in range(cols.size):
+            pe[rows[a], cols[b]] = be[a, b]
+    for b in range(cols.size):
+        pv[cols[b]] = bv[b]
+
+
+def group_exponents(W, null, row_counts, col_counts):
+    """Integer power-of-two exponents (er per row group, ec per column group, ok).
+
+    Scaled weights ``W[p, q]·2^(er_p + ec_q)``, null ``null[p]·2^er_p`` and unused
+    column weight ``2^ec_q`` are all ≤ ~1 with the best assignment ≈ 1. Computed
+    on the expanded problem and averaged over each group (see the module
+    docstring). ``ok`` is False when no assignment has positive weight.
+    """
+    R, C = int(row_counts.sum()), int(col_counts.sum())
+    if R + C > GROUP_SCALING_MAX:
+        raise ValueError(
+            f"the expanded problem has {R} rows and {C} columns; its scaling needs an "
+            f"assignment solve of size {R + C} > {GROUP_SCALING_MAX}"
+        )
+    ri = np.repeat(np.arange(W.shape[0]), row_counts)
+    ci = np.repeat(np.arange(W.shape[1]), col_counts)
+    with np.errstate(divide="ignore"):
+        lw = np.log(W)[np.ix_(ri, ci)]
+        lu = np.log(null)[ri]
+    lv = np.zeros(C)
+    alpha, gamma, _, ok = _dual_scale(np.ascontiguousarray(lw), lu, lv)
+    if not ok:
+        return np.zeros(W.shape[0], np.int64), np.zeros(W.shape[1], np.int64), False
+    a = np.bincount(ri, weights=alpha) / row_counts
+    g = np.bincount(ci, weights=gamma) / col_counts
+    return np.rint(a / _LN2).astype(np.int64), np.rint(g / _LN2).astype(np.int64), True
