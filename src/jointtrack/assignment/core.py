@@ -458,6 +458,14 @@ def assignment_sum(
         return _expanded(W, null, rows, cols, marginals, method, max_bits, max_memory, parallel)
     if method == "groups":
         return _groups(W, null, rows, cols, marginals, max_memory)
+    if method in ("glynn", "ryser") and R < C and not null.any() and not marginals:
+        # Per([A; J]) = (C−R)!·Per(A) for J the (C−R)×C all-ones block: square it
+        padded = np.vstack([W, np.ones((C - R, C))])
+        res = assignment_sum(padded, marginals=False, method=method, max_bits=max_bits,
+                             max_memory=max_memory, parallel=parallel)
+        return AssignmentResult(
+            res.log_normalizer - math.lgamma(C - R + 1), None, None, res.method, True, res.info
+        )
     square_permanent = R == C and not null.any()
     if method in ("glynn", "ryser"):
         if marginals or not square_permanent:

@@ -164,3 +164,20 @@ def group_exponents(W, null, row_counts, col_counts):
     a = np.bincount(ri, weights=alpha) / row_counts
     g = np.bincount(ci, weights=gamma) / col_counts
     return np.rint(a / _LN2).astype(np.int64), np.rint(g / _LN2).astype(np.int64), True
+
+
+def scale_problem(W, null):
+    """Power-of-two scaled copy of a plain problem for the approximate methods.
+
+    Returns ``(W', null', unused', log_shift, ok)``: ``W'[r, c] = W[r, c]·2^(er_r+ec_c)``,
+    ``null'[r] = null[r]·2^er_r`` and the column-unused weights ``unused'[c] = 2^ec_c``
+    (no longer 1), every factor ≤ ~1 and the best assignment ≈ 1, with
+    ``log Z = log Z' − log_shift``. Marginals are unchanged by the scaling.
+    ``ok`` is False when no assignment has positive weight.
+    """
+    W = np.asarray(W, np.float64)
+    null = np.asarray(null, np.float64)
+    R, C = W.shape
+    er, ec, ok = group_exponents(W, null, np.ones(R, np.int64), np.ones(C, np.int64))
+    Ws = np.ldexp(W, er[:, None] + ec[None, :])
+    return Ws, np.ldexp(null, er), np.ldexp(1.0, ec), float(er.sum() + ec.sum()) * _LN2, ok
