@@ -294,7 +294,7 @@ def _group_cost(rows, cols):
     """(states × items × groups, items are rows?) of the cheaper group-DP orientation."""
     by_rows = state_count(cols) * rows.sum() * len(cols)
     by_cols = state_count(rows) * cols.sum() * len(rows)
-    return min(by_rows, by_cols), by_rows <= by_cols
+    return min(by_rows, by_cols), bool(by_rows <= by_cols)
 
 
 def _groups(W, null, rows, cols, marginals, max_memory) -> AssignmentResult:
@@ -321,8 +321,12 @@ def _groups(W, null, rows, cols, marginals, max_memory) -> AssignmentResult:
         )
     info = {"states": int(states), "state_bytes": int(need), "items_are_rows": items_are_rows}
     logZ, item_null, item_take, unused = group_dp(
-        np.ascontiguousarray(Wi), items, np.ascontiguousarray(a), cap.astype(np.int64),
-        np.ascontiguousarray(t), marginals,
+        np.ascontiguousarray(Wi),
+        items,
+        np.ascontiguousarray(a),
+        cap.astype(np.int64),
+        np.ascontiguousarray(t),
+        marginals,
     )
     if logZ == -math.inf:
         return _infeasible("groups", marginals, info)
@@ -359,7 +363,13 @@ def find_repeats(W):
     V, col_of, cols = np.unique(V, axis=1, return_inverse=True, return_counts=True)
     if len(rows) == W.shape[0] and len(cols) == W.shape[1]:
         return None
-    return np.ascontiguousarray(V), rows.astype(np.int64), cols.astype(np.int64), row_of.ravel(), col_of.ravel()
+    return (
+        np.ascontiguousarray(V),
+        rows.astype(np.int64),
+        cols.astype(np.int64),
+        row_of.ravel(),
+        col_of.ravel(),
+    )
 
 
 # --------------------------------------------------------------------------- entry point
@@ -436,8 +446,14 @@ def assignment_sum(
     max_memory = as_int(max_memory, "max_memory", 0)
     if R == 0:
         empty = np.zeros((0, C))
-        return AssignmentResult(0.0, empty if marginals else None,
-                                np.zeros(0) if marginals else None, "trivial", True, {})
+        return AssignmentResult(
+            0.0,
+            empty if marginals else None,
+            np.zeros(0) if marginals else None,
+            "trivial",
+            True,
+            {},
+        )
     compressed = bool((rows > 1).any() or (cols > 1).any())
     if not compressed and method == "auto":
         repeats = find_repeats(W) if R * C <= 1_000_000 else None
@@ -448,12 +464,18 @@ def assignment_sum(
                 if not marginals:
                     return res
                 return AssignmentResult(
-                    res.log_normalizer, res.P[row_of][:, col_of], res.null[row_of],
-                    res.method, True, res.info,
+                    res.log_normalizer,
+                    res.P[row_of][:, col_of],
+                    res.null[row_of],
+                    res.method,
+                    True,
+                    res.info,
                 )
     if compressed:
         if method in ("auto", "groups"):
-            if method == "groups" or _group_cost(rows, cols)[0] < _frontier_cost_expanded(rows, cols):
+            if method == "groups" or _group_cost(rows, cols)[0] < _frontier_cost_expanded(
+                rows, cols
+            ):
                 return _groups(W, null, rows, cols, marginals, max_memory)
         return _expanded(W, null, rows, cols, marginals, method, max_bits, max_memory, parallel)
     if method == "groups":
@@ -461,8 +483,14 @@ def assignment_sum(
     if method in ("glynn", "ryser") and R < C and not null.any() and not marginals:
         # Per([A; J]) = (C−R)!·Per(A) for J the (C−R)×C all-ones block: square it
         padded = np.vstack([W, np.ones((C - R, C))])
-        res = assignment_sum(padded, marginals=False, method=method, max_bits=max_bits,
-                             max_memory=max_memory, parallel=parallel)
+        res = assignment_sum(
+            padded,
+            marginals=False,
+            method=method,
+            max_bits=max_bits,
+            max_memory=max_memory,
+            parallel=parallel,
+        )
         return AssignmentResult(
             res.log_normalizer - math.lgamma(C - R + 1), None, None, res.method, True, res.info
         )
@@ -504,14 +532,23 @@ def _expanded(W, null, rows, cols, marginals, method, max_bits, max_memory, para
     Wx = np.repeat(np.repeat(W, rows, axis=0), cols, axis=1)
     nx = np.repeat(null, rows)
     res = assignment_sum(
-        Wx, nx, marginals=marginals, method=method, max_bits=max_bits,
-        max_memory=max_memory, parallel=parallel,
+        Wx,
+        nx,
+        marginals=marginals,
+        method=method,
+        max_bits=max_bits,
+        max_memory=max_memory,
+        parallel=parallel,
     )
     if not marginals:
         return res
     first_r = np.concatenate([[0], np.cumsum(rows)[:-1]])
     first_c = np.concatenate([[0], np.cumsum(cols)[:-1]])
     return AssignmentResult(
-        res.log_normalizer, res.P[first_r][:, first_c], res.null[first_r],
-        res.method, True, res.info,
+        res.log_normalizer,
+        res.P[first_r][:, first_c],
+        res.null[first_r],
+        res.method,
+        True,
+        res.info,
     )

@@ -65,16 +65,27 @@ class ExactResult:
     state_bytes: int
 
 
-def _solve(L, miss, max_bits=DEFAULT_MAX_BITS, max_memory=DEFAULT_MAX_MEMORY, parallel=False,
-           marginals=True):
+def _solve(
+    L,
+    miss,
+    max_bits=DEFAULT_MAX_BITS,
+    max_memory=DEFAULT_MAX_MEMORY,
+    parallel=False,
+    marginals=True,
+):
     L, miss = check_cluster(L, miss)
     N, M = L.shape
     if N == 0:
         return ExactResult(np.zeros((0, M + 1)), 0.0, 0, 0, 0, 0)
     try:
         res = assignment_sum(
-            L, miss, marginals=marginals, method="frontier", max_bits=max_bits,
-            max_memory=max_memory, parallel=parallel,
+            L,
+            miss,
+            marginals=marginals,
+            method="frontier",
+            max_bits=max_bits,
+            max_memory=max_memory,
+            parallel=parallel,
         )
     except InfeasibleAssignmentError:
         raise InfeasibleAssignmentError(NO_FEASIBLE_EVENT) from None

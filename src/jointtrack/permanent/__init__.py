@@ -1,29 +1,31 @@
-"""Permanents of non-negative matrices and assignment marginals.
+"""Permanents of non-negative matrices and assignment marginals: faces on the core.
 
 The permanent of an n×m non-negative matrix A (n ≤ m) is the sum over injective
-maps σ of rows into columns of Π_t A[t, σ(t)] (Schaub eq. 32). Every hard step
-of jointtrack (JPDA marginals, particle weights, identity probabilities) is this
-sum or one of its minors.
+maps σ of rows into columns of Π_t A[t, σ(t)] (Schaub eq. 32): the assignment
+sum of :mod:`jointtrack.assignment` with no null weights. Every exact method
+here runs on that one core.
 
 Exact methods
 -------------
-``"dp"``        cancellation-free subset dynamic programme (only adds and
-                multiplies non-negative numbers: relative error ≤ 2n·u).
-``"multiset"``  the same programme over group counts for repeated rows/columns
-                (Schaub eq. 36–37: Π(n_j+1) states, smaller orientation chosen).
-``"glynn"``     Glynn's formula in Gray-code order with power-of-two Sinkhorn
-                pre-balancing and double-double row sums (fast, square only).
+``"dp"``        the core's frontier subset DP (cancellation-free: only adds and
+                multiplies non-negative numbers; banded and block-sparse
+                matrices cost layers·2^frontier, not 2^n).
+``"multiset"``  the core's group-count DP for repeated rows/columns (Schaub
+                eq. 36–37: Π(n_j+1) states, smaller orientation chosen).
+``"glynn"``     Glynn's formula on the dual-scaled, balanced matrix with
+                double-double sums and a measured error estimate (square only).
 ``"ryser"``     Ryser's formula (Schaub eq. 35), same safeguards.
-``"reference"`` exact rational arithmetic (slow; for tests).
+``"reference"`` exact rational arithmetic (slow; the test oracle).
 
 Approximations
 --------------
 :func:`bethe_permanent` (belief propagation) and :func:`sample_permanent`
-(sequential importance sampling with a standard error).
+(sequential importance sampling with a standard error); :func:`sinkhorn`
+(Schaub eq. 38).
 """
 
-from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.assignment.sinkhorn import sinkhorn
+from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent.exact import log_permanent, permanent
 from jointtrack.permanent.marginals import assignment_marginals
 

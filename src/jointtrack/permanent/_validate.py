@@ -35,5 +35,7 @@ def check_problem(A, row_counts=None, col_counts=None, name: str = "A"):
     cols = as_counts(col_counts, arr.shape[1], "col_counts")
     n, m = int(rows.sum()), int(cols.sum())
     if n > m:
-        raise _too_many_rows(name + " (expanded)" if row_counts is not None or col_counts is not None else name, n, m)
+        raise _too_many_rows(
+            name + " (expanded)" if row_counts is not None or col_counts is not None else name, n, m
+        )
     return arr, rows, cols

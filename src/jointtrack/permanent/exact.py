@@ -108,7 +108,12 @@ def permanent(A, method: str = "auto", *, row_counts=None, col_counts=None) -> f
     if method == "reference":
         from jointtrack.permanent.reference import reference_permanent
 
-        return reference_permanent(A, row_counts=rows, col_counts=cols)
+        value = reference_permanent(A, row_counts=rows, col_counts=cols)
+        if value == 0.0 or value == math.inf:
+            log_value = log_permanent(A, "reference", row_counts=rows, col_counts=cols)
+            if log_value != -math.inf:
+                _exp_or_raise(log_value)  # raises: the exact value is outside float64
+        return value
     log_value = log_permanent(A, method, row_counts=row_counts, col_counts=col_counts)
     return _exp_or_raise(log_value)
 
