@@ -136,3 +136,82 @@ def expand(A, row_counts=None, col_counts=None) -> np.ndarray:
     r = np.ones(A.shape[0], int) if row_counts is None else np.asarray(row_counts, int)
     c = np.ones(A.shape[1], int) if col_counts is None else np.asarray(col_counts, int)
     return np.repeat(np.repeat(A, r, axis=0), c, axis=1)
+
+
+def brute_grouped(W, null=None, row_counts=None, col_counts=None):
+    """Exact (Fraction) ``(Z, P, Pnull)`` of compressed input without expanding it.
+
+    Enumerates the count matrices k (k[q][c] = how many members of row group q
+    take a member of column group c). One k stands for
+
+        Π_q n_q! / (Π_c k[q][c]! · (n_q − s_q)!) · Π_c m_c! / (m_c − t_c)!
+
+    matchings of the expansion (s_q, t_c the row/column sums of k), each of weight
+    Π W[q][c]^k[q][c] · Π null_q^(n_q − s_q). By symmetry one member of row group
+    q takes one member of column group c with probability E[k[q][c]] / (n_q m_c)
+    and stays unassigned with probability E[n_q − s_q] / n_q. Same conventions
+    and return value as :func:`brute_assignment` (whose expansion it equals), but
+    cheap for large groups.
+    """
+    from math import factorial
+
+    W = np.asarray(W, dtype=float)
+    R0, C0 = W.shape
+    rc = [1] * R0 if row_counts is None else [int(x) for x in row_counts]
+    cc = [1] * C0 if col_counts is None else [int(x) for x in col_counts]
+    nl = [0.0] * R0 if null is None else [float(x) for x in np.broadcast_to(null, (R0,))]
+    F = [[Fraction(float(W[q, c])) for c in range(C0)] for q in range(R0)]
+    U = [Fraction(x) for x in nl]
+
+    def row_vectors(q, free):
+        # every k[q] with Σ_c k[q][c] ≤ rc[q] (== if null is 0) and k[q][c] ≤ free[c]
+        def rec(c, left):
+            if c == C0:
+                if U[q] == 0 and left != 0:
+                    return
+                yield ()
+                return
+            for k in range(min(left, free[c]) + 1):
+                if k and F[q][c] == 0:
+                    break
+                for rest in rec(c + 1, left - k):
+                    yield (k, *rest)
+
+        yield from rec(0, rc[q])
+
+    total = Fraction(0)
+    acc = [[Fraction(0)] * C0 for _ in range(R0)]
+    accn = [Fraction(0)] * R0
+
+    def rec(q, free, ks):
+        nonlocal total
+        if q == R0:
+            w = Fraction(1)
+            for qq, kq in enumerate(ks):
+                s = sum(kq)
+                mult = factorial(rc[qq]) // factorial(rc[qq] - s)
+                for c, k in enumerate(kq):
+                    mult //= factorial(k)
+                    w *= F[qq][c] ** k
+                w *= mult * U[qq] ** (rc[qq] - s)
+            for c in range(C0):
+                t = cc[c] - free[c]
+                w *= factorial(cc[c]) // factorial(cc[c] - t)
+            if w == 0:
+                return
+            total += w
+            for qq, kq in enumerate(ks):
+                accn[qq] += w * (rc[qq] - sum(kq))
+                for c, k in enumerate(kq):
+                    if k:
+                        acc[qq][c] += w * k
+            return
+        for kq in row_vectors(q, free):
+            rec(q + 1, [f - k for f, k in zip(free, kq)], ks + [kq])
+
+    rec(0, list(cc), [])
+    if total == 0:
+        return total, None, None
+    P = [[acc[q][c] / (total * rc[q] * cc[c]) for c in range(C0)] for q in range(R0)]
+    Pn = [accn[q] / (total * rc[q]) for q in range(R0)]
+    return total, P, Pn

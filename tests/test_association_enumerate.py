@@ -223,3 +223,69 @@ def test_extreme_scales_enumerate_without_overflow():
             r = enumerate_jpda(L, miss, naive=naive)
             assert np.all(np.isfinite(r.beta))
             np.testing.assert_allclose(r.beta, exact_marginals(L, miss), atol=1e-12)
+
+
+def test_enumerate_and_kbest_use_the_package_assignment_solver(monkeypatch):
+    import scipy.optimize
+
+    from jointtrack.association import kbest
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("scipy's linear_sum_assignment must not be used")
+
+    monkeypatch.setattr(scipy.optimize, "linear_sum_assignment", forbidden)
+    assert not hasattr(kbest, "linear_sum_assignment")
+    L = np.array([[1.0, 2.0], [0.5, 3.0]])
+    miss = np.array([0.2, 0.4])
+    np.testing.assert_allclose(enumerate_jpda(L, miss).beta, exact_marginals(L, miss), atol=1e-14)
+    np.testing.assert_allclose(
+        marginals(L, miss, method="kbest", k=50), exact_marginals(L, miss), atol=1e-14
+    )
+
+
+@pytest.mark.parametrize(
+    "L, miss, expect",
+    [
+        # all NaN before (a partial product overflowed: 2^996 · 2^996)
+        (
+            [[0, 1], [1, 0], [0, 1], [1, 0]],
+            [1e-300] * 4,
+            [[0.5, 0, 0.5], [0.5, 0.5, 0], [0.5, 0, 0.5], [0.5, 0.5, 0]],
+        ),
+        # 0.02 off before (a partial product of two miss weights underflowed)
+        (
+            [[2.48196451438992, 0], [0, 10], [0, 1], [1, 0]],
+            [1e-300] * 4,
+            [
+                [1 / 3.48196451438992, 2.48196451438992 / 3.48196451438992, 0],
+                [1 / 11, 0, 10 / 11],
+                [10 / 11, 0, 1 / 11],
+                [2.48196451438992 / 3.48196451438992, 1 / 3.48196451438992, 0],
+            ],
+        ),
+        # InfeasibleAssignmentError before (10 · 2^1074 overflowed to inf)
+        ([[1.0], [10.0]], [5e-324, 5e-324], [[10 / 11, 1 / 11], [1 / 11, 10 / 11]]),
+    ],
+)
+def test_enumerate_split_float_regressions(L, miss, expect):
+    for naive in (False, True):
+        r = enumerate_jpda(L, miss, naive=naive)
+        assert np.all(np.isfinite(r.beta))
+        np.testing.assert_allclose(r.beta, expect, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(r.beta, exact_marginals(L, miss), rtol=0, atol=1e-14)
+        assert np.isfinite(r.log_normalizer)
+    # the counters do not depend on the scale of the weights
+    L1 = (np.asarray(L) > 0).astype(float)
+    ref = enumerate_jpda(L1, np.full(len(miss), 0.5))
+    r = enumerate_jpda(L, miss)
+    assert (r.n_hypotheses, r.n_multiplications) == (ref.n_hypotheses, ref.n_multiplications)
+
+
+def test_enumerate_log_normalizer_beyond_float_range():
+    # Z far above the float64 range: kept in split floats
+    L = np.diag([1e300, 1e300, 1e300, 1e300])
+    miss = np.full(4, 1e-300)
+    r = enumerate_jpda(L, miss)
+    # Z = Π (1e300 + 1e-300) ≈ 1e1200
+    assert r.log_normalizer == pytest.approx(1200 * math.log(10.0), rel=1e-14)
+    np.testing.assert_array_equal(r.beta, np.hstack([np.zeros((4, 1)), np.eye(4)]))

@@ -407,3 +407,25 @@ def test_cluster_clutter_density_from_gating():
         cluster_clutter_density(g, method="nope")
     with pytest.raises(ValueError, match="exactly one"):
         union_gate_volume([[0.0, 0.0]], S[:1])
+
+
+def test_gate_rejects_residual_returning_nan():
+    z_pred = np.zeros((2, 2))
+    S = np.stack([np.eye(2)] * 2)
+    z = np.array([[0.5, 0.5], [1.0, -1.0], [3.0, 0.0]])
+
+    def wrapped_residual(zz, zp):
+        r = zz - zp
+        return np.where(np.abs(r) > 2.5, np.nan, r)  # a buggy angle wrap
+
+    with pytest.raises(ValueError, match="residual function.*wrapped_residual.*z\\[2\\]"):
+        gate_measurements(z_pred, S, z, residual=wrapped_residual)
+    with pytest.raises(ValueError, match="residual function.*<lambda>"):
+        gate_measurements(z_pred, S, z, residual=lambda a, b: (a - b) + np.inf)
+    with pytest.raises(ValueError, match="residual function.*complex"):
+        gate_measurements(z_pred, S, z, residual=lambda a, b: (a - b) + 0j)
+    with pytest.raises(ValueError, match="residual function.*shape"):
+        gate_measurements(z_pred, S, z, residual=lambda a, b: np.zeros(5))
+    # a finite residual gates as before
+    g = gate_measurements(z_pred, S, z, residual=lambda a, b: a - b)
+    np.testing.assert_array_equal(g.mask, gate_measurements(z_pred, S, z).mask)

@@ -31,6 +31,8 @@ MAX_COUNT = 2**31 - 1
 
 def _as_real_array(value, name: str) -> np.ndarray:
     """``value`` as a float64 array; ValueError naming ``name`` for anything not real."""
+    if type(value) is np.ndarray and value.dtype == np.float64:
+        return value  # the hot path: the tracker passes float64 arrays
     if isinstance(value, (str, bytes)):
         raise ValueError(f"{name} must be an array of real numbers, got a string")
     try:
@@ -54,7 +56,10 @@ def _as_real_array(value, name: str) -> np.ndarray:
             if isinstance(x, complex | np.complexfloating):
                 raise ValueError(f"{name} holds a complex number ({x}); weights must be real")
             if isinstance(x, numbers.Integral) and abs(int(x)) > 2**1023:
-                raise ValueError(f"{name} holds an integer too large for a float64 ({x:.3e})")
+                raise ValueError(
+                    f"{name} holds an integer too large for a float64 "
+                    f"({len(str(abs(int(x))))} digits)"
+                )
         try:
             return np.asarray(raw, dtype=np.float64)
         except (TypeError, ValueError, OverflowError) as exc:
@@ -73,11 +78,12 @@ def as_weights(A, name: str = "A") -> np.ndarray:
     arr = _as_real_array(A, name)
     if arr.ndim != 2:
         raise ValueError(f"{name} must be 2-D, got an array with {arr.ndim} dimension(s)")
-    finite = np.isfinite(arr)
-    if not finite.all():
-        bad = _first_bad(~finite)
-        raise ValueError(f"{name} has a non-finite entry ({arr[bad]}) at {bad}")
-    if (arr < 0).any():
+    # one pass in the common case: NaN fails ≥ 0, so this accepts only finite ≥ 0 … or +inf
+    if not ((arr >= 0.0).all() and np.isfinite(arr).all()):
+        finite = np.isfinite(arr)
+        if not finite.all():
+            bad = _first_bad(~finite)
+            raise ValueError(f"{name} has a non-finite entry ({arr[bad]}) at {bad}")
         bad = _first_bad(arr < 0)
         raise ValueError(f"{name} has a negative entry ({arr[bad]}) at {bad}; weights are ≥ 0")
     return np.ascontiguousarray(arr)

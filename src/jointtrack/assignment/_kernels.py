@@ -66,32 +66,92 @@ def _split_slots(kb, slots, ws):
     return his, hq, los, lq, w3, q3, small
 
 
+@numba.njit(cache=True, inline="always")
+def _gather(hb, kb, ws, his, hq, src, wt, qi, adjoint):
+    """Source blocks of block hb: (hb ∖ slot) for the forward, (hb ∪ slot) for the
+    adjoint; fills src (first index), wt (weight), qi (slot index q); returns the count."""
+    na = 0
+    for q in range(his.size):
+        hbit = 1 << his[q]
+        if adjoint:
+            if hb & hbit:
+                continue
+            src[na] = (hb | hbit) << kb
+        else:
+            if not (hb & hbit):
+                continue
+            src[na] = (hb ^ hbit) << kb
+        wt[na] = ws[hq[q]]
+        qi[na] = hq[q]
+        na += 1
+    return na
+
+
 @numba.njit(cache=True, fastmath=_FM)
 def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
     """Layer update on blocks [hb0, hb1): y(S) = u·x(S) + Σ_{gated s ∈ S} w_s·x(S∖s).
 
-    Every inner loop is a contiguous AXPY on L1-resident blocks; the three
-    lowest slots use explicit 8-element code. Returns Σ y over the blocks.
+    Every inner loop is a contiguous pass over L1-resident blocks: the block-level
+    slots are fused three or four source blocks per pass over y (the first pass
+    also writes u·x), so y is loaded and stored once per four sources instead of
+    once per source; in-block slots are strided AXPYs; the three lowest slots use
+    explicit 8-element code fused with the block sum. Returns Σ y over the blocks.
     """
     B = 1 << kb
-    w0 = w3[0]
-    w1 = w3[1]
-    w2 = w3[2]
+    w0 = w3[0]; w1 = w3[1]; w2 = w3[2]
+    src = np.empty(his.size + 4, np.int64)
+    wt = np.empty(his.size + 4)
+    qi = np.empty(his.size + 4, np.int64)
     tot = 0.0
     for hb in range(hb0, hb1):
         base = hb << kb
         yb = y[base : base + B]
         xb = x[base : base + B]
-        for t in range(B):
-            yb[t] = u * xb[t]
-        for q in range(his.size):
-            hbit = 1 << his[q]
-            if hb & hbit:
-                src = (hb ^ hbit) << kb
-                xs = x[src : src + B]
-                w = ws[hq[q]]
-                for t in range(B):
-                    yb[t] += w * xs[t]
+        na = _gather(hb, kb, ws, his, hq, src, wt, qi, False)
+        i = 0
+        if na >= 3:
+            a = x[src[0]: src[0] + B]; b = x[src[1]: src[1] + B]; c = x[src[2]: src[2] + B]
+            wa = wt[0]; wb = wt[1]; wc = wt[2]
+            for t in range(B):
+                yb[t] = u * xb[t] + wa * a[t] + wb * b[t] + wc * c[t]
+            i = 3
+        elif na == 2:
+            a = x[src[0]: src[0] + B]; b = x[src[1]: src[1] + B]
+            wa = wt[0]; wb = wt[1]
+            for t in range(B):
+                yb[t] = u * xb[t] + wa * a[t] + wb * b[t]
+            i = 2
+        elif na == 1:
+            a = x[src[0]: src[0] + B]
+            wa = wt[0]
+            for t in range(B):
+                yb[t] = u * xb[t] + wa * a[t]
+            i = 1
+        else:
+            for t in range(B):
+                yb[t] = u * xb[t]
+        while na - i >= 4:
+            a = x[src[i]: src[i] + B]; b = x[src[i+1]: src[i+1] + B]
+            c = x[src[i+2]: src[i+2] + B]; d = x[src[i+3]: src[i+3] + B]
+            wa = wt[i]; wb = wt[i+1]; wc = wt[i+2]; wd = wt[i+3]
+            for t in range(B):
+                yb[t] += wa * a[t] + wb * b[t] + wc * c[t] + wd * d[t]
+            i += 4
+        if na - i == 3:
+            a = x[src[i]: src[i] + B]; b = x[src[i+1]: src[i+1] + B]; c = x[src[i+2]: src[i+2] + B]
+            wa = wt[i]; wb = wt[i+1]; wc = wt[i+2]
+            for t in range(B):
+                yb[t] += wa * a[t] + wb * b[t] + wc * c[t]
+        elif na - i == 2:
+            a = x[src[i]: src[i] + B]; b = x[src[i+1]: src[i+1] + B]
+            wa = wt[i]; wb = wt[i+1]
+            for t in range(B):
+                yb[t] += wa * a[t] + wb * b[t]
+        elif na - i == 1:
+            a = x[src[i]: src[i] + B]
+            wa = wt[i]
+            for t in range(B):
+                yb[t] += wa * a[t]
         for q in range(los.size):
             step = 1 << los[q]
             w = ws[lq[q]]
@@ -100,22 +160,24 @@ def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
                 xs = xb[b0 : b0 + step]
                 for t in range(step):
                     ys[t] += w * xs[t]
-        if small:
-            for i in range(0, B, 8):
-                x0 = xb[i]
-                x1 = xb[i + 1]
-                x2 = xb[i + 2]
-                x4 = xb[i + 4]
-                yb[i + 1] += w0 * x0
-                yb[i + 2] += w1 * x0
-                yb[i + 3] += w0 * x2 + w1 * x1
-                yb[i + 4] += w2 * x0
-                yb[i + 5] += w0 * x4 + w2 * x1
-                yb[i + 6] += w1 * x4 + w2 * x2
-                yb[i + 7] += w0 * xb[i + 6] + w1 * xb[i + 5] + w2 * xb[i + 3]
         sb = 0.0
-        for t in range(B):
-            sb += yb[t]
+        if small:
+            for i8 in range(0, B, 8):
+                x0 = xb[i8]; x1 = xb[i8 + 1]; x2 = xb[i8 + 2]; x4 = xb[i8 + 4]
+                y0 = yb[i8]
+                y1 = yb[i8 + 1] + w0 * x0
+                y2 = yb[i8 + 2] + w1 * x0
+                y3 = yb[i8 + 3] + (w0 * x2 + w1 * x1)
+                y4 = yb[i8 + 4] + w2 * x0
+                y5 = yb[i8 + 5] + (w0 * x4 + w2 * x1)
+                y6 = yb[i8 + 6] + (w1 * x4 + w2 * x2)
+                y7 = yb[i8 + 7] + (w0 * xb[i8 + 6] + w1 * xb[i8 + 5] + w2 * xb[i8 + 3])
+                yb[i8 + 1] = y1; yb[i8 + 2] = y2; yb[i8 + 3] = y3; yb[i8 + 4] = y4
+                yb[i8 + 5] = y5; yb[i8 + 6] = y6; yb[i8 + 7] = y7
+                sb += ((y0 + y1) + (y2 + y3)) + ((y4 + y5) + (y6 + y7))
+        else:
+            for t in range(B):
+                sb += yb[t]
         tot += sb
     return tot
 
@@ -125,41 +187,95 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
     """Adjoint layer update fused with the marginal contraction, on blocks [hb0, hb1).
 
     bp(S) = u·b(S) + Σ_{gated s ∉ S} w_s·b(S∪s);  acc[q] += Σ_{S ∌ s_q} F(S)·b(S∪s_q);
-    acc[nq] += Σ F·b (the layer-unassigned term); acc[nq+1] = Σ bp.
+    acc[nq] += Σ F·b (the layer-unassigned term); acc[nq+1] = Σ bp. Block-level
+    source blocks are fused two or three per pass (one load of F and of bp per
+    pass); the three lowest slots' code also accumulates Σ bp.
     """
     B = 1 << kb
     nq = ws.size
-    w0 = w3[0]
-    w1 = w3[1]
-    w2 = w3[2]
-    a0 = 0.0
-    a1 = 0.0
-    a2 = 0.0
+    w0 = w3[0]; w1 = w3[1]; w2 = w3[2]
+    a0 = 0.0; a1 = 0.0; a2 = 0.0
     su = 0.0
     tot = 0.0
+    src = np.empty(his.size + 4, np.int64)
+    wt = np.empty(his.size + 4)
+    qi = np.empty(his.size + 4, np.int64)
     for hb in range(hb0, hb1):
         base = hb << kb
         bb = b[base : base + B]
         pb = bp[base : base + B]
         fb = F[base : base + B]
+        na = _gather(hb, kb, ws, his, hq, src, wt, qi, True)
         s0 = 0.0
-        for t in range(B):
-            bv = bb[t]
-            pb[t] = u * bv
-            s0 += fb[t] * bv
+        i = 0
+        if na >= 2:
+            c1 = b[src[0]: src[0] + B]; c2 = b[src[1]: src[1] + B]
+            wa = wt[0]; wb_ = wt[1]
+            sa = 0.0; sb_ = 0.0
+            for t in range(B):
+                f = fb[t]
+                v1 = c1[t]; v2 = c2[t]; bv = bb[t]
+                pb[t] = u * bv + wa * v1 + wb_ * v2
+                s0 += f * bv
+                sa += f * v1
+                sb_ += f * v2
+            acc[qi[0]] += sa
+            acc[qi[1]] += sb_
+            i = 2
+        elif na == 1:
+            c1 = b[src[0]: src[0] + B]
+            wa = wt[0]
+            sa = 0.0
+            for t in range(B):
+                f = fb[t]
+                v1 = c1[t]; bv = bb[t]
+                pb[t] = u * bv + wa * v1
+                s0 += f * bv
+                sa += f * v1
+            acc[qi[0]] += sa
+            i = 1
+        else:
+            for t in range(B):
+                bv = bb[t]
+                pb[t] = u * bv
+                s0 += fb[t] * bv
         su += s0
-        for q in range(his.size):
-            hbit = 1 << his[q]
-            if not (hb & hbit):
-                src = (hb | hbit) << kb
-                bs = b[src : src + B]
-                w = ws[hq[q]]
-                sq = 0.0
-                for t in range(B):
-                    bv = bs[t]
-                    pb[t] += w * bv
-                    sq += fb[t] * bv
-                acc[hq[q]] += sq
+        while na - i >= 3:
+            c1 = b[src[i]: src[i] + B]; c2 = b[src[i+1]: src[i+1] + B]; c3 = b[src[i+2]: src[i+2] + B]
+            wa = wt[i]; wb_ = wt[i+1]; wc = wt[i+2]
+            sa = 0.0; sb_ = 0.0; sc = 0.0
+            for t in range(B):
+                f = fb[t]
+                v1 = c1[t]; v2 = c2[t]; v3 = c3[t]
+                pb[t] += wa * v1 + wb_ * v2 + wc * v3
+                sa += f * v1
+                sb_ += f * v2
+                sc += f * v3
+            acc[qi[i]] += sa
+            acc[qi[i+1]] += sb_
+            acc[qi[i+2]] += sc
+            i += 3
+        if na - i == 2:
+            c1 = b[src[i]: src[i] + B]; c2 = b[src[i+1]: src[i+1] + B]
+            wa = wt[i]; wb_ = wt[i+1]
+            sa = 0.0; sb_ = 0.0
+            for t in range(B):
+                f = fb[t]
+                v1 = c1[t]; v2 = c2[t]
+                pb[t] += wa * v1 + wb_ * v2
+                sa += f * v1
+                sb_ += f * v2
+            acc[qi[i]] += sa
+            acc[qi[i+1]] += sb_
+        elif na - i == 1:
+            c1 = b[src[i]: src[i] + B]
+            wa = wt[i]
+            sa = 0.0
+            for t in range(B):
+                v1 = c1[t]
+                pb[t] += wa * v1
+                sa += fb[t] * v1
+            acc[qi[i]] += sa
         for q in range(los.size):
             step = 1 << los[q]
             w = ws[lq[q]]
@@ -173,32 +289,29 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
                     ps[t] += w * bv
                     sq += fs[t] * bv
             acc[lq[q]] += sq
-        if small:
-            for i in range(0, B, 8):
-                b1 = bb[i + 1]
-                b2 = bb[i + 2]
-                b3 = bb[i + 3]
-                b4 = bb[i + 4]
-                b5 = bb[i + 5]
-                b6 = bb[i + 6]
-                b7 = bb[i + 7]
-                f0 = fb[i]
-                f1 = fb[i + 1]
-                f2 = fb[i + 2]
-                f4 = fb[i + 4]
-                pb[i] += w0 * b1 + w1 * b2 + w2 * b4
-                pb[i + 1] += w1 * b3 + w2 * b5
-                pb[i + 2] += w0 * b3 + w2 * b6
-                pb[i + 3] += w2 * b7
-                pb[i + 4] += w0 * b5 + w1 * b6
-                pb[i + 5] += w1 * b7
-                pb[i + 6] += w0 * b7
-                a0 += f0 * b1 + f2 * b3 + f4 * b5 + fb[i + 6] * b7
-                a1 += f0 * b2 + f1 * b3 + f4 * b6 + fb[i + 5] * b7
-                a2 += f0 * b4 + f1 * b5 + f2 * b6 + fb[i + 3] * b7
         sb = 0.0
-        for t in range(B):
-            sb += pb[t]
+        if small:
+            for i8 in range(0, B, 8):
+                b1 = bb[i8 + 1]; b2 = bb[i8 + 2]; b3 = bb[i8 + 3]; b4 = bb[i8 + 4]
+                b5 = bb[i8 + 5]; b6 = bb[i8 + 6]; b7 = bb[i8 + 7]
+                f0 = fb[i8]; f1 = fb[i8 + 1]; f2 = fb[i8 + 2]; f4 = fb[i8 + 4]
+                p0 = pb[i8] + (w0 * b1 + w1 * b2 + w2 * b4)
+                p1 = pb[i8 + 1] + (w1 * b3 + w2 * b5)
+                p2 = pb[i8 + 2] + (w0 * b3 + w2 * b6)
+                p3 = pb[i8 + 3] + w2 * b7
+                p4 = pb[i8 + 4] + (w0 * b5 + w1 * b6)
+                p5 = pb[i8 + 5] + w1 * b7
+                p6 = pb[i8 + 6] + w0 * b7
+                p7 = pb[i8 + 7]
+                pb[i8] = p0; pb[i8 + 1] = p1; pb[i8 + 2] = p2; pb[i8 + 3] = p3
+                pb[i8 + 4] = p4; pb[i8 + 5] = p5; pb[i8 + 6] = p6
+                sb += ((p0 + p1) + (p2 + p3)) + ((p4 + p5) + (p6 + p7))
+                a0 += f0 * b1 + f2 * b3 + f4 * b5 + fb[i8 + 6] * b7
+                a1 += f0 * b2 + f1 * b3 + f4 * b6 + fb[i8 + 5] * b7
+                a2 += f0 * b4 + f1 * b5 + f2 * b6 + fb[i8 + 3] * b7
+        else:
+            for t in range(B):
+                sb += pb[t]
         tot += sb
     if small:
         acc[nq + 2] += a0

@@ -190,8 +190,9 @@ def _frontier_block(W, u, v, marginals, max_bits, max_memory, parallel):
     # frontier: they are unused in every assignment that matters, and their
     # unused weight multiplies Z.
     isolated = slot_of < 0
-    with np.errstate(divide="ignore"):
-        log_isolated = float(np.log(v[isolated]).sum())
+    log_isolated = 0.0
+    for c in np.flatnonzero(isolated):
+        log_isolated += math.log(v[c]) if v[c] > 0.0 else -math.inf
     nchunk = 1
     if parallel and K >= _PAR_MIN_BITS and numba.get_num_threads() > 1:
         nchunk = 4 * numba.get_num_threads()
@@ -444,6 +445,19 @@ def assignment_sum(
     cols = as_counts(col_counts, C, "col_counts")
     max_bits = as_int(max_bits, "max_bits", 0, 62)
     max_memory = as_int(max_memory, "max_memory", 0)
+    return solve_checked(
+        W, null, rows, cols, marginals, method, max_bits, max_memory, bool(parallel)
+    )
+
+
+def solve_checked(W, null, rows, cols, marginals, method, max_bits, max_memory, parallel):
+    """:func:`assignment_sum` on arguments a face has already validated.
+
+    ``W`` C-contiguous float64 (R, C) ≥ 0 finite; ``null`` float64 (R,) ≥ 0
+    finite; ``rows``/``cols`` int64 group sizes ≥ 1; ``method`` one of
+    :data:`METHODS`. Saves the second validation on the tracker's hot path.
+    """
+    R, C = W.shape
     if R == 0:
         empty = np.zeros((0, C))
         return AssignmentResult(

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from jointtrack.assignment.core import DEFAULT_MAX_BITS, DEFAULT_MAX_MEMORY, assignment_sum
+from jointtrack.assignment._checks import as_int
+from jointtrack.assignment.core import DEFAULT_MAX_BITS, DEFAULT_MAX_MEMORY, solve_checked
 from jointtrack.association._validate import NO_FEASIBLE_EVENT, check_cluster
 from jointtrack.errors import ExactLimitError, InfeasibleAssignmentError
 
@@ -78,14 +79,16 @@ def _solve(
     if N == 0:
         return ExactResult(np.zeros((0, M + 1)), 0.0, 0, 0, 0, 0)
     try:
-        res = assignment_sum(
+        res = solve_checked(
             L,
             miss,
-            marginals=marginals,
-            method="frontier",
-            max_bits=max_bits,
-            max_memory=max_memory,
-            parallel=parallel,
+            np.ones(N, np.int64),
+            np.ones(M, np.int64),
+            marginals,
+            "frontier",
+            as_int(max_bits, "max_bits", 0, 62),
+            as_int(max_memory, "max_memory", 0),
+            bool(parallel),
         )
     except InfeasibleAssignmentError:
         raise InfeasibleAssignmentError(NO_FEASIBLE_EVENT) from None

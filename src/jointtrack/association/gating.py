@@ -188,6 +188,51 @@ def _cholesky_checked(S: np.ndarray) -> np.ndarray:
     return chol
 
 
+def _residual_name(residual) -> str:
+    name = getattr(residual, "__qualname__", None) or getattr(residual, "__name__", None)
+    return name if name else repr(residual)
+
+
+def _checked_residual(residual, z: np.ndarray, z_pred: np.ndarray) -> np.ndarray:
+    """``residual(z, z_pred)`` for every pair, checked: real, finite, shape (N, M, d).
+
+    A user residual function returning NaN (e.g. an angle wrap of a NaN or an
+    ``arctan2`` of zeros gone wrong) would otherwise compare false against the
+    gate threshold and silently un-gate the pair.
+    """
+    name = _residual_name(residual)
+    n, d = z_pred.shape
+    m = z.shape[0]
+    try:
+        raw = np.asarray(residual(z[None, :, :], z_pred[:, None, :]))
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"residual function {name} failed: {exc}") from None
+    if raw.dtype.kind == "c":
+        raise ValueError(
+            f"residual function {name} returned complex innovations; they must be real"
+        )
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(
+            f"residual function {name} returned non-numeric innovations (dtype {raw.dtype})"
+        )
+    innov = raw.astype(np.float64)
+    if innov.shape != (n, m, d):
+        try:
+            innov = np.broadcast_to(innov, (n, m, d))
+        except ValueError:
+            raise ValueError(
+                f"residual function {name} returned shape {raw.shape}; expected ({n}, {m}, {d}) "
+                "(it must broadcast over the leading axes of z[None] and z_pred[:, None])"
+            ) from None
+    if not np.isfinite(innov).all():
+        i, j = (int(v) for v in np.argwhere(~np.isfinite(innov).all(axis=2))[0])
+        raise ValueError(
+            f"residual function {name} returned a non-finite innovation "
+            f"({innov[i, j].tolist()}) for track {i} and measurement z[{j}]"
+        )
+    return innov
+
+
 def gate_measurements(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> Gating:
     """Chi-square validation gates of N tracks applied to M measurements.
 
@@ -219,9 +264,10 @@ def gate_measurements(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> Gati
     Raises
     ------
     ValueError
-        wrong shapes, non-finite inputs, ``P_G`` outside (0, 1), or a covariance
+        wrong shapes, non-finite inputs, ``P_G`` outside (0, 1), a covariance
         that is asymmetric, not positive definite or singular (the message names
-        the track).
+        the track), or a ``residual`` function returning NaN/inf, complex or
+        wrongly shaped innovations (the message names the function).
     """
     P_G = _check_prob(P_G, "P_G")
     z_pred = _as_float(z_pred, "z_pred")
@@ -257,7 +303,7 @@ def gate_measurements(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> Gati
         if residual is None:
             innov = z[None, :, :] - z_pred[:, None, :]  # (N, M, d)
         else:
-            innov = np.asarray(residual(z[None, :, :], z_pred[:, None, :]), dtype=float)
+            innov = _checked_residual(residual, z, z_pred)
         w = np.linalg.solve(chol, np.swapaxes(innov, 1, 2))  # (N, d, M)
         d2 = np.einsum("ndm,ndm->nm", w, w)
     else:

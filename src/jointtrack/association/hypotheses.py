@@ -24,11 +24,18 @@ when every combination is feasible, against ``M = n1·…·nN·(N − 1)`` for t
 naive variant that recomputes each hypothesis product from scratch (both are
 counted, so Tables 2 and 3 can be reproduced).
 
-Numerics: each group is scaled by a power of two so that the most probable
-hypothesis has every multiplier ≈ 1 (exact in floating point and cancelled by
-(6)); a partial product leaving [2^-500, 2^500] is renormalised by a power of
-two with its exponent carried along (a comparison, not a multiplication), so no
-hypothesis over/underflows whatever the scale of ``L``.
+Numerics (split floats): every multiplier is carried as a mantissa in
+[0.5, 1) and an integer power-of-two exponent, and each group's exponents are
+shifted so that the most probable hypothesis (found by one assignment solve,
+:func:`~jointtrack.assignment.linear_assignment`) has every multiplier in
+[0.5, 1) — a factor common to all hypotheses, cancelled by (6). A partial
+product is the product of the mantissas (the one counted multiplication) with
+the exponents added alongside (integer additions, not multiplications); a
+mantissa product below 2^-500 is renormalised (a comparison). No multiplier or
+partial product can over/underflow whatever the scale of ``L`` and ``miss``
+(subnormal miss weights, likelihood ratios near the float64 limit), every
+hypothesis then weighs ≤ 1 and the best ≥ 2^-N, so the sums of (6) are plain
+float sums with nothing that matters lost.
 """
 
 from __future__ import annotations
@@ -54,7 +61,6 @@ __all__ = [
 ]
 
 DEFAULT_MAX_HYPOTHESES = 1_000_000
-_HI = 2.0**500
 _LO = 2.0**-500
 
 
@@ -172,34 +178,55 @@ def _levels(L, miss, order="gate_count"):
 
 
 def _best_scales(L, miss, order, ptr, meas, mult):
-    """Power-of-two scale per level making the most probable hypothesis ≈ 1 per level."""
-    from scipy.optimize import linear_sum_assignment
+    """Split multipliers ``(mantissa, exponent)`` scaled so the best hypothesis is ≈ 1 per level.
+
+    Every multiplier is carried as a mantissa in [0.5, 1) and an integer power-of-two
+    exponent (:func:`numpy.frexp`), so neither a subnormal miss weight nor a huge
+    likelihood ratio can over/underflow. Each level's exponents are shifted by the
+    power of two that brings the option picked by the most probable hypothesis (an
+    assignment solve on −log weights, :func:`~jointtrack.assignment.linear_assignment`)
+    to [0.5, 1): a factor common to every hypothesis, cancelled by (6), after which
+    every hypothesis weighs ≤ 1 and the best one ≥ 2^-N.
+
+    Returns ``(mantissas, exponents, shift)`` with ``shift`` the total exponent added.
+    """
+    from jointtrack.assignment import linear_assignment
 
     N, M = L.shape
     with np.errstate(divide="ignore"):
         cost = np.full((N, M + N), np.inf)
-        cost[:, :M] = np.where(L > 0, -np.log(L), np.inf)
-        cost[np.arange(N), M + np.arange(N)] = np.where(miss > 0, -np.log(miss), np.inf)
+        cost[:, :M] = np.where(L > 0, -np.log(np.where(L > 0, L, 1.0)), np.inf)
+        cost[np.arange(N), M + np.arange(N)] = np.where(
+            miss > 0, -np.log(np.where(miss > 0, miss, 1.0)), np.inf
+        )
     try:
-        rows, cols = linear_sum_assignment(cost)
-    except ValueError:
+        best = linear_assignment(cost)
+    except InfeasibleAssignmentError:
         raise InfeasibleAssignmentError(
             "no feasible joint hypothesis: tracks with miss = 0 (certainly detected) cannot "
             "all be given distinct gated measurements"
         ) from None
     pick = np.empty(N)
-    for r, c in zip(rows, cols, strict=True):
+    for r, c in zip(best.rows, best.cols, strict=True):
         pick[r] = L[r, c] if c < M else miss[r]
     k = -np.frexp(pick[order])[1].astype(np.int64)
-    scaled = mult.copy()
+    mant, expo = np.frexp(mult)
+    expo = expo.astype(np.int64)
     for lev in range(N):
-        scaled[ptr[lev] : ptr[lev + 1]] = np.ldexp(mult[ptr[lev] : ptr[lev + 1]], k[lev])
-    return scaled, int(k.sum())
+        expo[ptr[lev] : ptr[lev + 1]] += k[lev]
+    return np.ascontiguousarray(mant), expo, int(k.sum())
 
 
 @numba.njit(cache=True)
-def _dfs(ptr, meas, mult, M, naive):
-    """Depth-first generation; returns (acc per option, Z mantissa-exponent, counts)."""
+def _dfs(ptr, meas, mant, expo, M, naive, shift):
+    """Depth-first generation on split multipliers ``mant · 2^expo``.
+
+    Partial products are a mantissa product (the one counted multiplication per
+    hypothesis) with the exponents added alongside (integer additions, not
+    counted), so no partial product over/underflows. Each hypothesis adds
+    ``p · 2^(x + shift)`` to the sums. Returns ``(acc per option, Z, counts, xmax)``
+    with ``xmax`` the largest ``x`` of a hypothesis (for the caller's range check).
+    """
     N = ptr.size - 1
     nopt = meas.size
     acc = np.zeros(nopt)
@@ -212,6 +239,7 @@ def _dfs(ptr, meas, mult, M, naive):
     nhyp = 0
     nmul = 0
     nadd = 0
+    xmax = np.iinfo(np.int64).min
     k = 0
     idx[0] = ptr[0] - 1
     while k >= 0:
@@ -231,13 +259,13 @@ def _dfs(ptr, meas, mult, M, naive):
             used[meas[o]] = True
         if not naive:
             if k == 0:
-                P[1] = mult[o]
-                X[1] = 0
+                P[1] = mant[o]
+                X[1] = expo[o]
             else:
-                p = P[k] * mult[o]
+                p = P[k] * mant[o]
                 nmul += 1
-                x = X[k]
-                if p > _HI or p < _LO:
+                x = X[k] + expo[o]
+                if p < _LO:
                     f, e = math.frexp(p)
                     p = f
                     x += e
@@ -246,18 +274,22 @@ def _dfs(ptr, meas, mult, M, naive):
         if k == N - 1:
             nhyp += 1
             if naive:
-                p = mult[idx[0]]
-                x = 0
+                p = mant[idx[0]]
+                x = expo[idx[0]]
                 for lev in range(1, N):
-                    p *= mult[idx[lev]]
+                    p *= mant[idx[lev]]
+                    x += expo[idx[lev]]
                     nmul += 1
-                    if p > _HI or p < _LO:
+                    if p < _LO:
                         f, e = math.frexp(p)
                         p = f
                         x += e
             else:
                 p = P[N]
                 x = X[N]
+            if x > xmax:
+                xmax = x
+            x += shift
             if x != 0:
                 p = math.ldexp(p, x) if x > -1100 else 0.0
             Z += p
@@ -267,7 +299,7 @@ def _dfs(ptr, meas, mult, M, naive):
         else:
             k += 1
             idx[k] = ptr[k] - 1
-    return acc, Z, nhyp, nmul, nadd
+    return acc, Z, nhyp, nmul, nadd, xmax
 
 
 def _check_limit(L, miss, sizes, max_hypotheses):
@@ -356,16 +388,25 @@ def enumerate_jpda(
         )
     order, sizes, ptr, meas, mult = _levels(L, miss, order)
     _check_limit(L, miss, sizes, max_hypotheses)
-    scaled, kshift = _best_scales(L, miss, order, ptr, meas, mult)
-    acc, Z, nhyp, nmul, nadd = _dfs(ptr, meas, scaled, M, naive)
-    if not Z > 0:
+    mant, expo, kshift = _best_scales(L, miss, order, ptr, meas, mult)
+    shift = 0
+    acc, Z, nhyp, nmul, nadd, xmax = _dfs(ptr, meas, mant, expo, M, naive, shift)
+    if nhyp == 0:  # pragma: no cover - the assignment solve found a feasible hypothesis
+        raise InfeasibleAssignmentError("no feasible joint hypothesis in this cluster")
+    if not (0.0 < Z < math.inf) or xmax > 900:
+        # the best-hypothesis scaling should keep every hypothesis ≤ 1; should the
+        # assignment solve have missed the optimum (rounding), re-reference the sums
+        # to the largest hypothesis found instead
+        shift = -int(xmax)
+        acc, Z, nhyp, nmul, nadd, xmax = _dfs(ptr, meas, mant, expo, M, naive, shift)
+    if not Z > 0:  # pragma: no cover - the best hypothesis alone weighs ≥ 2^-N
         raise InfeasibleAssignmentError("no feasible joint hypothesis in this cluster")
     beta = np.zeros((N, M + 1))
     for lev, i in enumerate(order):
         for o in range(ptr[lev], ptr[lev + 1]):
             beta[i, meas[o] + 1] = acc[o] / Z
     beta /= beta.sum(axis=1, keepdims=True)
-    logZ = math.log(Z) - kshift * math.log(2.0)
+    logZ = math.log(Z) - (kshift + shift) * math.log(2.0)
     return EnumerationResult(
         beta,
         int(nhyp),

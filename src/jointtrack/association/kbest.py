@@ -16,9 +16,13 @@ in which every track takes exactly one column and each column is used at most
 once; measurements whose columns are unused are clutter (factor 1). The cost
 of an assignment is −log of the event weight Π L · Π miss (Bojilov eq. (7)
 after the common factor), so the cheapest assignment is the MAP event. Each
-assignment problem is solved with :func:`scipy.optimize.linear_sum_assignment`
-(which accepts ∞ as forbidden and reports infeasibility); Murty's partition
-then yields the next best events in order.
+assignment problem is solved with the package's one assignment solver,
+:func:`jointtrack.assignment.linear_assignment` (∞ = forbidden; it raises
+:class:`~jointtrack.errors.InfeasibleAssignmentError` when no assignment
+avoids them); Murty's partition then yields the next best events in order.
+Everything is in log space — costs, event log weights and the final
+renormalisation relative to the best event — so likelihood ratios near the
+float64 limit or subnormal miss weights are handled as they are.
 
 The marginals of the k best events renormalise the exact sum over all events
 restricted to those k; with k ≥ the number of feasible events they are exact.
@@ -36,9 +40,10 @@ import heapq
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
-from jointtrack.association._validate import NO_FEASIBLE_EVENT, check_cluster, check_integer
+from jointtrack.assignment import linear_assignment
+from jointtrack.assignment._checks import as_int
+from jointtrack.association._validate import NO_FEASIBLE_EVENT, check_cluster
 from jointtrack.errors import InfeasibleAssignmentError
 
 __all__ = ["KBestHypotheses", "kbest_hypotheses", "kbest_marginals"]
@@ -88,9 +93,10 @@ def _solve(C, forced, forbidden):
     if not np.isfinite(C).any(axis=1).all():
         return None
     try:
-        rows, cols = linear_sum_assignment(C)
-    except ValueError:  # "cost matrix is infeasible"
+        res = linear_assignment(C)
+    except InfeasibleAssignmentError:
         return None
+    rows, cols = res.rows, res.cols
     cost = C[rows, cols]
     if not np.all(np.isfinite(cost)):
         return None
@@ -100,7 +106,7 @@ def _solve(C, forced, forbidden):
 def kbest_hypotheses(L, miss, *, k: int = 100) -> KBestHypotheses:
     """The k most probable JPDA joint association events by Murty's algorithm.
 
-    Murty (1968) ranking over :func:`scipy.optimize.linear_sum_assignment`
+    Murty (1968) ranking over :func:`jointtrack.assignment.linear_assignment`
     on the augmented cost matrix of the module docstring (Cox & Miller 1995).
     Events come out distinct and in non-increasing weight (Bojilov eq. (7));
     ``k = 1`` gives the MAP event.
@@ -108,12 +114,12 @@ def kbest_hypotheses(L, miss, *, k: int = 100) -> KBestHypotheses:
     Raises
     ------
     ValueError
-        bad input (``check_cluster``) or ``k`` < 1.
+        bad input (``check_cluster``) or ``k`` not a whole number ≥ 1.
     InfeasibleAssignmentError
         no joint event has positive weight.
     """
     L, miss = check_cluster(L, miss)
-    k = check_integer(k, "k")
+    k = as_int(k, "k", minimum=1)
     n, m = L.shape
     if n == 0:
         return KBestHypotheses(np.zeros((1, 0), dtype=np.int64), np.zeros(1), k > 1)
@@ -163,6 +169,25 @@ def kbest_hypotheses(L, miss, *, k: int = 100) -> KBestHypotheses:
     )
 
 
+def _relative_weights(L, miss, assignments) -> np.ndarray:
+    """Event weights relative to the first (best) event, in split-float form.
+
+    Each factor is a mantissa in [0.5, 1) times an integer power of two; the
+    ratio to the best event is ``exp(Σ Δ log mantissa) · 2^(Σ Δ exponent)``, so
+    it keeps full relative precision however far the weights are from 1 (a
+    difference of two log weights near ±700 would lose ~1e-13).
+    """
+    n = L.shape[0]
+    ext = np.concatenate([miss[:, None], L], axis=1)
+    mant, expo = np.frexp(ext)
+    with np.errstate(divide="ignore"):
+        lmant = np.log(mant)
+    rows = np.arange(n)
+    lm = lmant[rows, assignments].sum(axis=1)
+    ex = expo[rows, assignments].astype(np.int64).sum(axis=1)
+    return np.ldexp(np.exp(lm - lm[0]), np.clip(ex - ex[0], -2000, 2000))
+
+
 def kbest_marginals(L, miss, *, k: int = 100) -> np.ndarray:
     """Approximate JPDA marginals from the k best joint events (Murty 1968).
 
@@ -181,7 +206,7 @@ def kbest_marginals(L, miss, *, k: int = 100) -> np.ndarray:
     beta = np.zeros((n, m + 1))
     if n == 0:
         return beta
-    w = np.exp(hyp.log_weights - hyp.log_weights[0])
+    w = _relative_weights(L, miss, hyp.assignments)
     w /= w.sum()
     rows = np.broadcast_to(np.arange(n), hyp.assignments.shape)
     np.add.at(beta, (rows.ravel(), hyp.assignments.ravel()), np.repeat(w, n))

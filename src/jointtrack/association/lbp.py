@@ -19,6 +19,24 @@ started from ν ≡ 1, and the beliefs are
 
 (Dividing row i by miss_i gives Williams & Lau's normalisation ψ_i(0) = 1.)
 
+Scaling (every feasible cluster in range): the cluster is first put in range by
+the exact power-of-two row/column scaling of
+:func:`jointtrack.assignment.scaling.scale_problem` (every factor ≤ ~1, the best
+joint event ≈ 1; marginals unchanged). A column scaling turns the clutter weight
+1 of measurement j into a weight v_j, so the recursions are run in their general
+form with a per-measurement unused weight (the same derivation with the
+measurement node's "clutter" potential v_j instead of 1):
+
+    ν_{j→i} = 1 / (v_j + Σ_{i'≠i} μ_{i'→j}),     started from ν ≡ 1/v,
+
+which is the unit-clutter recursion on ``L_ij / v_j`` with ν rescaled by v_j —
+the same iterates, the same fixed point and the same log-metric distances, so
+the convergence analysis below is unchanged (A and B are invariant under the
+scaling). Positive factors that the scaling takes below 2^-400 are raised to
+2^-400: only events weighing ≲ 2^-400 of the best one change, and no message
+over/underflows (without scaling, ``L ~ 1e300`` against ``miss ~ 1e-300``
+underflowed the miss weights to 0 and broke BP).
+
 Convergence (Williams & Lau's contraction argument): with messages compared in the metric
 d(ν, ν̃) = max_{ij} |log ν_{j→i} − log ν̃_{j→i}|, one sweep ν → ν' maps a
 distance d to at most g_B(g_A(d)), g_C(x) = log(1 + C (eˣ − 1)/(1 + C)), where
@@ -61,10 +79,15 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from jointtrack.association._validate import check_cluster, check_integer, require_feasible_event
+from jointtrack.assignment._checks import as_float, as_int
+from jointtrack.assignment.scaling import scale_problem
+from jointtrack.association._validate import check_cluster, require_feasible_event
 from jointtrack.errors import InfeasibleAssignmentError
 
 __all__ = ["LBPInfo", "lbp_marginals"]
+
+#: Positive factors are kept ≥ this after scaling (events below it are negligible).
+_FLOOR = 2.0**-400
 
 
 @dataclass(frozen=True)
@@ -102,10 +125,13 @@ def _g(x, c):
 
 
 @numba.njit(cache=True)
-def _lbp_kernel(W, m, A, B, tol, max_iter, certified):
-    """Synchronous BP sweeps on row-scaled weights W (N×M), miss weights m (N)."""
+def _lbp_kernel(W, m, v, A, B, tol, max_iter, certified):
+    """Synchronous BP sweeps on scaled weights W (N×M), miss weights m (N), unused weights v (M)."""
     n, mm = W.shape
-    nu = np.ones((n, mm))
+    nu = np.empty((n, mm))
+    for i in range(n):
+        for j in range(mm):
+            nu[i, j] = 1.0 / v[j]
     nu_new = np.empty((n, mm))
     mu = np.zeros((n, mm))
     pre = np.empty(mm + 1)
@@ -140,7 +166,7 @@ def _lbp_kernel(W, m, A, B, tol, max_iter, certified):
                 pre_c[i + 1] = pre_c[i] + mu[i, j]
             suf = 0.0
             for i in range(n - 1, -1, -1):
-                nu_new[i, j] = 1.0 / (1.0 + pre_c[i] + suf)
+                nu_new[i, j] = 1.0 / (v[j] + pre_c[i] + suf)
                 suf += mu[i, j]
         # change over gated edges in the log metric
         d = 0.0
@@ -209,47 +235,48 @@ def lbp_marginals(L, miss, *, tol: float = 1e-9, max_iter: int = 1000):
     Raises
     ------
     ValueError
-        bad input (see ``check_cluster``), ``tol`` ≤ 0, ``max_iter`` < 1.
+        bad input (see ``check_cluster``), ``tol`` not a positive finite number,
+        ``max_iter`` not a whole number ≥ 1.
     InfeasibleAssignmentError
         no joint event has positive weight.
     """
     L, miss = check_cluster(L, miss)
-    tol = float(tol)
-    if not tol > 0 or not np.isfinite(tol):
-        raise ValueError(f"tol must be positive and finite, got {tol}")
-    max_iter = check_integer(max_iter, "max_iter")
+    tol = as_float(tol, "tol", minimum=0.0, open_min=True)
+    max_iter = as_int(max_iter, "max_iter", minimum=1)
     require_feasible_event(L, miss)
     n, mm = L.shape
     beta = np.zeros((n, mm + 1))
     if n == 0:
         return beta, LBPInfo(0, True, 0.0, 0.0, True)
-    # row scaling leaves the joint distribution unchanged (each track contributes one
-    # factor of its row) and keeps every weight ≤ 1
-    scale = np.maximum(miss, L.max(axis=1) if mm else 0.0)
-    W = L / scale[:, None]
-    m = miss / scale
-    gated = W > 0
+    gated = L > 0
     certified = bool(np.all(miss > 0))
-    if certified and mm:
-        w = L / miss[:, None]
-        big = np.where(gated, w, np.inf)
-        rows = w.sum(axis=1) - np.where(gated.any(axis=1), big.min(axis=1), 0.0)
-        cols = w.sum(axis=0) - np.where(gated.any(axis=0), big.min(axis=0), 0.0)
+    if mm == 0 or not gated.any():
+        beta[:, 0] = 1.0
+        return beta, LBPInfo(0, True, 0.0, 0.0, certified)
+    W, m, v = _scaled(L, miss)
+    if certified:
+        # A, B are invariant under the scaling: compute them on the scaled problem
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            w = W / (m[:, None] * v[None, :])
+            big = np.where(gated, w, np.inf)
+            rows = w.sum(axis=1) - np.where(gated.any(axis=1), big.min(axis=1), 0.0)
+            cols = w.sum(axis=0) - np.where(gated.any(axis=0), big.min(axis=0), 0.0)
         A = float(rows.max())
         B = float(cols.max())
         if not (np.isfinite(A) and np.isfinite(B)):
             certified = False
-    else:
+    if not certified:
         A = B = np.inf
-    if mm == 0 or not gated.any():
-        beta[:, 0] = 1.0
-        return beta, LBPInfo(0, True, 0.0, 0.0, certified)
-    nu, it, conv, d, bound = _lbp_kernel(W, m, A, B, tol, max_iter, certified)
+    nu, it, conv, d, bound = _lbp_kernel(W, m, v, A, B, tol, max_iter, certified)
     if not certified:
         bound = np.inf
     un = np.empty((n, mm + 1))
     un[:, 0] = m
     un[:, 1:] = W * nu
+    # each row by a power of two so that its largest belief is in [0.5, 1)
+    with np.errstate(invalid="ignore"):
+        _, e = np.frexp(un.max(axis=1))
+    un = np.ldexp(un, -e[:, None])
     tot = un.sum(axis=1)
     if not np.all(tot > 0) or not np.all(np.isfinite(un)):  # pragma: no cover - guarded
         raise InfeasibleAssignmentError(
@@ -258,3 +285,14 @@ def lbp_marginals(L, miss, *, tol: float = 1e-9, max_iter: int = 1000):
         )
     beta = un / tot[:, None]
     return beta, LBPInfo(int(it), bool(conv), float(d), float(bound), certified)
+
+
+def _scaled(L, miss):
+    """Scaled weights ``(W, miss', unused')`` with every positive factor in [2^-400, ~2]."""
+    W, m, v, _shift, ok = scale_problem(L, miss)
+    if not ok:  # pragma: no cover - feasibility was checked first
+        W, m, v = L.copy(), miss.copy(), np.ones(L.shape[1])
+    W = np.where(L > 0, np.maximum(W, _FLOOR), 0.0)
+    m = np.where(miss > 0, np.maximum(m, _FLOOR), 0.0)
+    v = np.maximum(v, _FLOOR)
+    return np.ascontiguousarray(W), np.ascontiguousarray(m), np.ascontiguousarray(v)

@@ -11,9 +11,22 @@ Workloads (seeded ``numpy.random.default_rng``)
   :func:`~jointtrack.permanent.permanent` (``method="auto"``) against
   ``thewalrus.perm`` (its default, ``"bbfg"``). Relative errors are against the
   exact rational :func:`~jointtrack.permanent.reference.reference_permanent`
-  for n ≤ 20; for n ≥ 22 that is too slow and the reference is our
-  ``method="dp"``, which only adds and multiplies non-negative numbers, so its
-  relative error is rigorously ≤ 2n·2⁻⁵³ ≈ 6e-15.
+  for n ≤ 20; for n ≥ 22 that is too slow and the reference is the frontier DP
+  (``assignment_sum(A, marginals=False, method="frontier", parallel=True)``;
+  ``"auto"`` runs Glynn there, so this is an independent method), which only
+  adds and multiplies non-negative numbers, so its relative error is rigorously
+  ≤ 2n·2⁻⁵³ ≈ 6e-15. (``permanent(A, method="dp")`` is that same DP, ~n²·2^(n−1)
+  on dense input.)
+* **banded** n = 24, 40, 100: tridiagonal and 5-banded (|i − j| ≤ 1, 2) with
+  all-ones or ``rng.random`` entries, our ``permanent`` (auto: the frontier DP
+  with a 3- or 5-bit state) against the exact rational band DP
+  :func:`banded_exact`; tridiagonal all-ones must equal the Fibonacci number
+  F(n+1). thewalrus has no sparse method: it is timed at n = 24 and its time at
+  n = 40, 100 is extrapolated (2^(n−1)·n), not run.
+* **dense n = 28** (full run only): ``permanent(A)`` with "auto", which reaches
+  Glynn's formula; its own rounding-error estimate
+  (``assignment_sum(A, marginals=False).info["error_estimate"]``) is reported
+  and thewalrus is timed once on the same matrix.
 * **badly scaled** n = 20 (quick: 14): the uniform matrix with rows and columns
   multiplied by ``10**rng.uniform(-k, 0)``, k ∈ {2, 5, 20, 300}, and elementwise
   by ``10**rng.uniform(-30, 0)``. Our error is that of
@@ -31,8 +44,10 @@ Workloads (seeded ``numpy.random.default_rng``)
   computing one 20×20 permanent, twice (the first may fill numba's cache).
 
 Targets (printed as PASS/FAIL): n = 24 and 26 at least 1.5× faster than
-thewalrus with relative error ≤ 1e-12; badly scaled relative error ≤ 1e-11;
-Schaub cases ≤ 10 ms and max abs error ≤ 1e-11; second process < 1 s.
+thewalrus with relative error ≤ 1e-12; banded n = 40, 100 each ≤ 10 ms with
+relative error ≤ 1e-12 (tridiagonal all-ones = F(n+1)); dense n = 28 reaches
+Glynn; badly scaled relative error ≤ 1e-11; Schaub cases ≤ 10 ms and max abs
+error ≤ 1e-11; second process < 1 s.
 """
 
 from __future__ import annotations
@@ -175,6 +190,62 @@ def _jsonable(obj):
     return obj
 
 
+def _dp_reference(A) -> float:
+    """Cancellation-free reference value for n ≥ 22: the frontier DP (not Glynn).
+
+    ``permanent(A, method="dp")`` is the frontier DP of :mod:`jointtrack.assignment`,
+    ~n²·2^(n−1) on dense input; it is called through the core with both cores.
+    """
+    from jointtrack.assignment import assignment_sum
+
+    res = assignment_sum(A, marginals=False, method="frontier", parallel=True)
+    return math.exp(res.log_normalizer)
+
+
+def banded(n: int, half_width: int, rng=None) -> np.ndarray:
+    """All-ones (or ``rng.random`` valued) band matrix: A[i, j] ≠ 0 iff |i − j| ≤ half_width."""
+    i, j = np.indices((n, n))
+    A = (np.abs(i - j) <= half_width).astype(float)
+    if rng is not None:
+        A *= rng.random((n, n))
+    return A
+
+
+def banded_exact(A: np.ndarray, half_width: int):
+    """Exact permanent of a band matrix as a Fraction (row-by-row DP over the window).
+
+    State: which of the columns i−k … i+k are used after rows 0 … i−1 (a bitmask
+    relative to i−k); every float entry is converted exactly, so the result is
+    the exact permanent of the float64 matrix.
+    """
+    from fractions import Fraction
+
+    n = A.shape[0]
+    k = half_width
+    states = {0: Fraction(1)}
+    for i in range(n):
+        nxt: dict[int, Fraction] = {}
+        for mask, val in states.items():
+            for d in range(2 * k + 1):
+                j = i - k + d
+                if j < 0 or j >= n or mask >> d & 1 or A[i, j] == 0.0:
+                    continue
+                m2 = mask | (1 << d)
+                if m2 & 1 == 0 and i - k >= 0:
+                    continue  # column i−k leaves the window unused: no permutation
+                m2 >>= 1
+                nxt[m2] = nxt.get(m2, Fraction(0)) + val * Fraction(float(A[i, j]))
+        states = nxt
+    return sum(states.values(), Fraction(0))
+
+
+def _fibonacci(m: int) -> int:
+    a, b = 0, 1
+    for _ in range(m):
+        a, b = b, a + b
+    return a
+
+
 # --------------------------------------------------------------------------- sections
 
 
@@ -195,7 +266,7 @@ def _uniform(console, quick: bool, tw_perm) -> list[dict]:
         if n <= 20:
             ref, ref_kind = reference_permanent(A), "exact rational"
         else:
-            ref, ref_kind = permanent(A, method="dp"), "dp (≤ 2n·2⁻⁵³)"
+            ref, ref_kind = _dp_reference(A), "frontier DP (≤ 2n·2⁻⁵³)"
         ours = vals["ours"]
         row = {
             "n": n,
@@ -218,8 +289,10 @@ def _uniform(console, quick: bool, tw_perm) -> list[dict]:
 
     table = Table(
         title="Uniform rng.random((n, n)): permanent, median wall time",
-        caption="reference: exact rational arithmetic for n ≤ 20; for n ≥ 22 permanent(A, "
-        "method='dp') — all terms non-negative, rel. err ≤ 2n·2⁻⁵³ ≈ 6e-15 rigorously",
+        caption="reference: exact rational arithmetic for n ≤ 20; for n ≥ 22 the frontier "
+        "DP's value (assignment_sum(A, marginals=False, method='frontier', parallel=True); "
+        "'auto' picks Glynn there, so the DP is an independent method) — all terms "
+        "non-negative, rel. err ≤ 2n·2⁻⁵³ ≈ 6e-15 rigorously",
     )
     for col in ("n", "ours (auto)", "thewalrus", "thewalrus/ours", "rel err ours"):
         table.add_column(col, justify="right")
@@ -238,6 +311,152 @@ def _uniform(console, quick: bool, tw_perm) -> list[dict]:
         )
     console.print(table)
     return rows
+
+
+BANDED_SIZES = (24, 40, 100)  # n = 24: thewalrus timed too (2^23 Gray-code steps)
+TW_BANDED_MAX = 24  # thewalrus has no sparse method: its cost is 2^(n-1)·n at any band
+TARGET_BANDED_TIME = 10e-3
+TARGET_BANDED_ERR = 1e-12
+
+
+def _banded(console, quick: bool, tw_perm) -> list[dict]:
+    from rich.table import Table
+
+    from jointtrack.assignment import assignment_sum
+    from jointtrack.permanent import permanent
+
+    rows = []
+    tw_time_24: float | None = None
+    for n in BANDED_SIZES:
+        for k, label in ((1, "tridiagonal"), (2, "5-banded")):
+            for valued in (False, True):
+                A = banded(n, k, np.random.default_rng(1000 + n + k) if valued else None)
+                fns = {"ours": lambda A=A: permanent(A)}
+                if tw_perm is not None and n <= TW_BANDED_MAX:
+                    fns["thewalrus"] = lambda A=A: tw_perm(A)
+                med, vals, reps = _interleaved(fns, budget=0.3 if quick else 1.0, max_reps=50)
+                exact = banded_exact(A, k)
+                ref = float(exact)
+                ours = vals["ours"]
+                info = assignment_sum(A, marginals=False).info
+                row = {
+                    "n": n,
+                    "band": label,
+                    "values": "rng.random" if valued else "all ones",
+                    "ours_s": med.get("ours"),
+                    "value": float(ours) if not isinstance(ours, Exception) else repr(ours),
+                    "ours_rel_err": _rel_err(float(ours), ref)
+                    if not isinstance(ours, Exception)
+                    else repr(ours),
+                    "max_frontier": info.get("max_frontier"),
+                    "fibonacci_ok": None,
+                    "thewalrus_s": med.get("thewalrus"),
+                    "thewalrus_rel_err": None,
+                    "speedup": None,
+                    "thewalrus_estimate_s": None,
+                    "repeats": reps,
+                }
+                if k == 1 and not valued:
+                    row["fibonacci_ok"] = exact == _fibonacci(n + 1)
+                if "thewalrus" in vals:
+                    row["thewalrus_rel_err"] = _peer_log_err(vals["thewalrus"], math.log(ref))
+                    if row["thewalrus_s"] and row["ours_s"]:
+                        row["speedup"] = row["thewalrus_s"] / row["ours_s"]
+                        tw_time_24 = max(tw_time_24 or 0.0, row["thewalrus_s"])
+                elif tw_perm is not None and tw_time_24:
+                    # its Gray-code loop is 2^(n−1) steps of O(n) whatever the sparsity
+                    row["thewalrus_estimate_s"] = tw_time_24 * 2.0 ** (n - 24) * n / 24
+                rows.append(row)
+
+    table = Table(
+        title="Banded permanents: A(i, j) ≠ 0 iff |i − j| ≤ k, median wall time",
+        caption="reference: exact rational row-by-row band DP (Fraction); tridiagonal all-ones "
+        "must equal the Fibonacci number F(n+1). thewalrus has no sparse method (2^(n−1)·n "
+        f"Gray-code steps at any band): timed for n ≤ {TW_BANDED_MAX}, above that the time is "
+        "extrapolated from its n = 24 banded time in this run (not run).",
+    )
+    for col in ("n", "band", "values", "frontier", "ours (auto)", "rel err ours", "F(n+1)"):
+        table.add_column(col, justify="right")
+    for col in ("thewalrus", "thewalrus/ours", "rel err thewalrus"):
+        table.add_column(col, justify="right")
+    for r in rows:
+        if r["thewalrus_s"] is not None:
+            tw = _fmt_time(r["thewalrus_s"])
+        elif r["thewalrus_estimate_s"]:
+            est = r["thewalrus_estimate_s"]
+            tw = (
+                f"not run (≈ {est / 3600:.3g} h)"
+                if est < 3.15e7
+                else f"not run (≈ {est / 3.15e7:.2g} years)"
+            )
+        else:
+            tw = "not installed" if tw_perm is None else "—"
+        ratio = (
+            f"{r['speedup']:.0f}×"
+            if r["speedup"]
+            else (
+                f"≈ {r['thewalrus_estimate_s'] / r['ours_s']:.1e}×"
+                if r["thewalrus_estimate_s"] and r["ours_s"]
+                else "—"
+            )
+        )
+        table.add_row(
+            str(r["n"]),
+            r["band"],
+            r["values"],
+            f"{r['max_frontier']} bits",
+            _fmt_time(r["ours_s"]),
+            _fmt_err(r["ours_rel_err"]),
+            "—" if r["fibonacci_ok"] is None else ("= F(n+1)" if r["fibonacci_ok"] else "WRONG"),
+            tw,
+            ratio,
+            _fmt_err(r["thewalrus_rel_err"]),
+        )
+    console.print(table)
+    return rows
+
+
+DENSE_N = 28
+
+
+def _dense_large(console, tw_perm) -> dict:
+    """n = 28 uniform via "auto" (Glynn with its own error estimate) vs thewalrus, once each."""
+    from jointtrack.assignment import assignment_sum
+    from jointtrack.permanent import permanent
+
+    n = DENSE_N
+    A = np.random.default_rng(n).random((n, n))
+    permanent(A[:16, :16])
+    t_ours, ours = _timed(lambda: permanent(A))
+    t_res, res = _timed(lambda: assignment_sum(A, marginals=False))
+    row = {
+        "n": n,
+        "ours_s": min(t_ours, t_res),
+        "method": res.method,
+        "error_estimate": res.info.get("error_estimate"),
+        "value": ours,
+        "thewalrus_s": None,
+        "speedup": None,
+        "rel_diff_vs_thewalrus": None,
+    }
+    if tw_perm is not None:
+        t_tw, tw = _timed(lambda: tw_perm(A))
+        row["thewalrus_s"] = t_tw
+        row["speedup"] = t_tw / row["ours_s"]
+        row["rel_diff_vs_thewalrus"] = _peer_log_err(tw, math.log(ours))
+    console.print(
+        f"Dense uniform n = {n} (rng.random, seed {n}), one call each: ours "
+        f"(auto → {row['method']}) {_fmt_time(row['ours_s'])}, Glynn's error estimate "
+        f"{_fmt_err(row['error_estimate'])}; thewalrus "
+        f"{_fmt_time(row['thewalrus_s']) if tw_perm else 'not installed'}"
+        + (
+            f" ({row['speedup']:.2f}×, |rel diff| {_fmt_err(row['rel_diff_vs_thewalrus'])})"
+            if row["speedup"]
+            else ""
+        )
+        + ". No exact reference (the DP would need 2^28 states × 2 arrays = 4 GiB)."
+    )
+    return row
 
 
 def _scaled_cases(n: int):
@@ -399,7 +618,9 @@ def _startup(console) -> dict:
     return {"first_s": runs[0]["wall_s"], "second_s": runs[1]["wall_s"], "runs": runs}
 
 
-def _targets(console, uniform, scaled, schaub, startup, tw_installed: bool) -> list[dict]:
+def _targets(
+    console, uniform, scaled, schaub, startup, tw_installed: bool, band=(), dense=None
+) -> list[dict]:
     from rich.table import Table
 
     out = []
@@ -447,6 +668,33 @@ def _targets(console, uniform, scaled, schaub, startup, tw_installed: bool) -> l
                 "ok": ok,
             }
         )
+    for n in sorted({r["n"] for r in band if r["n"] >= 40}):
+        rs = [r for r in band if r["n"] == n]
+        worst_t = max(r["ours_s"] or math.inf for r in rs)
+        errs = [r["ours_rel_err"] for r in rs]
+        ok = (
+            worst_t <= TARGET_BANDED_TIME
+            and all(isinstance(e, float) and e <= TARGET_BANDED_ERR for e in errs)
+            and all(r["fibonacci_ok"] is not False for r in rs)
+        )
+        out.append(
+            {
+                "target": f"banded n={n} (tri/5-band, ones/random): each ≤ 10 ms, "
+                "rel err ≤ 1e-12, tridiagonal ones = F(n+1)",
+                "value": f"worst {_fmt_time(worst_t)}, "
+                f"{_fmt_err(max((e for e in errs if isinstance(e, float)), default=None))}",
+                "ok": ok,
+            }
+        )
+    if dense is not None:
+        out.append(
+            {
+                "target": f"dense n={dense['n']} via auto reaches Glynn",
+                "value": f"{dense['method']}, {_fmt_time(dense['ours_s'])}, "
+                f"est. err {_fmt_err(dense['error_estimate'])}",
+                "ok": dense["method"] == "glynn",
+            }
+        )
     ok = startup["second_s"] < TARGET_STARTUP and all(r["returncode"] == 0 for r in startup["runs"])
     out.append(
         {
@@ -482,7 +730,8 @@ def run(quick: bool = False, out: str | None = None) -> dict:
     Returns
     -------
     dict
-        ``{"meta", "uniform", "badly_scaled", "schaub", "startup", "targets"}``;
+        ``{"meta", "uniform", "banded", "dense_28", "badly_scaled", "schaub", "startup",
+        "targets"}``;
         times in seconds (medians), errors relative (or a string saying why not).
     """
     import numba
@@ -512,12 +761,16 @@ def run(quick: bool = False, out: str | None = None) -> dict:
         )
     uniform = _uniform(console, quick, tw_perm)
     scaled = _badly_scaled(console, quick, tw_perm)
+    band = _banded(console, quick, tw_perm)
+    dense = None if quick else _dense_large(console, tw_perm)
     schaub = _schaub(console, quick)
     startup = _startup(console)
-    targets = _targets(console, uniform, scaled, schaub, startup, tw_perm is not None)
+    targets = _targets(console, uniform, scaled, schaub, startup, tw_perm is not None, band, dense)
     result = {
         "meta": meta,
         "uniform": uniform,
+        "banded": band,
+        "dense_28": dense,
         "badly_scaled": scaled,
         "schaub": schaub,
         "startup": startup,

@@ -28,7 +28,8 @@ same as that of the assignment form (their Proposition 1)
 power splits into a **localisation** cost (assigned pairs), a **missed** cost
 (c^p/2 per unassigned x — a missed target) and a **false** cost (c^p/2 per
 unassigned y — a false target). Both are computed with
-:func:`scipy.optimize.linear_sum_assignment` on the rectangular cost matrix
+:func:`jointtrack.assignment.linear_assignment` (the package's one assignment
+solver) on the rectangular cost matrix
 ``min(d, c)^p``: it assigns min(n, m) pairs, and a pair at the cut-off costs
 exactly c^p = c^p/2 + c^p/2, i.e. it is a missed *and* a false target.
 
@@ -61,7 +62,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
+
+from jointtrack.assignment import linear_assignment
 
 __all__ = ["GOSPA", "GOSPASeries", "gospa", "gospa_series", "ospa"]
 
@@ -136,7 +138,8 @@ def _cutoff_assignment(X: np.ndarray, Y: np.ndarray, c: float, p: float):
     D = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
     # scale by c so the powers stay in [0, 1] (no overflow for any p)
     cost = np.minimum(D / c, 1.0) ** p
-    rows, cols = linear_sum_assignment(cost)
+    res = linear_assignment(cost)
+    rows, cols = res.rows, res.cols
     return rows, cols, D[rows, cols]
 
 

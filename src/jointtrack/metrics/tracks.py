@@ -7,7 +7,7 @@ Scans are the distinct time values of both tables, matched exactly.
 
 Association, per scan k: the truths X_k and tracks Y_k present at that time
 are paired by the GOSPA assignment with cut-off ``gate`` and p = 2 (see
-:mod:`jointtrack.metrics.ospa`): ``linear_sum_assignment`` minimises
+:mod:`jointtrack.metrics.ospa`): ``jointtrack.assignment.linear_assignment`` minimises
 Σ min(‖x − y‖, gate)² over min(|X_k|, |Y_k|) pairs, and only pairs with
 ‖x − y‖ < gate are kept. A truth–track pair kept at scan k is an *association*.
 

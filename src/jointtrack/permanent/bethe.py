@@ -127,13 +127,17 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
-from scipy.special import expit
+from scipy.special import expit, logsumexp
 
+from jointtrack.assignment._checks import as_float, as_int
+from jointtrack.assignment.lsap import linear_assignment
+from jointtrack.assignment.scaling import group_exponents
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent._validate import check_matrix
+
+_LN2 = math.log(2.0)
 
 __all__ = ["BethePermanent", "bethe_permanent"]
 
@@ -249,39 +253,36 @@ def _xlogx(x: np.ndarray) -> np.ndarray:
         return np.where(x > 0, x * np.log(np.where(x > 0, x, 1.0)), 0.0)
 
 
-def _project(g, ii, jj, shape, col_free, max_sweeps: int = 1000):
-    """Alternating projections of γ (given on the support) onto the constraint set.
+def _project(lg, ii, jj, shape, col_free, max_sweeps: int = 5000):
+    """Alternating Bregman projections of γ onto the constraint set, in log space.
 
-    Columns flagged in `col_free` are scaled down only when their sum exceeds 1
-    (Bregman projection onto {Σ_i γ_ij ≤ 1}); the others are scaled to sum 1.
-    Ends with a row normalisation, so rows sum to 1 to rounding. Returns
-    (γ, largest remaining relative column correction).
+    ``lg`` holds log γ on the support entries (ii, jj). Columns flagged in
+    `col_free` are scaled down only when their sum exceeds 1 (projection onto
+    {Σ_i γ_ij ≤ 1}); the others are scaled to sum 1. Ends with a row
+    normalisation, so rows sum to 1 to rounding. Returns (log γ, largest
+    remaining log column correction).
     """
     r, c = shape
-    g = g / np.bincount(ii, weights=g, minlength=r)[ii]
+    work = np.full(shape, -np.inf)
+    work[ii, jj] = lg
+    work -= logsumexp(work, axis=1)[:, None]
     violation = np.inf
     for _ in range(max_sweeps):
-        cs = np.bincount(jj, weights=g, minlength=c)
-        inv = 1.0 / np.maximum(cs, 1e-300)
-        fac = np.where(col_free, np.minimum(1.0, inv), inv)
-        violation = float(np.max(np.abs(fac - 1.0)))
-        if violation < 1e-14:
+        lc = logsumexp(work, axis=0)
+        fac = np.where(col_free, np.minimum(0.0, -lc), -lc)
+        violation = float(np.max(np.abs(fac)))
+        if violation < 1e-15:
             break
-        g = g * fac[jj]
-        g = g / np.bincount(ii, weights=g, minlength=r)[ii]
-    return np.minimum(g, 1.0), violation
+        work += fac[None, :]
+        work -= logsumexp(work, axis=1)[:, None]
+    return np.minimum(work[ii, jj], 0.0), violation
 
 
 def _check_options(tol, max_iter, damping) -> tuple[float, int, float]:
-    tol = float(tol)
-    if not (np.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be a positive finite number, got {tol}")
-    if isinstance(max_iter, bool) or int(max_iter) != max_iter or max_iter < 1:
-        raise ValueError(f"max_iter must be a positive integer, got {max_iter!r}")
-    damping = float(damping)
-    if not (0.0 <= damping < 1.0):
-        raise ValueError(f"damping must lie in [0, 1), got {damping}")
-    return tol, int(max_iter), damping
+    tol = as_float(tol, "tol", minimum=0.0, open_min=True)
+    max_iter = as_int(max_iter, "max_iter", 1)
+    damping = as_float(damping, "damping", minimum=0.0, maximum=1.0, open_max=True)
+    return tol, max_iter, damping
 
 
 def _run_bp(L_sub, ii, jj, shape, ld, tol, max_iter, damping, anderson, patience=100):
@@ -425,11 +426,9 @@ def bethe_permanent(
     InfeasibleAssignmentError
         if no assignment of the rows to distinct columns has positive weight.
     """
-    A = check_matrix(A)
+    A = _matrix(A)
     tol, max_iter, damping = _check_options(tol, max_iter, damping)
-    if isinstance(anderson, bool) or int(anderson) != anderson or anderson < 0:
-        raise ValueError(f"anderson must be a non-negative integer, got {anderson!r}")
-    anderson = int(anderson)
+    anderson = as_int(anderson, "anderson", 0)
     n, m = A.shape
     gamma = np.zeros((n, m))
     if n == 0:
@@ -437,8 +436,16 @@ def bethe_permanent(
         return BethePermanent(0.0, 1.0, gamma, 0, True)
 
     allowed = _allowed_support(A > 0)
+    # exact power-of-two scaling from the assignment dual: entries ≤ ~1, the best
+    # assignment ≈ 1. A column factor 2^ec_j is compensated by giving column j's
+    # "free" state the weight δ_j = 2^ec_j (see the module docstring), so
+    # log per_B(A) = G_scaled − Σ er ln2 − Σ ec ln2 exactly.
+    er, ec = _scaling_exponents(A)
     with np.errstate(divide="ignore"):
+        # in log space: a scaled entry may be below the float64 range
         logA = np.where(allowed, np.log(np.where(allowed, A, 1.0)), -np.inf)
+    logA += (er[:, None] + ec[None, :]) * _LN2
+    log_delta_all = ec * _LN2
 
     # connected components of the allowed bipartite graph (rows 0..n-1, columns n..)
     ai, aj = np.nonzero(allowed)
@@ -446,6 +453,9 @@ def bethe_permanent(
     ncomp, label = connected_components(graph, directed=False)
     nrow = np.bincount(label[:n], minlength=ncomp)
     ncol = np.bincount(label[n:], minlength=ncomp)
+    # columns outside every component stay free (s_j = 1): their δ_j cancels the shift
+    used_col = nrow[label[n:]] > 0
+    shift = float(er.sum() + ec[used_col].sum()) * _LN2
 
     log_value = 0.0
     bp_comp = np.zeros(ncomp, dtype=bool)
@@ -457,8 +467,7 @@ def bethe_permanent(
             if rows.size == 1:
                 sigma = np.zeros(1, dtype=np.intp)
             else:
-                cost = np.where(np.isfinite(Lc), -Lc, np.inf)
-                sigma = linear_sum_assignment(cost)[1]
+                sigma = _best_assignment(Lc)[1]
                 if not _vertex_is_optimal(Lc, sigma):
                     bp_comp[comp] = True
                     continue
@@ -469,43 +478,47 @@ def bethe_permanent(
 
     rows = np.flatnonzero(bp_comp[label[:n]])
     if rows.size == 0:
-        gamma.setflags(write=False)
-        return BethePermanent(log_value, _safe_exp(log_value), gamma, 0, True)
+        return _result(log_value - shift, gamma, 0, True)
     cols = np.flatnonzero(bp_comp[label[n:]] & allowed[rows].any(axis=0))
     sub = allowed[np.ix_(rows, cols)]
     L = logA[np.ix_(rows, cols)]
-    col_free = (nrow < ncol)[label[n + cols]]  # δ_j = 1 for "at most one" columns
-    log_delta = np.where(col_free, 0.0, -np.inf)
+    col_free = (nrow < ncol)[label[n + cols]]  # "at most one" columns
+    log_delta = np.where(col_free, log_delta_all[cols], -np.inf)
 
     ii, jj = np.nonzero(sub)
     L_sub = L[ii, jj]
     ld = log_delta[jj]
     comp_entry = label[rows[ii]]  # component of every BP entry
     comp_col = label[n + cols]
+    ld_free = np.where(col_free, log_delta, 0.0)
 
     # lower bound per component: the Bethe objective at the best vertex (matching)
-    vertex_value = np.zeros(ncomp)
+    vertex_value = np.full(ncomp, -np.inf)
+    vertex = np.zeros(ii.size)
+    pos = {(int(i), int(j)): k for k, (i, j) in enumerate(zip(ii, jj))}
+    row_index = {int(r): k for k, r in enumerate(rows)}
+    col_index = {int(c): k for k, c in enumerate(cols)}
     for comp in np.flatnonzero(bp_comp & (nrow > 0)):
         r_c = np.flatnonzero(label[:n] == comp)
         c_c = np.flatnonzero(label[n:] == comp)
         Lc = logA[np.ix_(r_c, c_c)]
-        r_idx, c_idx = linear_sum_assignment(np.where(np.isfinite(Lc), -Lc, np.inf))
-        vertex_value[comp] = float(np.sum(Lc[r_idx, c_idx]))
+        r_idx, c_idx = _best_assignment(Lc)
+        unused = np.setdiff1d(np.arange(c_c.size), c_idx)
+        vertex_value[comp] = float(np.sum(Lc[r_idx, c_idx]) + np.sum(log_delta_all[c_c[unused]]))
+        for a, b in zip(r_c[r_idx], c_c[c_idx]):
+            vertex[pos[(row_index[int(a)], col_index[int(b)])]] = 1.0
 
     def solve(aa: int):
         d, sweeps, conv = _run_bp(L_sub, ii, jj, sub.shape, ld, tol, max_iter, damping, aa)
         # Project the row beliefs onto P (rows = 1, columns = 1 or ≤ 1), then evaluate
         # the Bethe objective there: G at a feasible γ is ≤ log per_B even when BP
         # did not converge.
-        g, violation = _project(expit(d), ii, jj, sub.shape, col_free)
-        terms = g * L_sub - _xlogx(g) + _xlogx(1.0 - g)
-        col_sum = np.bincount(jj, weights=g, minlength=cols.size)
-        slack = np.where(col_free, np.clip(1.0 - col_sum, 0.0, 1.0), 0.0)
-        per_comp = np.bincount(comp_entry, weights=terms, minlength=ncomp)
-        per_comp -= np.bincount(comp_col, weights=_xlogx(slack), minlength=ncomp)
+        lg, violation = _project(-np.logaddexp(0.0, -d), ii, jj, sub.shape, col_free)
+        g = np.exp(lg)
+        per_comp = _objective(g, lg, L_sub, jj, comp_entry, comp_col, col_free, ld_free, ncomp)
         return g, per_comp, sweeps, conv, violation
 
-    g_vals, per_comp, sweeps, converged, _ = solve(anderson)
+    g_vals, per_comp, sweeps, converged, violation = solve(anderson)
     below = bp_comp & (per_comp < vertex_value - 1e-9 * (1.0 + np.abs(vertex_value)))
     if anderson > 0 and np.any(below):
         # Anderson extrapolation ended below a vertex, i.e. not at the optimum of a
@@ -517,6 +530,22 @@ def bethe_permanent(
             g_vals, per_comp, converged = g2, per_comp2, conv2
         else:
             converged = False
+    # Feasibility to rounding, per component; else (or if below the vertex) the best
+    # vertex, which is feasible and exact in value.
+    rsum = np.bincount(ii, weights=g_vals, minlength=rows.size)
+    csum = np.bincount(jj, weights=g_vals, minlength=cols.size)
+    bad_col = np.where(col_free, csum > 1.0 + 1e-13, np.abs(csum - 1.0) > 1e-12)
+    bad = np.zeros(ncomp, dtype=bool)
+    bad[comp_col[bad_col]] = True
+    bad[label[rows[np.abs(rsum - 1.0) > 1e-13]]] = True
+    bad |= ~np.isfinite(per_comp)
+    fallback = bp_comp & (bad | (per_comp < vertex_value))
+    if np.any(fallback & bad):
+        converged = False
+    if np.any(fallback):
+        at = fallback[comp_entry]
+        g_vals = np.where(at, vertex, g_vals)
+        per_comp = np.where(fallback, vertex_value, per_comp)
     log_value += float(np.sum(per_comp[bp_comp]))
     g_sub = np.zeros(sub.shape)
     g_sub[ii, jj] = g_vals
@@ -525,5 +554,49 @@ def bethe_permanent(
             "bethe_permanent produced a non-finite log value; please report this input"
         )
     gamma[np.ix_(rows, cols)] = g_sub
+    return _result(log_value - shift, gamma, sweeps, converged)
+
+
+def _result(log_value: float, gamma: np.ndarray, sweeps: int, converged: bool):
     gamma.setflags(write=False)
     return BethePermanent(log_value, _safe_exp(log_value), gamma, sweeps, converged)
+
+
+def _matrix(A) -> np.ndarray:
+    try:
+        return check_matrix(A)
+    except OverflowError:
+        raise ValueError("A holds an integer too large for a float64") from None
+
+
+def _scaling_exponents(A: np.ndarray):
+    """Power-of-two exponents (er, ec) of the assignment-dual scaling (zeros if too large)."""
+    n, m = A.shape
+    try:
+        er, ec, ok = group_exponents(A, np.zeros(n), np.ones(n, np.int64), np.ones(m, np.int64))
+    except ValueError:  # too large for one assignment solve: scale the rows by their maxima
+        ok = False
+    if not ok:
+        with np.errstate(divide="ignore"):
+            er = -np.frexp(A.max(axis=1))[1].astype(np.int64)
+        return er, np.zeros(m, np.int64)
+    return er, ec
+
+
+def _best_assignment(L: np.ndarray):
+    """(rows, cols) of a maximum-weight assignment of the log weights L (−inf = forbidden)."""
+    res = linear_assignment(np.where(np.isfinite(L), -L, np.inf))
+    return res.rows, res.cols
+
+
+def _objective(g, lg, L_sub, jj, comp_entry, comp_col, col_free, ld_free, ncomp):
+    """Bethe objective per component at γ (given with its log): finite, NaN-free."""
+    with np.errstate(invalid="ignore"):
+        one_minus = -np.expm1(lg)
+        ent = np.where(g > 0, g * (L_sub - lg), 0.0)
+        ent += np.where(one_minus > 0, one_minus * np.log(np.where(one_minus > 0, one_minus, 1)), 0)
+    col_sum = np.bincount(jj, weights=g, minlength=col_free.size)
+    slack = np.where(col_free, np.clip(1.0 - col_sum, 0.0, 1.0), 0.0)
+    per_comp = np.bincount(comp_entry, weights=ent, minlength=ncomp)
+    per_comp += np.bincount(comp_col, weights=slack * ld_free - _xlogx(slack), minlength=ncomp)
+    return per_comp

@@ -25,8 +25,8 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
+from jointtrack.assignment import linear_assignment
 from jointtrack.association import marginals
 from jointtrack.association.clustering import clusters
 from jointtrack.association.gating import gate_measurements
@@ -479,7 +479,8 @@ class JPDATracker:
             dist = np.linalg.norm(pos[:, None, :] - self.seeds[None, :, :], axis=2)
             spread = np.sqrt(np.trace(both, axis1=2, axis2=3))
             cost = np.where(dist <= c.max_speed * dt + 3.0 * spread, dist, 1e12)
-            rows, cols = linear_sum_assignment(cost)
+            la = linear_assignment(cost)
+            rows, cols = la.rows, la.cols
             ok = cost[rows, cols] < 1e12
             rows, cols = rows[ok], cols[ok]
             unused = np.ones(len(pos), bool)
