@@ -384,7 +384,7 @@ def test_checkpoint_resume_gives_the_same_tracks(tmp_path):
     full, part = tmp_path / "full", tmp_path / "part"
     r = _run("--config", cfg, "--out", full)
     assert r.exit_code == 0, r.output
-    ck = tmp_path / "state.pkl"
+    ck = tmp_path / "state.npz"
     r = _run(
         "--config",
         cfg,
@@ -398,7 +398,7 @@ def test_checkpoint_resume_gives_the_same_tracks(tmp_path):
         9,
     )
     assert r.exit_code == 0, r.output
-    assert ck.exists() and (tmp_path / "state.pkl.run.json").exists()
+    assert ck.exists() and (tmp_path / "state.npz.run.json").exists()
     assert len(np.unique(read_tracks(part / "tracks.csv")["time"])) <= 9
     r = _run("--config", cfg, "--out", part, "--resume", ck)
     assert r.exit_code == 0, r.output
@@ -427,7 +427,7 @@ def test_killed_run_resumes_to_the_same_tracks(tmp_path, monkeypatch):
             raise KeyboardInterrupt
         return step(self, t, z)
 
-    ck = tmp_path / "ck.pkl"
+    ck = tmp_path / "ck.npz"
     monkeypatch.setattr(JPDATracker, "step", dying_step)
     r = _run("--config", cfg, "--out", part, "--checkpoint", ck, "--checkpoint-every", 5)
     assert r.exit_code == 130
@@ -441,10 +441,10 @@ def test_killed_run_resumes_to_the_same_tracks(tmp_path, monkeypatch):
 
 
 def test_resume_bad_checkpoint_file(tmp_path):
-    junk = tmp_path / "junk.pkl"
+    junk = tmp_path / "junk.npz"
     junk.write_bytes(b"not a pickle")
     cfg = _config(tmp_path, SMALL)
-    _one_line_error(_run("--config", cfg, "--resume", junk, "--out", tmp_path / "o"), "junk.pkl")
+    _one_line_error(_run("--config", cfg, "--resume", junk, "--out", tmp_path / "o"), "junk.npz")
 
 
 # ----------------------------------------------------------------------------- reproduce

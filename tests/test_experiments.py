@@ -165,7 +165,7 @@ def test_run_detections_range_bearing(tmp_path):
         "clutter_density": 1e-3,
         "max_speed": 15.0,
     }
-    ck = tmp_path / "ck.pkl"
+    ck = tmp_path / "ck.npz"
     m = run_detections(det, over, tmp_path / "rb", checkpoint=ck)
     assert m["tracker"]["sensor"] == "range-bearing" and m["tracks"]["n_tracks"] == 2
     tracks = read_tracks(tmp_path / "rb" / "tracks.csv")
@@ -187,7 +187,7 @@ def test_run_detections_range_bearing(tmp_path):
 
 def test_resume_with_other_settings_warns_and_keeps_the_checkpoint(tmp_path):
     sc = crossing(seed=1, n_scans=12, clutter_per_scan=2.0)
-    ck = tmp_path / "ck.pkl"
+    ck = tmp_path / "ck.npz"
     full = run_scenario(sc, None, tmp_path / "a", plots=False)
     run_scenario(sc, None, tmp_path / "b", plots=False, checkpoint=ck, max_scans=6)
     m = run_scenario(sc, {"p_d": 0.5}, tmp_path / "b", plots=False, resume=ck)

@@ -62,7 +62,7 @@ def test_save_and_load_continue_identically(tmp_path):
     cfg = config_for(sc, association="mcmc", exact_max_tracks=1)  # uses the rng too
     full = JPDATracker(cfg)
     first = run(full, sc, slice(0, 20))
-    path = full.save(tmp_path / "state.pkl")
+    path = full.save(tmp_path / "state.npz")
     rest_a = run(full, sc, slice(20, None))
     restored = JPDATracker.load(path)
     rest_b = run(restored, sc, slice(20, None))
@@ -112,12 +112,12 @@ def test_bad_input():
 
 
 def test_load_rejects_foreign_files(tmp_path):
-    bad = tmp_path / "x.pkl"
+    bad = tmp_path / "x.npz"
     bad.write_bytes(b"not a pickle")
     with pytest.raises(ValueError, match="not a jointtrack tracker state"):
         JPDATracker.load(bad)
     with pytest.raises(ValueError, match="no such"):
-        JPDATracker.load(tmp_path / "missing.pkl")
+        JPDATracker.load(tmp_path / "missing.npz")
 
 
 def test_m_of_n_logic_confirms_and_deletes():

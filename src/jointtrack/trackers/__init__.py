@@ -1,5 +1,12 @@
-"""Trackers built on the association engine."""
+"""Trackers built on the association engine.
 
-from jointtrack.trackers.jpda import ClusterRecord, JPDATracker, ScanResult, TrackerConfig
+:mod:`~jointtrack.trackers.config` holds :class:`TrackerConfig`,
+:mod:`~jointtrack.trackers.jpda` the JPDA/JIPDA tracker loop and
+:mod:`~jointtrack.trackers.state_io` the safe state-file format.
+"""
 
-__all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackerConfig"]
+from jointtrack.trackers.config import TrackerConfig
+from jointtrack.trackers.jpda import ClusterRecord, JPDATracker, ScanResult
+from jointtrack.trackers.state_io import StateFileError
+
+__all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "StateFileError", "TrackerConfig"]

@@ -19,9 +19,8 @@ from __future__ import annotations
 
 import logging
 import math
-import pickle
 import time as _time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +29,7 @@ from jointtrack.assignment import linear_assignment
 from jointtrack.association import marginals
 from jointtrack.association.clustering import clusters
 from jointtrack.association.gating import gate_measurements
+from jointtrack.errors import ExactLimitError
 from jointtrack.filters import (
     ekf_predict_measurement,
     pda_ekf_update,
@@ -43,150 +43,17 @@ from jointtrack.models import (
     LinearPosition,
     RangeBearing,
 )
+from jointtrack.trackers.config import TrackerConfig
+from jointtrack.trackers.state_io import (
+    StateFileError,
+    read_state,
+    validate_tracker_arrays,
+    write_state,
+)
 
 __all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackerConfig"]
 
 log = logging.getLogger("jointtrack.tracker")
-
-_STATE_VERSION = 2
-
-
-@dataclass(frozen=True)
-class TrackerConfig:
-    """Everything that defines a JPDA tracker; plain numbers, TOML-friendly.
-
-    Attributes
-    ----------
-    dim : 2 or 3, spatial dimension; measurements are positions ``[x, y(, z)]``.
-    motion : ``"cv"`` (nearly constant velocity) or ``"ca"`` (constant acceleration).
-    process_noise : q of the motion model (m²/s³ for CV, m²/s⁵ for CA).
-    measurement_noise : σ² of each position coordinate (R = σ² I), for
-        ``sensor="position"``.
-    sensor : ``"position"`` (linear, measurements ``[x, y(, z)]``) or
-        ``"range-bearing"`` (2-D only; measurements ``[r, θ]`` from a sensor at
-        ``sensor_position``, EKF with the bearing residual wrapped to (−π, π]).
-    sensor_position : position of the range–bearing sensor.
-    range_noise, bearing_noise : σ_r² (m²) and σ_θ² (rad²) of the range–bearing
-        sensor; ``clutter_density`` is then per unit of range × bearing.
-    p_d : detection probability P_D.
-    p_g : gate probability P_G (chi-square gate γ = χ²_d⁻¹(P_G)).
-    clutter_density : λ, false returns per unit volume; ``None`` estimates it per
-        cluster by Bojilov's heuristic (8), λ = Σ m_i / Σ V_i.
-    association : method for clusters within budget (``"exact"`` by default).
-    exact_max_tracks : clusters with more tracks than this use ``approximation``
-        (logged as a warning with the cluster size).
-    approximation : ``"lbp"``, ``"mcmc"``, ``"kbest"`` or ``"pda"``.
-    initiation : ``"two-point"`` (velocity from two unassociated returns of
-        consecutive scans no further apart than ``max_speed·dt``) or
-        ``"one-point"`` (zero velocity, σ_v = max_speed/2).
-    max_speed : largest target speed, m/s.
-    max_acceleration : largest target acceleration, m/s² (initial acceleration
-        uncertainty σ_a = max_acceleration/2 of constant-acceleration tracks).
-    confirm_m, confirm_n : M-of-N confirmation (hits = scans with a gated return).
-    delete_misses : consecutive scans without a gated return that delete a
-        confirmed track.
-    max_position_std : delete a track whose position standard deviation
-        √(tr P_pos / dim) exceeds this (covariance growth).
-    existence : use JIPDA existence probabilities (default) instead of M-of-N
-        logic; M-of-N confirms nearly every clutter-born track once gates hold
-        about one false return each.
-    p_survive : probability that a target survives one scan (JIPDA).
-    r_init, r_confirm, r_delete : initial, confirmation and deletion thresholds
-        of the existence probability (JIPDA).
-    seed : seed of the random generator used by randomised approximations.
-    """
-
-    dim: int = 2
-    motion: str = "cv"
-    process_noise: float = 1.0
-    measurement_noise: float = 100.0
-    sensor: str = "position"
-    sensor_position: tuple = (0.0, 0.0)
-    range_noise: float = 25.0
-    bearing_noise: float = 1e-4
-    p_d: float = 0.9
-    p_g: float = 0.99
-    clutter_density: float | None = None
-    association: str = "exact"
-    exact_max_tracks: int = 16
-    approximation: str = "lbp"
-    initiation: str = "two-point"
-    max_speed: float = 50.0
-    max_acceleration: float = 10.0
-    confirm_m: int = 2
-    confirm_n: int = 3
-    delete_misses: int = 3
-    max_position_std: float = math.inf
-    existence: bool = True
-    p_survive: float = 0.99
-    r_init: float = 0.05
-    r_confirm: float = 0.9
-    r_delete: float = 0.01
-    seed: int | None = 0
-
-    def __post_init__(self):
-        def need(cond, msg):
-            if not cond:
-                raise ValueError(f"TrackerConfig: {msg}")
-
-        need(self.dim in (2, 3), f"dim must be 2 or 3, got {self.dim}")
-        need(
-            self.sensor in ("position", "range-bearing"),
-            f"sensor must be 'position' or 'range-bearing', got {self.sensor!r}",
-        )
-        need(self.sensor == "position" or self.dim == 2, "the range-bearing sensor is 2-D")
-        try:
-            pos = tuple(float(v) for v in self.sensor_position)
-        except (TypeError, ValueError):
-            pos = ()
-        need(len(pos) == 2 and all(map(math.isfinite, pos)), "sensor_position must be (x, y)")
-        object.__setattr__(self, "sensor_position", pos)
-        need(self.motion in ("cv", "ca"), f"motion must be 'cv' or 'ca', got {self.motion!r}")
-        for name in (
-            "process_noise",
-            "measurement_noise",
-            "max_speed",
-            "max_acceleration",
-            "range_noise",
-            "bearing_noise",
-        ):
-            v = getattr(self, name)
-            need(math.isfinite(v) and v > 0, f"{name} must be positive and finite, got {v}")
-        for name in ("p_d", "p_g", "p_survive"):
-            v = getattr(self, name)
-            need(0 < v <= 1 and (name != "p_g" or v < 1), f"{name} must lie in (0, 1], got {v}")
-        if self.clutter_density is not None:
-            c = self.clutter_density
-            need(math.isfinite(c) and c > 0, f"clutter_density must be positive, got {c}")
-        from jointtrack.association.core import METHODS
-
-        need(self.association in METHODS, f"association must be one of {METHODS}")
-        need(
-            self.approximation in ("lbp", "mcmc", "kbest", "pda"),
-            f"approximation must be lbp, mcmc, kbest or pda, got {self.approximation!r}",
-        )
-        need(self.exact_max_tracks >= 1, "exact_max_tracks must be ≥ 1")
-        need(self.initiation in ("two-point", "one-point"), "initiation: two-point|one-point")
-        need(1 <= self.confirm_m <= self.confirm_n <= 30, "need 1 ≤ confirm_m ≤ confirm_n ≤ 30")
-        need(self.delete_misses >= 1, "delete_misses must be ≥ 1")
-        need(self.max_position_std > 0, "max_position_std must be positive")
-        need(0 < self.r_delete < self.r_init < 1, "need 0 < r_delete < r_init < 1")
-        need(self.r_delete < self.r_confirm <= 1, "need r_delete < r_confirm ≤ 1")
-
-    @classmethod
-    def from_dict(cls, d: dict) -> TrackerConfig:
-        """Build from a (TOML) mapping; unknown keys are an error naming them."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(
-                f"unknown tracker setting(s): {', '.join(unknown)}; "
-                f"known: {', '.join(sorted(known))}"
-            )
-        return cls(**d)
-
-    def to_dict(self) -> dict:
-        return asdict(self)
 
 
 @dataclass(frozen=True)
@@ -275,7 +142,20 @@ class JPDATracker:
 
     # ------------------------------------------------------------------ scan
     def step(self, t: float, z) -> ScanResult:
-        """Process the measurements ``z`` (M, dim) taken at time ``t``."""
+        """Process the measurements ``z`` (M, dim) taken at time ``t``.
+
+        Atomic: if any stage raises (bad input, a failing model, an interrupt),
+        the tracker is left exactly as it was before the call and the
+        exception propagates, so the same scan can be retried.
+        """
+        saved = self.state_dict()
+        try:
+            return self._step(t, z)
+        except BaseException:
+            self._restore(saved)
+            raise
+
+    def _step(self, t: float, z) -> ScanResult:
         c = self.config
         t = float(t)
         if not math.isfinite(t):
@@ -373,7 +253,7 @@ class JPDATracker:
                 if len(cl.measurements):
                     lam[cl.measurements] = m_i[cl.tracks].sum() / g.gate_volume[cl.tracks].sum()
         r = self.existence[tracks] if c.existence else np.ones(n)
-        pdg = c.p_d * c.p_g
+        pdg = c.detection_in_gate()
         with np.errstate(under="ignore", divide="ignore"):
             L = np.where(mask, np.exp(np.log(c.p_d * r)[:, None] + g.log_g - np.log(lam)), 0.0)
         miss = 1.0 - r * pdg
@@ -406,7 +286,23 @@ class JPDATracker:
             if method == "mcmc":
                 opts["rng"] = self.rng
             t0 = _time.perf_counter()
-            bc = marginals(Lc, mc, method=method, **opts)
+            try:
+                bc = marginals(Lc, mc, method=method, **opts)
+            except ExactLimitError as exc:
+                # within exact_max_tracks but beyond the exact engine's state or
+                # memory budget: the configured approximation, counted per cluster
+                fallback = c.approximation
+                (log.warning if loud else log.debug)(
+                    "exact association refused a cluster of %d tracks and %d measurements "
+                    "(%s): using %s",
+                    len(tr),
+                    len(ms),
+                    exc,
+                    fallback,
+                )
+                opts = {"rng": self.rng} if fallback == "mcmc" else {}
+                bc = marginals(Lc, mc, method=fallback, **opts)
+                method = fallback
             seconds.append(_time.perf_counter() - t0)
             sizes.append((len(tr), len(ms)))
             methods.append(method)
@@ -542,8 +438,7 @@ class JPDATracker:
         return self._append(x0, P0, confirmed=confirmed, existence=existence)
 
     # ------------------------------------------------------------ save/load
-    _FIELDS = (
-        "time",
+    _ARRAYS = (
         "x",
         "P",
         "ids",
@@ -554,51 +449,66 @@ class JPDATracker:
         "existence",
         "seeds",
         "seed_covs",
-        "next_id",
-        "n_scans",
     )
+    _SCALARS = ("time", "next_id", "n_scans")
 
     def state_dict(self) -> dict:
-        """Everything needed to continue the run identically (plain types and arrays)."""
-        state = {name: getattr(self, name) for name in self._FIELDS}
+        """Everything needed to continue the run identically (copies of plain types and arrays)."""
+        state = {name: np.array(getattr(self, name), copy=True) for name in self._ARRAYS}
+        state.update({name: getattr(self, name) for name in self._SCALARS})
         state["config"] = self.config.to_dict()
         state["rng"] = self.rng.bit_generator.state
-        state["version"] = _STATE_VERSION
         return state
 
-    @classmethod
-    def from_state_dict(cls, state: dict) -> JPDATracker:
-        if state.get("version") != _STATE_VERSION:
-            raise ValueError(
-                f"tracker state version {state.get('version')!r} is not supported "
-                f"(this jointtrack writes version {_STATE_VERSION})"
-            )
-        trk = cls(TrackerConfig.from_dict(state["config"]))
-        for name in cls._FIELDS:
-            setattr(trk, name, state[name])
-        trk.rng.bit_generator.state = state["rng"]
-        return trk
+    def _restore(self, state: dict) -> None:
+        """Put back a :meth:`state_dict` (used by :meth:`step` when a stage fails)."""
+        for name in self._ARRAYS:
+            setattr(self, name, state[name])
+        for name in self._SCALARS:
+            setattr(self, name, state[name])
+        self.rng.bit_generator.state = state["rng"]
 
     def save(self, path) -> Path:
-        """Write the tracker state to ``path`` (pickle of plain arrays; atomic replace)."""
-        path = Path(path)
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        with open(tmp, "wb") as fh:
-            pickle.dump(self.state_dict(), fh, protocol=pickle.HIGHEST_PROTOCOL)
-        tmp.replace(path)
-        return path
+        """Write the tracker state to ``path`` (see :mod:`jointtrack.trackers.state_io`).
+
+        A versioned, checksummed ``.npz`` archive of plain arrays with a JSON
+        header, written atomically (temporary file, fsync, rename); never pickle.
+        """
+        scalars = {
+            "time": None if self.time is None else float(self.time),
+            "next_id": int(self.next_id),
+            "n_scans": int(self.n_scans),
+        }
+        arrays = {name: getattr(self, name) for name in self._ARRAYS}
+        return write_state(
+            path, arrays, self.config.to_dict(), scalars, self.rng.bit_generator.state
+        )
 
     @classmethod
     def load(cls, path) -> JPDATracker:
-        """Restore a tracker written by :meth:`save`; the run continues identically."""
-        path = Path(path)
+        """Restore a tracker written by :meth:`save`; the run continues identically.
+
+        Raises
+        ------
+        ValueError
+            (:class:`~jointtrack.trackers.state_io.StateFileError`) for a missing,
+            damaged, truncated, foreign, wrong-version or pickle file, or values
+            that a tracker cannot hold; the message names the file and the problem.
+        """
+        arrays, config, scalars, rng = read_state(path)
         try:
-            with open(path, "rb") as fh:
-                state = pickle.load(fh)
-        except FileNotFoundError:
-            raise ValueError(f"{path}: no such tracker state file") from None
-        except (pickle.UnpicklingError, EOFError, AttributeError, ImportError) as exc:
-            raise ValueError(f"{path}: not a jointtrack tracker state file ({exc})") from None
-        if not isinstance(state, dict) or "config" not in state:
-            raise ValueError(f"{path}: not a jointtrack tracker state file")
-        return cls.from_state_dict(state)
+            cfg = TrackerConfig.from_dict(config)
+        except (TypeError, ValueError) as exc:
+            raise StateFileError(f"{path}: invalid tracker configuration ({exc})") from None
+        trk = cls(cfg)
+        validate_tracker_arrays(path, arrays, scalars, trk._motion.state_dim, cfg.dim)
+        for name in cls._ARRAYS:
+            setattr(trk, name, arrays[name])
+        trk.time = scalars["time"]
+        trk.next_id = scalars["next_id"]
+        trk.n_scans = scalars["n_scans"]
+        try:
+            trk.rng.bit_generator.state = rng
+        except (TypeError, ValueError, KeyError) as exc:
+            raise StateFileError(f"{path}: invalid random-generator state ({exc})") from None
+        return trk

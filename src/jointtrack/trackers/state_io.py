@@ -1,0 +1,227 @@
+"""Tracker state files: versioned, checksummed, validated, never pickle.
+
+A state file is a NumPy ``.npz`` archive (a zip of ``.npy`` arrays, read with
+``allow_pickle=False``) holding the tracker's arrays and one more array,
+``__header__``, with a UTF-8 JSON header::
+
+    {"format": "jointtrack-tracker-state", "version": 3,
+     "sha256": "<hex digest of the payload>", "config": {...},
+     "scalars": {"time": ..., "next_id": ..., "n_scans": ...},
+     "rng": {... numpy bit-generator state ...}}
+
+The SHA-256 covers the header (without the digest) and every array's name,
+dtype, shape and bytes, so any damaged byte is detected. Loading never runs
+code: a pickle checkpoint of an older jointtrack is refused with a message that
+says why. Every damaged, truncated, foreign or wrong-version file gives one
+:class:`ValueError` naming the file and what is wrong, and the values are
+checked (shapes, finiteness, symmetric positive-definite covariances,
+probabilities in [0, 1], unique ids). Saving writes a temporary file beside the
+target, flushes it to disk and renames it over the target (atomic on POSIX).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["FORMAT", "VERSION", "StateFileError", "read_state", "write_state"]
+
+FORMAT = "jointtrack-tracker-state"
+VERSION = 3
+_PICKLE_MAGIC = b"\x80"
+_ZIP_MAGIC = b"PK\x03\x04"
+#: Largest array member accepted (a tracker with a million tracks is ~100 MB).
+_MAX_MEMBER_BYTES = 2**31
+
+
+class StateFileError(ValueError):
+    """A tracker state file that cannot be used (the message names the file)."""
+
+
+def _digest(header: dict, arrays: dict[str, np.ndarray]) -> str:
+    h = hashlib.sha256()
+    h.update(json.dumps(header, sort_keys=True, separators=(",", ":")).encode())
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def write_state(path, arrays: dict[str, np.ndarray], config: dict, scalars: dict, rng: dict):
+    """Write a state file atomically; returns the path."""
+    path = Path(path)
+    arrays = {k: np.ascontiguousarray(v) for k, v in arrays.items()}
+    for k, v in arrays.items():
+        if v.dtype.kind not in "biuf":
+            raise TypeError(f"state array {k!r} has dtype {v.dtype}; only plain numbers are saved")
+    header = {
+        "format": FORMAT,
+        "version": VERSION,
+        "config": config,
+        "scalars": scalars,
+        "rng": rng,
+    }
+    header["sha256"] = _digest(header, arrays)
+    blob = np.frombuffer(json.dumps(header).encode("utf-8"), dtype=np.uint8)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as fh:
+        np.savez(fh, __header__=blob, **arrays)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+    try:  # make the rename itself durable
+        fd = os.open(path.parent, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except OSError:
+        pass
+    return path
+
+
+def read_state(path) -> tuple[dict[str, np.ndarray], dict, dict, dict]:
+    """Read and verify a state file: ``(arrays, config, scalars, rng)``.
+
+    Raises :class:`StateFileError` (a ValueError) for anything but an intact
+    file of this format and version. Value checks beyond the checksum are the
+    tracker's (:func:`validate_tracker_arrays`).
+    """
+    path = Path(path)
+
+    def bad(what: str) -> StateFileError:
+        return StateFileError(f"{path}: {what}")
+
+    try:
+        with open(path, "rb") as fh:
+            magic = fh.read(4)
+    except FileNotFoundError:
+        raise bad("no such tracker state file") from None
+    except OSError as exc:
+        raise bad(f"cannot be read ({exc.strerror or exc})") from None
+    if magic[:1] == _PICKLE_MAGIC:
+        raise bad(
+            "is a pickle checkpoint of an older jointtrack; pickle files can run arbitrary "
+            "code when loaded, so they are refused — start the run again to write a "
+            f"{FORMAT} file"
+        )
+    if magic != _ZIP_MAGIC:
+        raise bad(f"not a jointtrack tracker state file (no {FORMAT} archive)")
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                if info.file_size > _MAX_MEMBER_BYTES:
+                    raise bad(f"member {info.filename} claims {info.file_size} bytes: damaged")
+        with np.load(path, allow_pickle=False) as npz:
+            names = list(npz.files)
+            if "__header__" not in names:
+                raise bad(f"not a {FORMAT} file (no header)")
+            arrays = {k: npz[k] for k in names}
+    except StateFileError:
+        raise
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError, MemoryError) as exc:
+        raise bad(f"damaged or truncated state file ({type(exc).__name__}: {exc})") from None
+    except Exception as exc:  # zlib.error and friends: never a raw traceback
+        raise bad(f"damaged state file ({type(exc).__name__}: {exc})") from None
+    blob = arrays.pop("__header__")
+    if blob.dtype != np.uint8 or blob.ndim != 1:
+        raise bad("damaged header")
+    try:
+        header = json.loads(blob.tobytes().decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise bad(f"damaged header ({exc})") from None
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        raise bad(f"not a {FORMAT} file")
+    if header.get("version") != VERSION:
+        raise bad(
+            f"state format version {header.get('version')!r} is not supported "
+            f"(this jointtrack reads and writes version {VERSION})"
+        )
+    digest = header.pop("sha256", None)
+    if not isinstance(digest, str) or digest != _digest(header, arrays):
+        raise bad("checksum mismatch: the file is damaged or was edited")
+    for key in ("config", "scalars", "rng"):
+        if not isinstance(header.get(key), dict):
+            raise bad(f"header has no {key}")
+    return arrays, header["config"], header["scalars"], header["rng"]
+
+
+def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, dim: int) -> None:
+    """Check shapes, dtypes and values of a tracker's arrays; StateFileError naming the field."""
+
+    def bad(what: str) -> StateFileError:
+        return StateFileError(f"{path}: {what}")
+
+    spec = {
+        "x": ("f", 2),
+        "P": ("f", 3),
+        "ids": ("i", 1),
+        "confirmed": ("b", 1),
+        "history": ("i", 1),
+        "age": ("i", 1),
+        "misses": ("i", 1),
+        "existence": ("f", 1),
+        "seeds": ("f", 2),
+        "seed_covs": ("f", 3),
+    }
+    for name, (kind, ndim) in spec.items():
+        if name not in arrays:
+            raise bad(f"missing field {name!r}")
+        a = arrays[name]
+        if a.dtype.kind != kind or a.ndim != ndim:
+            raise bad(f"field {name!r} has dtype {a.dtype} and {a.ndim} dimension(s)")
+        if kind == "f" and not np.isfinite(a).all():
+            raise bad(f"field {name!r} has non-finite values")
+    N = arrays["x"].shape[0]
+    if arrays["x"].shape != (N, state_dim):
+        raise bad(f"field 'x' has shape {arrays['x'].shape}, expected (N, {state_dim})")
+    if arrays["P"].shape != (N, state_dim, state_dim):
+        raise bad(
+            f"field 'P' has shape {arrays['P'].shape}, expected ({N}, {state_dim}, {state_dim})"
+        )
+    for name in ("ids", "confirmed", "history", "age", "misses", "existence"):
+        if arrays[name].shape != (N,):
+            raise bad(f"field {name!r} has shape {arrays[name].shape}, expected ({N},)")
+    k = arrays["seeds"].shape[0]
+    if arrays["seeds"].shape != (k, dim) or arrays["seed_covs"].shape != (k, dim, dim):
+        raise bad("fields 'seeds'/'seed_covs' have inconsistent shapes")
+    for name in ("P", "seed_covs"):
+        cov = arrays[name]
+        if len(cov):
+            asym = np.abs(cov - cov.transpose(0, 2, 1)).max()
+            scale = np.abs(cov).max()
+            if asym > 1e-9 * max(scale, 1e-300):
+                raise bad(f"field {name!r} holds a covariance that is not symmetric")
+            try:
+                np.linalg.cholesky(cov)
+            except np.linalg.LinAlgError:
+                raise bad(
+                    f"field {name!r} holds a covariance that is not positive definite"
+                ) from None
+    ex = arrays["existence"]
+    if ((ex < 0) | (ex > 1)).any():
+        raise bad("field 'existence' has values outside [0, 1]")
+    ids = arrays["ids"]
+    if (ids < 1).any() or len(np.unique(ids)) != N:
+        raise bad("field 'ids' must hold distinct positive track ids")
+    for name in ("history", "age", "misses"):
+        if (arrays[name] < 0).any():
+            raise bad(f"field {name!r} has negative values")
+    for name in ("next_id", "n_scans"):
+        v = scalars.get(name)
+        if not isinstance(v, int) or isinstance(v, bool) or v < 0:
+            raise bad(f"scalar {name!r} must be a non-negative integer, got {v!r}")
+    if N and scalars["next_id"] <= int(ids.max()):
+        raise bad("scalar 'next_id' is not above every track id")
+    t = scalars.get("time")
+    if t is not None and (
+        not isinstance(t, int | float) or isinstance(t, bool) or not math.isfinite(t)
+    ):
+        raise bad(f"scalar 'time' must be a finite number or null, got {t!r}")
