@@ -556,3 +556,105 @@ def test_empty_batch():
     assert update(x, P, np.zeros((0, 2)), lp.H, lp.R)[1].shape == (0, 4, 4)
     assert pda_update(x, P, np.ones((3, 2)), lp.H, lp.R, np.zeros((0, 4)))[0].shape == (0, 4)
     assert log_likelihood(np.zeros((0, 2)), np.zeros((0, 2, 2))).shape == (0,)
+
+
+# ----------------------------------------------------------------------------- long gaps
+
+
+def _assert_sym_pd(P):
+    """Symmetric (to 1e-12 relative) and positive definite: Cholesky succeeds."""
+    P = np.asarray(P)
+    assert np.isfinite(P).all()
+    asym = np.abs(P - np.swapaxes(P, -1, -2)).max()
+    assert asym <= 1e-12 * np.abs(P).max()
+    np.linalg.cholesky(P)  # raises LinAlgError if not positive definite
+
+
+@st.composite
+def _spd_matrices(draw, n):
+    """Random SPD matrix from drawn entries: D (A Aᵀ + δ I) D with mixed unit scales."""
+    a = draw(st.lists(st.floats(-3.0, 3.0), min_size=n * n, max_size=n * n))
+    A = np.array(a).reshape(n, n)
+    delta = 10.0 ** draw(st.floats(-3.0, 0.0))
+    d = 10.0 ** np.array(draw(st.lists(st.floats(-2.0, 3.0), min_size=n, max_size=n)))
+    C = A @ A.T + delta * np.eye(n)
+    return d[:, None] * C * d[None, :]
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    data=st.data(),
+    accel=st.booleans(),
+    dim=st.sampled_from([2, 3]),
+    log_dt=st.floats(-6.0, 12.0),
+    q=st.one_of(st.just(0.0), st.floats(-3.0, 2.0).map(lambda e: 10.0**e)),
+    log_r=st.floats(-2.0, 4.0),
+)
+def test_long_gap_predict_update_stays_positive_definite(data, accel, dim, log_dt, q, log_r):
+    """Any dt from 1e-6 to 1e12, CV and CA, 2-D and 3-D, random SPD P: the prediction,
+    the Kalman update and the PDA update are symmetric positive definite."""
+    from jointtrack.models import ConstantAcceleration
+
+    model = (ConstantAcceleration if accel else ConstantVelocity)(dim, q)
+    n = model.state_dim
+    P = data.draw(_spd_matrices(n), label="P")
+    dt = 10.0**log_dt
+    x = np.zeros(n)
+    xp, Pp = predict(x, P, model.transition(dt), model.noise(dt))
+    _assert_sym_pd(Pp)
+    sensor = LinearPosition(dim, 10.0**log_r, state_dim=n)
+    z = sensor.H @ xp + 1.0
+    _, Pu = update(xp, Pp, z, sensor.H, sensor.R)
+    _assert_sym_pd(Pu)
+    zs = np.array([z, z - 3.0, z + 5.0])
+    _, Pa = pda_update(xp, Pp, zs, sensor.H, sensor.R, [0.2, 0.5, 0.2, 0.1])
+    _assert_sym_pd(Pa)
+
+
+def test_long_gap_tracker_sequence_regression():
+    """NCV 2-D track, P0 = diag(100, 100, 25, 25), a gap of 1e8 s, one position update
+    (R = 100 I): the prediction and both updates factorise by Cholesky — also without
+    process noise, where F P Fᵀ is singular to working precision."""
+    P0 = np.diag([100.0, 100.0, 25.0, 25.0])
+    x0 = np.array([0.0, 0.0, 10.0, -5.0])
+    H, R = np.eye(2, 4), 100.0 * np.eye(2)
+    for q in (0.0, 0.05, 1.0):
+        for dt in (1e8, 1e10, 1e12):
+            model = ConstantVelocity(2, q)
+            xp, Pp = predict(x0, P0, model.transition(dt), model.noise(dt))
+            _assert_sym_pd(Pp)
+            z = xp[:2] + 7.0
+            xu, Pu = update(xp, Pp, z, H, R)
+            _assert_sym_pd(Pu)
+            assert np.all(np.diag(Pu)[:2] <= np.diag(Pp)[:2])
+            _, Pa = pda_update(xp, Pp, np.array([z, z + 20.0]), H, R, [0.1, 0.6, 0.3])
+            _assert_sym_pd(Pa)
+            # the next scan (dt = 1 s) keeps it positive definite too
+            _, P2 = predict(xu, Pu, model.transition(1.0), model.noise(1.0))
+            _assert_sym_pd(update(xu, P2, z, H, R)[1])
+
+
+def test_long_gap_batched_tracks_positive_definite():
+    """Batched predict + PDA update with a mix of scan intervals 1 s … 1e12 s and q = 0."""
+    rng = np.random.default_rng(5)
+    N, M = 40, 6
+    model = ConstantVelocity(2, 0.0)
+    x = rng.standard_normal((N, 4))
+    P = np.array([_spd(rng, 4, 10.0) for _ in range(N)])
+    dts = 10.0 ** rng.uniform(0, 12, N)
+    xp, Pp = predict(x, P, model.transition(dts), model.noise(dts))
+    _assert_sym_pd(Pp)
+    H, R = np.eye(2, 4), 100.0 * np.eye(2)
+    z = 30.0 * rng.standard_normal((M, 2))
+    beta = np.array([_random_beta(rng, M) for _ in range(N)])
+    _, Pu = pda_update(xp, Pp, z, H, R, beta)
+    _assert_sym_pd(Pu)
+
+
+def test_predict_overflow_names_the_time_step():
+    model = ConstantVelocity(2, 1.0)
+    with pytest.raises(ValueError, match=r"time step dt = 1e\+300 is too large.*largest usable dt"):
+        model.noise(1e300)
+    F = model.transition(1e200)  # F is finite, but F P Fᵀ is not
+    with pytest.raises(ValueError, match=r"predicted covariance overflows.*dt"):
+        predict(np.zeros(4), np.eye(4), F, np.zeros((4, 4)))

@@ -262,3 +262,35 @@ def test_residual_wraps_bearing_across_pi():
     zp = np.array([10.5, np.pi - 0.02])
     np.testing.assert_allclose(rb.residual(z, zp), [-0.5, 0.03], atol=1e-12)
     np.testing.assert_allclose(rb.residual(zp, z), [0.5, -0.03], atol=1e-12)
+
+
+@pytest.mark.parametrize("accel", [False, True])
+@pytest.mark.parametrize("q", [0.0, 1e-300, 0.05, 1.0, 1e300])
+def test_max_dt_is_the_overflow_limit(accel, q):
+    """F, Q finite up to and including max_dt; one float beyond it raises a ValueError
+    naming dt and the limit (NCV: q Δt³/3 overflows; CA: q Δt⁵/20 or Δt²/2)."""
+    model = (ConstantAcceleration if accel else ConstantVelocity)(2, q)
+    dt = model.max_dt
+    assert 0 < dt < np.inf
+    with np.errstate(all="raise"):
+        assert np.isfinite(model.transition(dt)).all()
+        assert np.isfinite(model.noise(dt)).all()
+        assert np.isfinite(model.noise(np.array([1.0, dt]))).all()
+    if q > 0:  # the Q limit, from the logarithm of the largest entry
+        k, c = (5, 20.0) if accel else (3, 3.0)
+        expect = np.exp((np.log(np.finfo(float).max) + np.log(c) - np.log(q)) / k)
+        if not accel or expect < np.sqrt(2.0) * np.sqrt(np.finfo(float).max):
+            np.testing.assert_allclose(dt, expect, rtol=1e-12)
+    beyond = np.nextafter(dt, np.inf)
+    if np.isfinite(beyond):
+        with pytest.raises(ValueError, match=r"dt = .* too large.*beyond dt = .*largest usable dt"):
+            model.transition(beyond) if q == 0 else model.noise(beyond)
+
+
+def test_huge_dt_message_names_dt_and_limit():
+    with pytest.raises(ValueError, match=r"dt = 1e\+300 .*beyond dt = 8\.1397.*e\+102"):
+        ConstantVelocity(2, 1.0).noise(1e300)
+    with pytest.raises(ValueError, match=r"dt\[1\] \(track 1\) = 1e\+300.*beyond dt = 1\.89615e\+154"):
+        ConstantAcceleration(3, 1.0).transition([1.0, 1e300])
+    with pytest.raises(ValueError, match=r"constant-acceleration process noise Q.*q = 1"):
+        ConstantAcceleration(3, 1.0).noise(1e100)

@@ -177,7 +177,7 @@ def test_byte_flips_are_refused_or_harmless(good_state, tmp_path):
     data = bytearray(path.read_bytes())
     rng = np.random.default_rng(0)
     refused = 0
-    for i in range(300):
+    for _ in range(300):
         flipped = bytearray(data)
         for pos in rng.integers(0, len(data), size=rng.integers(1, 4)):
             flipped[pos] ^= int(rng.integers(1, 256))
@@ -323,7 +323,7 @@ def test_pickle_that_runs_code_is_refused_and_nothing_runs(tmp_path):
     exploit.marker = marker
     bad = tmp_path / "evil.npz"
     bad.write_bytes(pickle.dumps({"config": {}, "payload": exploit}))
-    with pytest.raises(ValueError, match="pickle"):
+    with pytest.raises(StateFileError, match="pickle"):
         JPDATracker.load(bad)
     assert not marker.exists()
 

@@ -9,7 +9,8 @@ Workloads (seeded ``numpy.random.default_rng``)
 -----------------------------------------------
 * **uniform** ``rng.random((n, n))``, n = 16…26 (quick: 16, 18, 20): our
   :func:`~jointtrack.permanent.permanent` (``method="auto"``) against
-  ``thewalrus.perm`` (its default, ``"bbfg"``). Relative errors are against the
+  ``thewalrus.perm`` (its default, ``"bbfg"``), both timed on one core
+  (``numba.set_num_threads(1)``: both Glynn kernels are numba-parallel). Relative errors are against the
   exact rational :func:`~jointtrack.permanent.reference.reference_permanent`
   for n ≤ 20; for n ≥ 22 that is too slow and the reference is the frontier DP
   (``assignment_sum(A, marginals=False, method="frontier", parallel=True)``;
@@ -250,6 +251,7 @@ def _fibonacci(m: int) -> int:
 
 
 def _uniform(console, quick: bool, tw_perm) -> list[dict]:
+    import numba
     from rich.table import Table
 
     from jointtrack.permanent import permanent
@@ -262,7 +264,14 @@ def _uniform(console, quick: bool, tw_perm) -> list[dict]:
         fns = {"ours": lambda A=A: permanent(A)}
         if tw_perm is not None:
             fns["thewalrus"] = lambda A=A: tw_perm(A)
-        med, vals, reps = _interleaved(fns, budget=1.0 if quick else 4.0)
+        # one core each: both Glynn kernels (ours, thewalrus') are numba-parallel, and
+        # on a shared 2-core machine a static split over threads waits for the slowest
+        threads = numba.get_num_threads()
+        numba.set_num_threads(1)
+        try:
+            med, vals, reps = _interleaved(fns, budget=1.0 if quick else 4.0)
+        finally:
+            numba.set_num_threads(threads)
         if n <= 20:
             ref, ref_kind = reference_permanent(A), "exact rational"
         else:
@@ -288,7 +297,8 @@ def _uniform(console, quick: bool, tw_perm) -> list[dict]:
         rows.append(row)
 
     table = Table(
-        title="Uniform rng.random((n, n)): permanent, median wall time",
+        title="Uniform rng.random((n, n)): permanent, median wall time, one core "
+        "(numba.set_num_threads(1) for both)",
         caption="reference: exact rational arithmetic for n ≤ 20; for n ≥ 22 the frontier "
         "DP's value (assignment_sum(A, marginals=False, method='frontier', parallel=True); "
         "'auto' picks Glynn there, so the DP is an independent method) — all terms "

@@ -307,10 +307,93 @@ def _gain(P, H, R, batched: bool):
     return S, L, np.swapaxes(Kt, -1, -2)
 
 
+def _factor(P):
+    """A square-root factor W, W Wᵀ = P, of a stack (K, n, n) of symmetric PSD matrices.
+
+    Cholesky where it succeeds (always for the positive definite covariances the
+    filters return); for a singular P an eigen-factor of the correlation-scaled
+    matrix with the (rounding-level) negative eigenvalues clipped to zero.
+    """
+    try:
+        return np.linalg.cholesky(P)
+    except np.linalg.LinAlgError:
+        pass
+    W = np.empty_like(P)
+    for i in range(P.shape[0]):
+        try:
+            W[i] = np.linalg.cholesky(P[i])
+        except np.linalg.LinAlgError:
+            d = np.diagonal(P[i])
+            s = np.sqrt(np.where(d > 0, d, 1.0))
+            w, V = np.linalg.eigh(P[i] / (s[:, None] * s[None, :]))
+            W[i] = s[:, None] * V * np.sqrt(np.clip(w, 0.0, None))
+    return W
+
+
+def _ensure_pd(P):
+    """Return the symmetric stack P (K, n, n) with every matrix Cholesky-factorisable.
+
+    A covariance that is positive definite in exact arithmetic can fail Cholesky in
+    floating point when its correlation matrix is singular to working precision —
+    e.g. ``F P Fᵀ`` after a long gap without process noise, whose position-velocity
+    correlation is 1 − O(1/Δt²). Such a matrix gets the smallest diagonal loading
+    ``P + τ diag(P)``, ``τ = n·ε·4^k``, that factorises (a few units in the last
+    place of each variance: the filter's own rounding); a matrix whose correlation
+    matrix is indefinite beyond rounding is first projected onto the PD cone in
+    correlation coordinates. Matrices with a zero variance (legitimately singular,
+    e.g. a component known exactly) and matrices that already factorise are
+    returned unchanged, so this costs one batched Cholesky in the common case.
+    """
+    if P.shape[0] == 0:
+        return P
+    try:
+        np.linalg.cholesky(P)
+        return P
+    except np.linalg.LinAlgError:
+        pass
+    P = P.copy()
+    n = P.shape[-1]
+    for i in range(P.shape[0]):
+        try:
+            np.linalg.cholesky(P[i])
+            continue
+        except np.linalg.LinAlgError:
+            pass
+        d = np.diagonal(P[i]).copy()
+        if not (d > 0).all():
+            continue  # a zero variance: positive semi-definite by construction
+        s = np.sqrt(d)
+        C = _sym(P[i] / (s[:, None] * s[None, :]))
+        w, V = np.linalg.eigh(C)
+        floor = n * _EPS
+        if w[0] < -floor:  # indefinite beyond rounding: nearest PD correlation-space matrix
+            C = _sym((V * np.maximum(w, floor)) @ V.T)
+        tau = n * _EPS
+        while True:
+            Ci = C + tau * np.eye(n)
+            try:
+                np.linalg.cholesky(Ci)
+                break
+            except np.linalg.LinAlgError:
+                tau *= 4.0
+        P[i] = _sym(s[:, None] * Ci * s[None, :])
+    return P
+
+
 def _joseph(P, K, H, R):
-    """Joseph form (I − K H) P (I − K H)ᵀ + K R Kᵀ, symmetrised."""
+    """Joseph form (I − K H) P (I − K H)ᵀ + K R Kᵀ, symmetrised.
+
+    Evaluated as the Gram matrix ``W Wᵀ`` of ``W = [(I − K H) L_P, K L_R]`` with
+    ``L_P``, ``L_R`` square-root factors of P and R, so that it is positive
+    semi-definite up to rounding relative to its own diagonal even when P spans
+    many orders of magnitude (e.g. after a long prediction gap).
+    """
     A = np.eye(P.shape[-1]) - K @ H
-    return _sym(A @ P @ np.swapaxes(A, -1, -2) + K @ R @ np.swapaxes(K, -1, -2))
+    M = A @ _factor(P)
+    KL = K @ np.linalg.cholesky(R)
+    G = M @ np.ascontiguousarray(np.swapaxes(M, -1, -2))
+    G += KL @ np.ascontiguousarray(np.swapaxes(KL, -1, -2))
+    return _sym(G)
 
 
 # ----------------------------------------------------------------------------- public API
@@ -337,8 +420,19 @@ def predict(x, P, F, Q):
     F = _model_matrix(F, N, (n, n), "F", single)
     Q = _model_matrix(Q, N, (n, n), "Q", single, kind="psd")
     xp = _apply(F, x)
-    Pp = _congruence(F, P, Q)
-    return _out(xp, Pp, single)
+    # P⁻ = (F L)(F L)ᵀ + Q with P = L Lᵀ: a Gram matrix plus Q, so no cancellation
+    # in F P Fᵀ can make it indefinite (long gaps: F has entries Δt, Δt²/2).
+    with np.errstate(over="ignore", invalid="ignore"):
+        FL = F @ _factor(P)
+        Pp = _sym(FL @ np.ascontiguousarray(np.swapaxes(FL, -1, -2)) + Q)
+    if not (np.isfinite(Pp).all() and np.isfinite(xp).all()):
+        bad = ~(np.isfinite(Pp).all(axis=(1, 2)) & np.isfinite(xp).all(axis=1))
+        i = int(np.argmax(bad))
+        raise ValueError(
+            f"predicted {_who('covariance', i, not single)} overflows (non-finite entries): "
+            "the time step dt of F and Q is too large for this covariance"
+        )
+    return _out(xp, _ensure_pd(Pp), single)
 
 
 def predict_measurement(x, P, H, R):
@@ -408,7 +502,7 @@ def update(x, P, z, H, R):
 def _update_core(x, P, nu, H, R, single):
     _, _, K = _gain(P, H, R, not single)
     xu = x + np.einsum("kij,kj->ki", K, nu)
-    Pu = _joseph(P, K, H, R)
+    Pu = _ensure_pd(_joseph(P, K, H, R))
     return _out(xu, Pu, single)
 
 

@@ -32,6 +32,7 @@ import numpy as np
 from jointtrack.filters.kalman import (
     _apply,
     _arr,
+    _ensure_pd,
     _gain,
     _joseph,
     _linear_model,
@@ -108,7 +109,7 @@ def _pda_core(x, P, zhat, H, R, z, beta, residual, single):
     Pu = (
         b0[:, None, None] * P + (1.0 - b0)[:, None, None] * Pc + K @ spread @ np.swapaxes(K, -1, -2)
     )
-    return _out(xu, _sym(Pu), single)
+    return _out(xu, _ensure_pd(_sym(Pu)), single)
 
 
 def pda_update(x, P, z, H, R, beta):

@@ -88,6 +88,84 @@ def _check_q(q) -> float:
     return q
 
 
+_FMAX = float(np.finfo(np.float64).max)
+
+
+def _max_dt(order: int, q: float) -> float:
+    """Largest time step for which F(Δt) and Q(Δt) of a kinematic model are finite.
+
+    ``order`` 2 (CV) or 3 (CA). The binding entries are ``Δt`` (CV) or ``Δt²/2`` (CA)
+    of F and ``q Δt³/3`` (CV) or ``q Δt⁵/20`` (CA) of Q: solved in logarithms (no
+    overflow), then stepped down to the last float whose matrices are finite.
+    """
+    log_max = np.log(_FMAX)
+    limits = [log_max] if order == 2 else [0.5 * (log_max + np.log(2.0))]
+    if q > 0:
+        k, c = (3, 3.0) if order == 2 else (5, 20.0)
+        limits.append((log_max + np.log(c) - np.log(q)) / k)
+    dt = float(np.exp(min(min(limits), log_max)))
+    if not np.isfinite(dt):
+        dt = _FMAX
+    with np.errstate(over="ignore", invalid="ignore"):
+        for _ in range(64):
+            if np.isfinite(_blocks(order, np.asarray(dt), q)).all():
+                break
+            dt = float(dt * (1.0 - 4 * np.finfo(np.float64).eps))
+    return dt
+
+
+def _check_dt_range(dt: np.ndarray, order: int, q: float, what: str) -> None:
+    """Raise a ValueError naming dt if F or Q overflow for this model and q."""
+    dt_max = _max_dt(order, q)
+    big = dt > dt_max
+    if big.any():
+        model = "constant-velocity" if order == 2 else "constant-acceleration"
+        name = "dt" if dt.ndim == 0 else f"dt[{int(np.argmax(big))}] (track {int(np.argmax(big))})"
+        val = float(dt) if dt.ndim == 0 else float(dt[int(np.argmax(big))])
+        raise ValueError(
+            f"time step {name} = {val:.6g} is too large: the {model} {what} overflows "
+            f"(non-finite entries) beyond dt = {dt_max:.6g}, the largest usable dt for "
+            f"this model{'' if what.startswith('transition') else f' with q = {q:g}'}; "
+            "split the gap or re-initialise the track"
+        )
+
+
+def _blocks(order: int, dt: np.ndarray, q: float):
+    """One-axis (F, Q) blocks, evaluated so that no intermediate overflows before the
+    final entry does (products taken left to right, ``q`` first)."""
+    one, zero = np.ones_like(dt), np.zeros_like(dt)
+    if order == 2:
+        F = np.stack([np.stack([one, dt], -1), np.stack([zero, one], -1)], -2)
+        qd = q * dt
+        qd2 = qd * dt
+        Q = np.stack(
+            [np.stack([qd2 * (dt / 3.0), qd2 / 2.0], -1), np.stack([qd2 / 2.0, qd], -1)], -2
+        )
+        return F, Q
+    half2 = dt * (0.5 * dt)
+    F = np.stack(
+        [
+            np.stack([one, dt, half2], -1),
+            np.stack([zero, one, dt], -1),
+            np.stack([zero, zero, one], -1),
+        ],
+        -2,
+    )
+    qd = q * dt
+    qd2 = qd * dt
+    qd3 = qd2 * dt
+    qd4 = qd3 * dt
+    Q = np.stack(
+        [
+            np.stack([qd4 * (dt / 20.0), qd4 / 8.0, qd3 / 6.0], -1),
+            np.stack([qd4 / 8.0, qd3 / 3.0, qd2 / 2.0], -1),
+            np.stack([qd3 / 6.0, qd2 / 2.0, qd], -1),
+        ],
+        -2,
+    )
+    return F, Q
+
+
 def _kron_axes(block: np.ndarray, dim: int) -> np.ndarray:
     """``block ⊗ I_dim`` for a (k, k) or (N, k, k) one-axis block (blocked state layout)."""
     eye = np.eye(dim)
@@ -118,10 +196,8 @@ def cv_transition(dt, dim: int = 2) -> np.ndarray:
     """
     dim = _check_dim(dim)
     dt = _check_dt(dt)
-    one = np.ones_like(dt)
-    zero = np.zeros_like(dt)
-    block = np.stack([np.stack([one, dt], -1), np.stack([zero, one], -1)], -2)
-    return _kron_axes(block, dim)
+    _check_dt_range(dt, 2, 0.0, "transition matrix F")
+    return _kron_axes(_blocks(2, dt, 0.0)[0], dim)
 
 
 def cv_noise(dt, q: float = 1.0, dim: int = 2) -> np.ndarray:
@@ -151,9 +227,8 @@ def cv_noise(dt, q: float = 1.0, dim: int = 2) -> np.ndarray:
     dim = _check_dim(dim)
     dt = _check_dt(dt)
     q = _check_q(q)
-    d2, d3 = dt**2, dt**3
-    block = q * np.stack([np.stack([d3 / 3.0, d2 / 2.0], -1), np.stack([d2 / 2.0, dt], -1)], -2)
-    return _kron_axes(block, dim)
+    _check_dt_range(dt, 2, q, "process noise Q")
+    return _kron_axes(_blocks(2, dt, q)[1], dim)
 
 
 def ca_transition(dt, dim: int = 2) -> np.ndarray:
@@ -175,17 +250,8 @@ def ca_transition(dt, dim: int = 2) -> np.ndarray:
     """
     dim = _check_dim(dim)
     dt = _check_dt(dt)
-    one = np.ones_like(dt)
-    zero = np.zeros_like(dt)
-    block = np.stack(
-        [
-            np.stack([one, dt, dt**2 / 2.0], -1),
-            np.stack([zero, one, dt], -1),
-            np.stack([zero, zero, one], -1),
-        ],
-        -2,
-    )
-    return _kron_axes(block, dim)
+    _check_dt_range(dt, 3, 0.0, "transition matrix F")
+    return _kron_axes(_blocks(3, dt, 0.0)[0], dim)
 
 
 def ca_noise(dt, q: float = 1.0, dim: int = 2) -> np.ndarray:
@@ -216,16 +282,8 @@ def ca_noise(dt, q: float = 1.0, dim: int = 2) -> np.ndarray:
     dim = _check_dim(dim)
     dt = _check_dt(dt)
     q = _check_q(q)
-    d2, d3, d4, d5 = dt**2, dt**3, dt**4, dt**5
-    block = q * np.stack(
-        [
-            np.stack([d5 / 20.0, d4 / 8.0, d3 / 6.0], -1),
-            np.stack([d4 / 8.0, d3 / 3.0, d2 / 2.0], -1),
-            np.stack([d3 / 6.0, d2 / 2.0, dt], -1),
-        ],
-        -2,
-    )
-    return _kron_axes(block, dim)
+    _check_dt_range(dt, 3, q, "process noise Q")
+    return _kron_axes(_blocks(3, dt, q)[1], dim)
 
 
 @dataclass(frozen=True)
@@ -249,6 +307,14 @@ class _KinematicModel:
     def state_dim(self) -> int:
         """Length of the state vector, ``2·dim`` (velocity) or ``3·dim`` (acceleration)."""
         return self._order * self.dim
+
+    @property
+    def max_dt(self) -> float:
+        """Largest time step for which ``transition`` and ``noise`` are finite.
+
+        A larger ``dt`` raises ``ValueError`` (naming ``dt`` and this limit).
+        """
+        return _max_dt(self._order, self.q)
 
     @property
     def position_indices(self) -> np.ndarray:
