@@ -162,6 +162,11 @@ class LinearPosition:
         """Innovation ``z − z_pred`` (no angular components)."""
         return np.asarray(z, dtype=np.float64) - np.asarray(z_pred, dtype=np.float64)
 
+    def position_and_covariance(self, z) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (k, dim) of measurements ``z`` (k, dim) and their covariances R."""
+        z = np.asarray(z, dtype=np.float64).reshape(-1, self.dim)
+        return z.copy(), np.broadcast_to(self.R, (len(z), self.dim, self.dim)).copy()
+
 
 @dataclass(frozen=True, eq=False)
 class RangeBearing:
@@ -271,3 +276,16 @@ class RangeBearing:
             raise ValueError(f"z must have last dimension 2 (range, bearing), got {z.shape}")
         r, th = z[..., 0], z[..., 1]
         return self.sensor_position + np.stack([r * np.cos(th), r * np.sin(th)], axis=-1)
+
+    def position_and_covariance(self, z) -> tuple[np.ndarray, np.ndarray]:
+        """Cartesian positions (k, 2) of ``z`` (k, 2) and their covariances J R Jᵀ.
+
+        J = ∂(x, y)/∂(r, θ) = [[cos θ, −r sin θ], [sin θ, r cos θ]] (first-order
+        conversion, e.g. for track initiation).
+        """
+        z = np.asarray(z, dtype=np.float64).reshape(-1, 2)
+        r, th = z[:, 0], z[:, 1]
+        J = np.empty((len(z), 2, 2))
+        J[:, 0, 0], J[:, 0, 1] = np.cos(th), -r * np.sin(th)
+        J[:, 1, 0], J[:, 1, 1] = np.sin(th), r * np.cos(th)
+        return self.to_position(z), J @ self.R @ J.transpose(0, 2, 1)

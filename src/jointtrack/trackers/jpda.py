@@ -25,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 
-from jointtrack.assignment import linear_assignment
 from jointtrack.association import marginals
 from jointtrack.association.clustering import clusters
 from jointtrack.association.gating import gate_measurements
@@ -44,6 +43,7 @@ from jointtrack.models import (
     RangeBearing,
 )
 from jointtrack.trackers.config import TrackerConfig
+from jointtrack.trackers.initiation import pair_returns
 from jointtrack.trackers.state_io import (
     StateFileError,
     read_state,
@@ -109,21 +109,59 @@ class JPDATracker:
     ...     result = trk.step(t, z)        # confirmed tracks in result.ids / result.x
     """
 
-    def __init__(self, config: TrackerConfig | None = None, *, on_cluster=None):
-        """``on_cluster(record)`` (optional) is called with a :class:`ClusterRecord`
-        for every multi-track cluster; it is not part of the saved state."""
+    def __init__(
+        self,
+        config: TrackerConfig | None = None,
+        *,
+        motion=None,
+        sensor=None,
+        on_cluster=None,
+    ):
+        """Build a tracker from ``config`` and, optionally, model objects.
+
+        ``motion``: any object with ``state_dim``, ``transition(dt)`` and
+        ``noise(dt)`` (default: :class:`~jointtrack.models.ConstantVelocity` or
+        :class:`~jointtrack.models.ConstantAcceleration` from ``config.motion``).
+        ``sensor``: a linear model with an ``H`` matrix and ``R`` (default
+        :class:`~jointtrack.models.LinearPosition`), or a nonlinear one with
+        ``h``, ``jacobian``, ``residual`` and ``R`` (EKF; default
+        :class:`~jointtrack.models.RangeBearing` for ``config.sensor =
+        "range-bearing"``); for initiation it must also provide
+        ``position_and_covariance(z)``. ``on_cluster(record)`` (optional) is
+        called with a :class:`ClusterRecord` for every multi-track cluster; it
+        is not part of the saved state.
+        """
         self.config = config or TrackerConfig()
         self.on_cluster = on_cluster
         c = self.config
-        model = ConstantVelocity if c.motion == "cv" else ConstantAcceleration
-        self._motion = model(dim=c.dim, q=c.process_noise)
-        n = self._motion.state_dim
-        if c.sensor == "position":
-            self._sensor = LinearPosition(c.dim, c.measurement_noise, state_dim=n)
-        else:
-            self._sensor = RangeBearing(
-                [c.range_noise, c.bearing_noise], sensor_position=c.sensor_position, state_dim=n
+        if motion is None:
+            model = ConstantVelocity if c.motion == "cv" else ConstantAcceleration
+            motion = model(dim=c.dim, q=c.process_noise)
+        for attr in ("state_dim", "transition", "noise"):
+            if not hasattr(motion, attr):
+                raise ValueError(f"motion model {motion!r} has no {attr!r}")
+        self._motion = motion
+        n = int(motion.state_dim)
+        if n < 2 * c.dim:
+            raise ValueError(
+                f"motion model state_dim = {n} cannot hold position and velocity in {c.dim}-D"
             )
+        if sensor is None:
+            if c.sensor == "position":
+                sensor = LinearPosition(c.dim, c.measurement_noise, state_dim=n)
+            else:
+                sensor = RangeBearing(
+                    [c.range_noise, c.bearing_noise],
+                    sensor_position=c.sensor_position,
+                    state_dim=n,
+                )
+        self._linear = isinstance(getattr(sensor, "H", None), np.ndarray)
+        needed = ("H", "R") if self._linear else ("h", "jacobian", "residual", "R")
+        for attr in (*needed, "position_and_covariance"):
+            if not hasattr(sensor, attr):
+                raise ValueError(f"sensor model {sensor!r} has no {attr!r}")
+        self._sensor = sensor
+        self._mdim = int(np.asarray(sensor.R).shape[-1])
         self.rng = np.random.default_rng(c.seed)
         self.time: float | None = None
         self.x = np.zeros((0, n))
@@ -161,7 +199,7 @@ class JPDATracker:
         if not math.isfinite(t):
             raise ValueError(f"scan time must be finite, got {t}")
         z = np.asarray(z, dtype=float)
-        mdim = 2 if c.sensor == "range-bearing" else c.dim
+        mdim = self._mdim
         if z.size == 0:
             z = z.reshape(0, mdim)
         if z.ndim != 2 or z.shape[1] != mdim:
@@ -203,7 +241,7 @@ class JPDATracker:
             free = free[free_local]
         unassoc = free
         if N:
-            if c.sensor == "position":
+            if self._linear:
                 self.x, self.P = pda_update(self.x, self.P, z, self._sensor.H, self._sensor.R, beta)
             else:
                 self.x, self.P = pda_ekf_update(self.x, self.P, z, self._sensor, beta)
@@ -237,7 +275,7 @@ class JPDATracker:
         c = self.config
         n, M = len(tracks), len(z)
         x, P = self.x[tracks], self.P[tracks]
-        if c.sensor == "position":
+        if self._linear:
             z_pred, S = predict_measurement(x, P, self._sensor.H, self._sensor.R)
             g = gate_measurements(z_pred, S, z, P_G=c.p_g)
         else:
@@ -347,44 +385,25 @@ class JPDATracker:
         for name in ("x", "P", "ids", "confirmed", "history", "age", "misses", "existence"):
             setattr(self, name, getattr(self, name)[keep])
 
-    def _positions(self, z):
-        """Cartesian positions (k, d) and their covariances (k, d, d) of returns ``z``."""
-        c = self.config
-        if c.sensor == "position":
-            cov = np.broadcast_to(self._sensor.R, (len(z), c.dim, c.dim)).copy()
-            return z.copy(), cov
-        r, th = z[:, 0], z[:, 1]
-        J = np.empty((len(z), 2, 2))  # ∂(x, y)/∂(r, θ)
-        J[:, 0, 0], J[:, 0, 1] = np.cos(th), -r * np.sin(th)
-        J[:, 1, 0], J[:, 1, 1] = np.sin(th), r * np.cos(th)
-        return self._sensor.to_position(z), J @ self._sensor.R @ J.transpose(0, 2, 1)
-
     def _initiate(self, z_new, dt):
         """Start tentative tracks from returns no track claimed (two- or one-point)."""
         c = self.config
         n = self._motion.state_dim
         d = c.dim
-        pos, cov = self._positions(z_new)
+        pos, cov = self._sensor.position_and_covariance(z_new)
         if c.initiation == "one-point":
             vel = np.zeros_like(pos)
             cov_vv = np.broadcast_to(np.eye(d) * (c.max_speed / 2.0) ** 2, cov.shape).copy()
             cov_pv = np.zeros_like(cov)
             self.seeds, self.seed_covs = np.zeros((0, d)), np.zeros((0, d, d))
         elif dt is not None and len(self.seeds) and len(pos):
-            both = cov[:, None] + self.seed_covs[None, :]  # (new, seed, d, d)
-            dist = np.linalg.norm(pos[:, None, :] - self.seeds[None, :, :], axis=2)
-            spread = np.sqrt(np.trace(both, axis1=2, axis2=3))
-            cost = np.where(dist <= c.max_speed * dt + 3.0 * spread, dist, 1e12)
-            la = linear_assignment(cost)
-            rows, cols = la.rows, la.cols
-            ok = cost[rows, cols] < 1e12
-            rows, cols = rows[ok], cols[ok]
+            rows, cols = pair_returns(pos, cov, self.seeds, self.seed_covs, c.max_speed * dt)
             unused = np.ones(len(pos), bool)
             unused[rows] = False
             vel = (pos[rows] - self.seeds[cols]) / dt
-            self.seeds, self.seed_covs = pos[unused], cov[unused]
-            cov_vv = both[rows, cols] / dt**2
+            cov_vv = (cov[rows] + self.seed_covs[cols]) / dt**2
             cov_pv = cov[rows] / dt
+            self.seeds, self.seed_covs = pos[unused], cov[unused]
             pos, cov = pos[rows], cov[rows]
         else:
             self.seeds, self.seed_covs = pos, cov
