@@ -131,19 +131,38 @@ def group_dp(W, items, a, cap, t, marginals):
     for k in range(K):
         hi[k + 1] = min(hi[k] + 1, total_cap)
         lo[k + 1] = lo[k] if a[items[k]] > 0.0 else lo[k] + 1
+    # members with a zero unused weight must all be taken by the end, which
+    # bounds the window from below: |d| ≥ need − (items still to come)
+    need = 0
+    for q in range(g):
+        if t[q] == 0.0:
+            need += cap[q]
+    for k in range(K + 1):
+        lo[k] = max(lo[k], need - (K - k))
     item_null = np.zeros(K)
     item_take = np.zeros((K, g))
     unused = np.zeros(g)
+    for k in range(K + 1):
+        if lo[k] > hi[k]:
+            return -np.inf, item_null, item_take, unused
     if lo[K] > total_cap:
         return -np.inf, item_null, item_take, unused
-    nstore = K + 1 if marginals else 2
-    F = np.zeros((nstore, T))
+    # Two full-size rolling arrays do the arithmetic; with marginals each step's
+    # window is also kept, compactly (in layer order), for the backward pass —
+    # Σ_k |window_k| entries, which is T when every row must be assigned.
+    base = np.zeros(K + 2, np.int64)
+    for k in range(K + 1):
+        base[k + 1] = base[k] + offs[hi[k] + 1] - offs[lo[k]]
+    store = np.empty(base[K + 1] if marginals else 0)
+    F = np.zeros((2, T))
     fexp = np.zeros(K + 1, np.int64)
     F[0, 0] = 1.0
+    if marginals:
+        store[0] = 1.0
     for k in range(K):
         p = items[k]
-        x = F[k] if marginals else F[k % 2]
-        y = F[k + 1] if marginals else F[(k + 1) % 2]
+        x = F[k % 2]
+        y = F[(k + 1) % 2]
         ap = a[p]
         for idx in range(offs[lo[k + 1]], offs[hi[k + 1] + 1]):
             s = order[idx]
@@ -157,12 +176,15 @@ def group_dp(W, items, a, cap, t, marginals):
                     if w != 0.0:
                         acc += x[s - stride[q]] * w * (cap[q] - d + 1)
             y[s] = acc
-        if not marginals:
-            # states outside the new window must not leak into the next step
-            for idx in range(offs[lo[max(k - 1, 0)]], offs[lo[k + 1]]):
-                y[order[idx]] = 0.0
+        # states below the new window (stale from two steps back) must not leak
+        for idx in range(offs[lo[max(k - 1, 0)]], offs[lo[k + 1]]):
+            y[order[idx]] = 0.0
         fexp[k + 1] = fexp[k] + _normalise(y, order, offs[lo[k + 1]], offs[hi[k + 1] + 1])
-    FK = F[K] if marginals else F[K % 2]
+        if marginals:
+            o = offs[lo[k + 1]]
+            for idx in range(o, offs[hi[k + 1] + 1]):
+                store[base[k + 1] + idx - o] = y[order[idx]]
+    FK = F[K % 2]
     logT = _log_terminal(cap, t, stride, order, offs, lo[K], hi[K])
     # Z = Σ_d F_K(d)·T(d)·2^fexp[K], combined in log space
     mx = -np.inf
@@ -201,9 +223,15 @@ def group_dp(W, items, a, cap, t, marginals):
         s = order[idx]
         if logT[s] > -np.inf:
             b[s] = math.exp(logT[s] - bexp * ln2)
+    x = np.zeros(T)  # F_k scattered back from the compact store
     for k in range(K - 1, -1, -1):
         p = items[k]
-        x = F[k]
+        if k < K - 1:
+            for idx in range(offs[lo[k + 1]], offs[hi[k + 1] + 1]):
+                x[order[idx]] = 0.0
+        o = offs[lo[k]]
+        for idx in range(o, offs[hi[k] + 1]):
+            x[order[idx]] = store[base[k] + idx - o]
         ap = a[p]
         # log of the factor that turns a contraction F_k·b_{k+1} into a probability
         lsc = (fexp[k] + bexp) * ln2 - logZ

@@ -98,7 +98,9 @@ def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
     explicit 8-element code fused with the block sum. Returns Σ y over the blocks.
     """
     B = 1 << kb
-    w0 = w3[0]; w1 = w3[1]; w2 = w3[2]
+    w0 = w3[0]
+    w1 = w3[1]
+    w2 = w3[2]
     src = np.empty(his.size + 4, np.int64)
     wt = np.empty(his.size + 4)
     qi = np.empty(his.size + 4, np.int64)
@@ -110,19 +112,25 @@ def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
         na = _gather(hb, kb, ws, his, hq, src, wt, qi, False)
         i = 0
         if na >= 3:
-            a = x[src[0]: src[0] + B]; b = x[src[1]: src[1] + B]; c = x[src[2]: src[2] + B]
-            wa = wt[0]; wb = wt[1]; wc = wt[2]
+            a = x[src[0] : src[0] + B]
+            b = x[src[1] : src[1] + B]
+            c = x[src[2] : src[2] + B]
+            wa = wt[0]
+            wb = wt[1]
+            wc = wt[2]
             for t in range(B):
                 yb[t] = u * xb[t] + wa * a[t] + wb * b[t] + wc * c[t]
             i = 3
         elif na == 2:
-            a = x[src[0]: src[0] + B]; b = x[src[1]: src[1] + B]
-            wa = wt[0]; wb = wt[1]
+            a = x[src[0] : src[0] + B]
+            b = x[src[1] : src[1] + B]
+            wa = wt[0]
+            wb = wt[1]
             for t in range(B):
                 yb[t] = u * xb[t] + wa * a[t] + wb * b[t]
             i = 2
         elif na == 1:
-            a = x[src[0]: src[0] + B]
+            a = x[src[0] : src[0] + B]
             wa = wt[0]
             for t in range(B):
                 yb[t] = u * xb[t] + wa * a[t]
@@ -131,24 +139,35 @@ def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
             for t in range(B):
                 yb[t] = u * xb[t]
         while na - i >= 4:
-            a = x[src[i]: src[i] + B]; b = x[src[i+1]: src[i+1] + B]
-            c = x[src[i+2]: src[i+2] + B]; d = x[src[i+3]: src[i+3] + B]
-            wa = wt[i]; wb = wt[i+1]; wc = wt[i+2]; wd = wt[i+3]
+            a = x[src[i] : src[i] + B]
+            b = x[src[i + 1] : src[i + 1] + B]
+            c = x[src[i + 2] : src[i + 2] + B]
+            d = x[src[i + 3] : src[i + 3] + B]
+            wa = wt[i]
+            wb = wt[i + 1]
+            wc = wt[i + 2]
+            wd = wt[i + 3]
             for t in range(B):
                 yb[t] += wa * a[t] + wb * b[t] + wc * c[t] + wd * d[t]
             i += 4
         if na - i == 3:
-            a = x[src[i]: src[i] + B]; b = x[src[i+1]: src[i+1] + B]; c = x[src[i+2]: src[i+2] + B]
-            wa = wt[i]; wb = wt[i+1]; wc = wt[i+2]
+            a = x[src[i] : src[i] + B]
+            b = x[src[i + 1] : src[i + 1] + B]
+            c = x[src[i + 2] : src[i + 2] + B]
+            wa = wt[i]
+            wb = wt[i + 1]
+            wc = wt[i + 2]
             for t in range(B):
                 yb[t] += wa * a[t] + wb * b[t] + wc * c[t]
         elif na - i == 2:
-            a = x[src[i]: src[i] + B]; b = x[src[i+1]: src[i+1] + B]
-            wa = wt[i]; wb = wt[i+1]
+            a = x[src[i] : src[i] + B]
+            b = x[src[i + 1] : src[i + 1] + B]
+            wa = wt[i]
+            wb = wt[i + 1]
             for t in range(B):
                 yb[t] += wa * a[t] + wb * b[t]
         elif na - i == 1:
-            a = x[src[i]: src[i] + B]
+            a = x[src[i] : src[i] + B]
             wa = wt[i]
             for t in range(B):
                 yb[t] += wa * a[t]
@@ -163,7 +182,10 @@ def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
         sb = 0.0
         if small:
             for i8 in range(0, B, 8):
-                x0 = xb[i8]; x1 = xb[i8 + 1]; x2 = xb[i8 + 2]; x4 = xb[i8 + 4]
+                x0 = xb[i8]
+                x1 = xb[i8 + 1]
+                x2 = xb[i8 + 2]
+                x4 = xb[i8 + 4]
                 y0 = yb[i8]
                 y1 = yb[i8 + 1] + w0 * x0
                 y2 = yb[i8 + 2] + w1 * x0
@@ -172,8 +194,13 @@ def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
                 y5 = yb[i8 + 5] + (w0 * x4 + w2 * x1)
                 y6 = yb[i8 + 6] + (w1 * x4 + w2 * x2)
                 y7 = yb[i8 + 7] + (w0 * xb[i8 + 6] + w1 * xb[i8 + 5] + w2 * xb[i8 + 3])
-                yb[i8 + 1] = y1; yb[i8 + 2] = y2; yb[i8 + 3] = y3; yb[i8 + 4] = y4
-                yb[i8 + 5] = y5; yb[i8 + 6] = y6; yb[i8 + 7] = y7
+                yb[i8 + 1] = y1
+                yb[i8 + 2] = y2
+                yb[i8 + 3] = y3
+                yb[i8 + 4] = y4
+                yb[i8 + 5] = y5
+                yb[i8 + 6] = y6
+                yb[i8 + 7] = y7
                 sb += ((y0 + y1) + (y2 + y3)) + ((y4 + y5) + (y6 + y7))
         else:
             for t in range(B):
@@ -193,8 +220,12 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
     """
     B = 1 << kb
     nq = ws.size
-    w0 = w3[0]; w1 = w3[1]; w2 = w3[2]
-    a0 = 0.0; a1 = 0.0; a2 = 0.0
+    w0 = w3[0]
+    w1 = w3[1]
+    w2 = w3[2]
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
     su = 0.0
     tot = 0.0
     src = np.empty(his.size + 4, np.int64)
@@ -209,12 +240,17 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
         s0 = 0.0
         i = 0
         if na >= 2:
-            c1 = b[src[0]: src[0] + B]; c2 = b[src[1]: src[1] + B]
-            wa = wt[0]; wb_ = wt[1]
-            sa = 0.0; sb_ = 0.0
+            c1 = b[src[0] : src[0] + B]
+            c2 = b[src[1] : src[1] + B]
+            wa = wt[0]
+            wb_ = wt[1]
+            sa = 0.0
+            sb_ = 0.0
             for t in range(B):
                 f = fb[t]
-                v1 = c1[t]; v2 = c2[t]; bv = bb[t]
+                v1 = c1[t]
+                v2 = c2[t]
+                bv = bb[t]
                 pb[t] = u * bv + wa * v1 + wb_ * v2
                 s0 += f * bv
                 sa += f * v1
@@ -223,12 +259,13 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
             acc[qi[1]] += sb_
             i = 2
         elif na == 1:
-            c1 = b[src[0]: src[0] + B]
+            c1 = b[src[0] : src[0] + B]
             wa = wt[0]
             sa = 0.0
             for t in range(B):
                 f = fb[t]
-                v1 = c1[t]; bv = bb[t]
+                v1 = c1[t]
+                bv = bb[t]
                 pb[t] = u * bv + wa * v1
                 s0 += f * bv
                 sa += f * v1
@@ -241,34 +278,46 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
                 s0 += fb[t] * bv
         su += s0
         while na - i >= 3:
-            c1 = b[src[i]: src[i] + B]; c2 = b[src[i+1]: src[i+1] + B]; c3 = b[src[i+2]: src[i+2] + B]
-            wa = wt[i]; wb_ = wt[i+1]; wc = wt[i+2]
-            sa = 0.0; sb_ = 0.0; sc = 0.0
+            c1 = b[src[i] : src[i] + B]
+            c2 = b[src[i + 1] : src[i + 1] + B]
+            c3 = b[src[i + 2] : src[i + 2] + B]
+            wa = wt[i]
+            wb_ = wt[i + 1]
+            wc = wt[i + 2]
+            sa = 0.0
+            sb_ = 0.0
+            sc = 0.0
             for t in range(B):
                 f = fb[t]
-                v1 = c1[t]; v2 = c2[t]; v3 = c3[t]
+                v1 = c1[t]
+                v2 = c2[t]
+                v3 = c3[t]
                 pb[t] += wa * v1 + wb_ * v2 + wc * v3
                 sa += f * v1
                 sb_ += f * v2
                 sc += f * v3
             acc[qi[i]] += sa
-            acc[qi[i+1]] += sb_
-            acc[qi[i+2]] += sc
+            acc[qi[i + 1]] += sb_
+            acc[qi[i + 2]] += sc
             i += 3
         if na - i == 2:
-            c1 = b[src[i]: src[i] + B]; c2 = b[src[i+1]: src[i+1] + B]
-            wa = wt[i]; wb_ = wt[i+1]
-            sa = 0.0; sb_ = 0.0
+            c1 = b[src[i] : src[i] + B]
+            c2 = b[src[i + 1] : src[i + 1] + B]
+            wa = wt[i]
+            wb_ = wt[i + 1]
+            sa = 0.0
+            sb_ = 0.0
             for t in range(B):
                 f = fb[t]
-                v1 = c1[t]; v2 = c2[t]
+                v1 = c1[t]
+                v2 = c2[t]
                 pb[t] += wa * v1 + wb_ * v2
                 sa += f * v1
                 sb_ += f * v2
             acc[qi[i]] += sa
-            acc[qi[i+1]] += sb_
+            acc[qi[i + 1]] += sb_
         elif na - i == 1:
-            c1 = b[src[i]: src[i] + B]
+            c1 = b[src[i] : src[i] + B]
             wa = wt[i]
             sa = 0.0
             for t in range(B):
@@ -292,9 +341,17 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
         sb = 0.0
         if small:
             for i8 in range(0, B, 8):
-                b1 = bb[i8 + 1]; b2 = bb[i8 + 2]; b3 = bb[i8 + 3]; b4 = bb[i8 + 4]
-                b5 = bb[i8 + 5]; b6 = bb[i8 + 6]; b7 = bb[i8 + 7]
-                f0 = fb[i8]; f1 = fb[i8 + 1]; f2 = fb[i8 + 2]; f4 = fb[i8 + 4]
+                b1 = bb[i8 + 1]
+                b2 = bb[i8 + 2]
+                b3 = bb[i8 + 3]
+                b4 = bb[i8 + 4]
+                b5 = bb[i8 + 5]
+                b6 = bb[i8 + 6]
+                b7 = bb[i8 + 7]
+                f0 = fb[i8]
+                f1 = fb[i8 + 1]
+                f2 = fb[i8 + 2]
+                f4 = fb[i8 + 4]
                 p0 = pb[i8] + (w0 * b1 + w1 * b2 + w2 * b4)
                 p1 = pb[i8 + 1] + (w1 * b3 + w2 * b5)
                 p2 = pb[i8 + 2] + (w0 * b3 + w2 * b6)
@@ -303,8 +360,13 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
                 p5 = pb[i8 + 5] + w1 * b7
                 p6 = pb[i8 + 6] + w0 * b7
                 p7 = pb[i8 + 7]
-                pb[i8] = p0; pb[i8 + 1] = p1; pb[i8 + 2] = p2; pb[i8 + 3] = p3
-                pb[i8 + 4] = p4; pb[i8 + 5] = p5; pb[i8 + 6] = p6
+                pb[i8] = p0
+                pb[i8 + 1] = p1
+                pb[i8 + 2] = p2
+                pb[i8 + 3] = p3
+                pb[i8 + 4] = p4
+                pb[i8 + 5] = p5
+                pb[i8 + 6] = p6
                 sb += ((p0 + p1) + (p2 + p3)) + ((p4 + p5) + (p6 + p7))
                 a0 += f0 * b1 + f2 * b3 + f4 * b5 + fb[i8 + 6] * b7
                 a1 += f0 * b2 + f1 * b3 + f4 * b6 + fb[i8 + 5] * b7

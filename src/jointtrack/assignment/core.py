@@ -313,12 +313,15 @@ def _groups(W, null, rows, cols, marginals, max_memory) -> AssignmentResult:
         Wi, a, cap, t, item_counts = np.ascontiguousarray(B.T), v, rows, u, cols
     items = np.repeat(np.arange(Wi.shape[0]), item_counts).astype(np.int64)
     states = state_count(cap)
-    need = 8 * states * ((items.size + 1) if marginals else 2)
+    # two rolling arrays (+ three for the backward pass), and with marginals the
+    # forward windows: one layer per item when no item may stay null
+    layers = 2 + ((3 + (1 if not a.any() else items.size + 1)) if marginals else 0)
+    need = 8 * states * layers
     if need > max_memory:
         raise ExactLimitError(
-            f"the repeated-row/column DP needs {states:.3g} states × "
-            f"{items.size + 1 if marginals else 2} layers ({need / 2**30:.3g} GiB), above "
-            f"max_memory = {max_memory} bytes (Schaub eq. 37); use an approximation"
+            f"the repeated-row/column DP needs {states:.3g} states × {layers} layers "
+            f"({need / 2**30:.3g} GiB), above max_memory = {max_memory} bytes "
+            "(Schaub eq. 37); use an approximation"
         )
     info = {"states": int(states), "state_bytes": int(need), "items_are_rows": items_are_rows}
     logZ, item_null, item_take, unused = group_dp(

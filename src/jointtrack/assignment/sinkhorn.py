@@ -244,6 +244,37 @@ def _newton(L, a, b, tau, u, v, tol, max_steps):
     return u, v, err, steps
 
 
+def scale_log(L, a, b, tol: float, max_iter: int):
+    """Log scalings (u, v, err) of ``exp(L)`` (−inf = 0) to row sums 1, column sums N/M.
+
+    Weighted by the group counts ``a`` (rows) and ``b`` (columns): up to 20
+    log-space Sinkhorn sweeps, then Sinkhorn–Newton, then plain sweeps should
+    Newton stall at its rounding floor. ``err`` is the final largest relative
+    row/column-sum error; at most ``max_iter`` sweeps plus Newton steps.
+    """
+    N, M = float(a.sum()), float(b.sum())
+    tau = N / M
+    warm = min(20, max_iter)
+    u, v, _ = _log_scaling(L, np.log(a), np.log(b), float(np.log(tau)), warm, float(tol))
+    u = np.where(np.isfinite(u), u, 0.0)
+    v = np.where(np.isfinite(v), v, 0.0)
+    u, v, err, steps = _newton(L, a, b, tau, u, v, tol, max_iter - warm)
+    used = warm + steps
+    if err > tol and used < max_iter:
+        u2, v2, _ = _log_scaling(
+            L + u[:, None] + v[None, :],
+            np.log(a),
+            np.log(b),
+            float(np.log(tau)),
+            max_iter - used,
+            float(tol),
+        )
+        u, v = u + u2, v + v2
+        _, r, c = _sums(L, u, v, a, b)
+        err = _error(r, c, tau)
+    return u, v, err
+
+
 def _center_gauge(S, lr, lc):
     """Shift (lr + t, lc − t) per connected component of the support to keep e^lr, e^lc finite."""
     from scipy.sparse import csr_matrix
@@ -351,21 +382,7 @@ def sinkhorn(A, *, tol: float = 1e-12, max_iter: int = 10_000, row_counts=None, 
     N, M = float(a.sum()), float(b.sum())
     tau = N / M
     # 2. a few Sinkhorn sweeps, 3. Sinkhorn–Newton
-    warm = min(20, max_iter)
-    u, v, _ = _log_scaling(L, np.log(a), np.log(b), float(np.log(tau)), warm, float(tol))
-    u = np.where(np.isfinite(u), u, 0.0)
-    v = np.where(np.isfinite(v), v, 0.0)
-    u, v, err, steps = _newton(L, a, b, tau, u, v, tol, max_iter - warm)
-    used = warm + steps
-    if err > tol and used < max_iter:
-        # Newton stalled at its rounding floor above tol: finish with plain sweeps
-        u2, v2, _ = _log_scaling(
-            L + u[:, None] + v[None, :], np.log(a), np.log(b), float(np.log(tau)),
-            max_iter - used, float(tol),
-        )
-        u, v = u + u2, v + v2
-        _, r, c = _sums(L, u, v, a, b)
-        err = _error(r, c, tau)
+    u, v, err = scale_log(L, a, b, tol, max_iter)
     if not err <= tol:
         raise ValueError(
             f"Sinkhorn scaling did not converge to tol={tol} in {max_iter} iterations "

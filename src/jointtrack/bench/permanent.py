@@ -10,8 +10,9 @@ Workloads (seeded ``numpy.random.default_rng``)
 * **uniform** ``rng.random((n, n))``, n = 16…26 (quick: 16, 18, 20): our
   :func:`~jointtrack.permanent.permanent` (``method="auto"``) against
   ``thewalrus.perm`` (its default, ``"bbfg"``), both timed on one core
-  (``numba.set_num_threads(1)``: both Glynn kernels are numba-parallel). Relative errors are against the
-  exact rational :func:`~jointtrack.permanent.reference.reference_permanent`
+  (``numba.set_num_threads(1)``: both Glynn kernels are numba-parallel).
+  Relative errors are against the exact rational
+  :func:`~jointtrack.permanent.reference.reference_permanent`
   for n ≤ 20; for n ≥ 22 that is too slow and the reference is the frontier DP
   (``assignment_sum(A, marginals=False, method="frontier", parallel=True)``;
   ``"auto"`` runs Glynn there, so this is an independent method), which only
