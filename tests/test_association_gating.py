@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import itertools
 import math
+import tracemalloc
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 from scipy import stats
 
 from jointtrack.association.clustering import clusters, has_feasible_event
@@ -20,7 +22,14 @@ from jointtrack.association.clutter import (
     union_gate_volume,
     union_sample_density,
 )
-from jointtrack.association.gating import gate_measurements, likelihood_ratios
+from jointtrack.association.gating import (
+    Gating,
+    PairGating,
+    gate_measurements,
+    gate_pairs,
+    likelihood_ratio_pairs,
+    likelihood_ratios,
+)
 
 
 def _spd(rng, d, scale=1.0):
@@ -429,3 +438,268 @@ def test_gate_rejects_residual_returning_nan():
     # a finite residual gates as before
     g = gate_measurements(z_pred, S, z, residual=lambda a, b: a - b)
     np.testing.assert_array_equal(g.mask, gate_measurements(z_pred, S, z).mask)
+
+
+# ------------------------------------------------------------- sparse gating (gate_pairs)
+
+
+def _assert_same_clustering(a, b):
+    assert len(a) == len(b)
+    for ka, kb in zip(a, b, strict=True):
+        np.testing.assert_array_equal(ka.tracks, kb.tracks)
+        np.testing.assert_array_equal(ka.measurements, kb.measurements)
+        assert ka.tracks.dtype == kb.tracks.dtype == np.int64
+        assert ka.measurements.dtype == kb.measurements.dtype == np.int64
+    for name in ("unassociated", "track_cluster", "measurement_cluster"):
+        x, y = getattr(a, name), getattr(b, name)
+        np.testing.assert_array_equal(x, y)
+        assert x.dtype == y.dtype
+
+
+_coord = st.floats(-6.0, 6.0, allow_nan=False, allow_infinity=False)
+_factor = st.floats(-2.0, 2.0, allow_nan=False, allow_infinity=False)
+
+
+@st.composite
+def _gating_problem(draw):
+    d = draw(st.sampled_from([2, 3]))
+    n = draw(st.integers(0, 12))
+    m = draw(st.integers(0, 20))
+    z_pred = draw(hnp.arrays(np.float64, (n, d), elements=_coord))
+    # SPD covariances from drawn factors: S_i = s_i (A_i A_iᵀ + ε_i I), cond ≲ 10³
+    A = draw(hnp.arrays(np.float64, (n, d, d), elements=_factor))
+    eps = draw(hnp.arrays(np.float64, (n,), elements=st.floats(0.05, 1.0)))
+    scale = draw(hnp.arrays(np.float64, (n,), elements=st.sampled_from([0.01, 0.3, 1.0, 4.0])))
+    S = scale[:, None, None] * (A @ np.swapaxes(A, 1, 2) + eps[:, None, None] * np.eye(d))
+    # measurements: some near a track, the rest anywhere
+    z = draw(hnp.arrays(np.float64, (m, d), elements=_coord))
+    if n:
+        near = draw(hnp.arrays(np.bool_, (m,)))
+        host = draw(hnp.arrays(np.int64, (m,), elements=st.integers(0, n - 1)))
+        z = np.where(near[:, None], z_pred[host] + 0.3 * z, z)
+    P_G = draw(st.sampled_from([0.9, 0.99, 0.999]))
+    P_D = draw(hnp.arrays(np.float64, (n,), elements=st.floats(0.05, 1.0)))
+    lam = draw(hnp.arrays(np.float64, (m,), elements=st.floats(1e-6, 10.0)))
+    return z_pred, S, z, P_G, P_D, lam
+
+
+@settings(max_examples=200, deadline=None)
+@given(problem=_gating_problem())
+def test_gate_pairs_matches_dense(problem):
+    z_pred, S, z, P_G, P_D, lam = problem
+    n, m = z_pred.shape[0], z.shape[0]
+    g = gate_measurements(z_pred, S, z, P_G=P_G)
+    p = gate_pairs(z_pred, S, z, P_G=P_G)
+    assert isinstance(p, PairGating)
+    assert (p.n_tracks, p.n_measurements) == (n, m)
+    assert p.rows.dtype == p.cols.dtype == np.int64
+    # sorted by row then column, i.e. np.nonzero order, no duplicates
+    r, c = np.nonzero(g.mask)
+    np.testing.assert_array_equal(p.rows, r)
+    np.testing.assert_array_equal(p.cols, c)
+    assert p.n_candidates >= p.n_pairs
+    np.testing.assert_array_equal(p.n_gated, g.n_gated)
+    np.testing.assert_array_equal(p.indptr, np.r_[0, np.cumsum(g.n_gated)])
+
+    dense = p.dense()
+    assert isinstance(dense, Gating)
+    np.testing.assert_array_equal(dense.mask, g.mask)
+    np.testing.assert_allclose(dense.d2[g.mask], g.d2[g.mask], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(dense.log_g[g.mask], g.log_g[g.mask], rtol=1e-12, atol=1e-12)
+    assert np.all(dense.d2[~g.mask] == np.inf) and np.all(dense.log_g[~g.mask] == -np.inf)
+    assert dense.gamma == g.gamma and dense.P_G == g.P_G
+    np.testing.assert_array_equal(dense.log_gate_volume, g.log_gate_volume)
+    np.testing.assert_array_equal(dense.gate_volume, g.gate_volume)
+    np.testing.assert_array_equal(dense.S, g.S)
+    np.testing.assert_array_equal(dense.chol, g.chol)
+    np.testing.assert_array_equal(dense.n_gated, g.n_gated)
+
+    for pd_arg, lam_arg in ((P_D, lam), (0.9, 0.25)):
+        L, miss = likelihood_ratios(g, pd_arg, lam_arg)
+        Lp, missp = likelihood_ratio_pairs(p, pd_arg, lam_arg)
+        assert Lp.shape == (p.n_pairs,)
+        np.testing.assert_allclose(Lp, L[p.rows, p.cols], rtol=1e-11, atol=0)
+        np.testing.assert_array_equal(missp, miss)
+        # nothing lost off the pairs: the dense L is zero elsewhere
+        rest = np.ones((n, m), dtype=bool)
+        rest[p.rows, p.cols] = False
+        assert not L[rest].any()
+
+    ref = clusters(g.mask)
+    _assert_same_clustering(clusters(p), ref)
+    _assert_same_clustering(clusters((n, m, p.rows, p.cols)), ref)
+    # any order, duplicates allowed
+    perm = np.random.default_rng(n * 31 + m).permutation(2 * p.n_pairs) % max(p.n_pairs, 1)
+    _assert_same_clustering(clusters((n, m, p.rows[perm], p.cols[perm])), ref)
+
+
+def test_gate_pairs_scales_linearly():
+    """N = 3000 tracks, M = 4500 measurements, ~1 measurement per gate: no N × M work."""
+    rng = np.random.default_rng(2024)
+    n, m, d = 3000, 4500, 2
+    P_G = 0.99
+    gamma = stats.chi2.ppf(P_G, d)
+    # anisotropic rotated gates (axis ratio up to 3) so the λ_max ball is a loose bound
+    theta = rng.uniform(0, np.pi, n)
+    R = np.stack([np.cos(theta), -np.sin(theta), np.sin(theta), np.cos(theta)], 1).reshape(n, 2, 2)
+    ax = rng.uniform(0.5, 1.5, (n, 2)) ** 2
+    S = R @ (ax[:, :, None] * np.eye(2)) @ np.swapaxes(R, 1, 2)
+    mean_volume = np.mean(math.pi * gamma * np.sqrt(np.linalg.det(S)))
+    side = math.sqrt(m * mean_volume)  # M·V̄/area = 1 measurement per gate on average
+    z_pred = rng.uniform(0, side, (n, d))
+    z = rng.uniform(0, side, (m, d))
+
+    tracemalloc.start()
+    try:
+        p = gate_pairs(z_pred, S, z, P_G=P_G)
+        c = clusters(p)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert p.n_candidates < 20 * (n + m)
+    assert peak < n * m  # not even one N × M boolean array
+    assert 0.5 * n < p.n_pairs < 2 * n  # about one measurement per gate
+    # the sparse result is the dense one, checked on a block of tracks
+    blk = slice(0, 300)
+    g = gate_measurements(z_pred[blk], S[blk], z, P_G=P_G)
+    sel = p.rows < 300
+    r, cc = np.nonzero(g.mask)
+    np.testing.assert_array_equal(p.rows[sel], r)
+    np.testing.assert_array_equal(p.cols[sel], cc)
+    np.testing.assert_allclose(p.d2[sel], g.d2[r, cc], rtol=1e-12, atol=1e-12)
+    mask = np.zeros((n, m), dtype=bool)
+    mask[p.rows, p.cols] = True
+    _assert_same_clustering(c, clusters(mask))
+
+
+def test_gate_pairs_extreme_scales_and_empty():
+    # the extreme covariances of test_gate_log_space_extreme_covariances, plus a huge one
+    # whose search radius overflows (every measurement becomes a candidate) and
+    # coordinates whose squares overflow (the KD-tree switches to the enclosing cube)
+    S = np.array([1e-300 * np.eye(2), 1e300 * np.eye(2), 8e307 * np.eye(2)])
+    zp = np.zeros((3, 2))
+    z = np.array([[1e-150, 0.0], [1e150, 0.0], [1e300, 1e300], [-1e308, 0.0]])
+    g = gate_measurements(zp, S, z)
+    p = gate_pairs(zp, S, z)
+    np.testing.assert_array_equal(p.dense().mask, g.mask)
+    np.testing.assert_allclose(p.d2, g.d2[g.mask], rtol=1e-12)
+    np.testing.assert_allclose(p.log_g, g.log_g[g.mask], rtol=1e-12)
+    np.testing.assert_array_equal(p.log_gate_volume, g.log_gate_volume)
+
+    p = gate_pairs(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.ones((3, 2)))
+    assert p.n_pairs == 0 and p.dense().mask.shape == (0, 3) and p.n_candidates == 0
+    L, miss = likelihood_ratio_pairs(p, 0.9, 1.0)
+    assert L.shape == (0,) and miss.shape == (0,)
+    _assert_same_clustering(clusters(p), clusters(np.zeros((0, 3), dtype=bool)))
+    p = gate_pairs(np.zeros((2, 2)), np.array([np.eye(2)] * 2), np.zeros((0,)))
+    assert p.dense().mask.shape == (2, 0)
+    np.testing.assert_array_equal(p.n_gated, [0, 0])
+    L, miss = likelihood_ratio_pairs(p, 0.9, 1.0)
+    assert L.shape == (0,) and miss.shape == (2,)
+    _assert_same_clustering(clusters(p), clusters(np.zeros((2, 0), dtype=bool)))
+    # 1-D measurements
+    p = gate_pairs([[0.0], [5.0]], [[[1.0]], [[4.0]]], [[0.5], [10.0], [4.0], [-20.0]])
+    g = gate_measurements([[0.0], [5.0]], [[[1.0]], [[4.0]]], [[0.5], [10.0], [4.0], [-20.0]])
+    np.testing.assert_array_equal(p.dense().mask, g.mask)
+
+
+def test_gate_pairs_residual_falls_back_to_dense():
+    # bearings near ±π: a wrapped residual gates across the cut, a Euclidean ball would not
+    def wrap(zz, zp):
+        r = zz - zp
+        return (r + np.pi) % (2 * np.pi) - np.pi
+
+    z_pred = np.array([[3.1], [0.0]])
+    S = np.array([[[0.01]], [[0.01]]])
+    z = np.array([[-3.1], [0.05], [1.0]])
+    g = gate_measurements(z_pred, S, z, residual=wrap)
+    p = gate_pairs(z_pred, S, z, residual=wrap)
+    assert g.mask[0, 0]  # wrapped across ±π
+    np.testing.assert_array_equal(p.dense().mask, g.mask)
+    np.testing.assert_array_equal(p.d2, g.d2[g.mask])
+    np.testing.assert_array_equal(p.log_g, g.log_g[g.mask])
+    assert p.n_candidates == 6
+    assert not gate_pairs(z_pred, S, z).dense().mask[0, 0]  # Euclidean: not gated
+    with pytest.raises(ValueError, match="residual function.*<lambda>"):
+        gate_pairs(z_pred, S, z, residual=lambda a, b: (a - b) + np.inf)
+
+
+@pytest.mark.parametrize(
+    ("S1", "msg"),
+    [
+        (np.array([[1.0, 2.0], [2.0, 1.0]]), "track 1.*not positive definite"),
+        (np.array([[1.0, 0.3], [0.0, 1.0]]), "track 1.*not symmetric"),
+        (np.array([[1.0, np.nan], [np.nan, 1.0]]), "track 1.*non-finite"),
+        (np.array([[1.0, 0.0], [0.0, 1e-20]]), "track 1.*singular"),
+        (np.zeros((2, 2)), "track 1.*singular"),
+    ],
+)
+def test_gate_pairs_bad_covariance_same_error(S1, msg):
+    S = np.array([np.eye(2), S1, np.eye(2)])
+    with pytest.raises(ValueError, match=msg) as dense_err:
+        gate_measurements(np.zeros((3, 2)), S, np.zeros((1, 2)))
+    with pytest.raises(ValueError, match=msg) as pair_err:
+        gate_pairs(np.zeros((3, 2)), S, np.zeros((1, 2)))
+    assert str(pair_err.value) == str(dense_err.value)
+
+
+def test_gate_pairs_bad_inputs_and_ratios():
+    S = np.array([np.eye(2)])
+    cases = [
+        ((np.zeros((1, 2)), np.eye(2), np.zeros((1, 2))), {}, "S must have shape"),
+        ((np.zeros((1, 2)), S, np.zeros((1, 3))), {}, "z must have shape"),
+        ((np.zeros(2), S, np.zeros((1, 2))), {}, "z_pred must be 2-D"),
+        ((np.zeros((1, 2)), S, np.zeros((1, 2))), {"P_G": 1.0}, "P_G"),
+        ((np.zeros((1, 2)), S, np.array([[np.inf, 0.0]])), {}, "measurement z\\[0\\]"),
+        ((np.array([[np.nan, 0.0]]), S, np.zeros((1, 2))), {}, "z_pred\\[0\\]"),
+    ]
+    for args, kw, msg in cases:
+        with pytest.raises(ValueError, match=msg):
+            gate_pairs(*args, **kw)
+    p = gate_pairs(np.zeros((1, 2)), S, np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="P_D"):
+        likelihood_ratio_pairs(p, 1.5, 1.0)
+    with pytest.raises(ValueError, match="clutter_density"):
+        likelihood_ratio_pairs(p, 0.9, 0.0)
+    with pytest.raises(ValueError, match="clutter_density"):
+        likelihood_ratio_pairs(p, 0.9, [1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="PairGating"):
+        likelihood_ratio_pairs(gate_measurements(np.zeros((1, 2)), S, np.zeros((2, 2))), 0.9, 1.0)
+    with pytest.raises(ValueError, match="L\\[0, 0\\].*overflows"):
+        likelihood_ratio_pairs(gate_pairs([[0.0]], [[[1e-300]]], [[0.0]]), 0.9, 1e-300)
+    # the lazy package exports
+    import jointtrack.association as assoc
+
+    assert assoc.gate_pairs is gate_pairs and assoc.PairGating is PairGating
+    assert assoc.likelihood_ratio_pairs is likelihood_ratio_pairs
+
+
+def test_clusters_sparse_pairs_example_and_validation():
+    mask = np.array(
+        [
+            [1, 0, 0, 0, 0],
+            [0, 0, 1, 0, 0],
+            [0, 1, 1, 0, 0],
+            [0, 0, 0, 0, 0],
+            [0, 1, 0, 0, 1],
+        ],
+        dtype=bool,
+    )
+    rows, cols = np.nonzero(mask)
+    _assert_same_clustering(clusters((5, 5, rows, cols)), clusters(mask))
+    _assert_same_clustering(clusters((np.int64(5), 5, list(rows), list(cols))), clusters(mask))
+    _assert_same_clustering(clusters((0, 0, [], [])), clusters(np.zeros((0, 0))))
+    _assert_same_clustering(clusters((3, 0, [], [])), clusters(np.zeros((3, 0))))
+    _assert_same_clustering(clusters((0, 4, [], [])), clusters(np.zeros((0, 4))))
+    # a 4-row mask given as a tuple of rows is still a dense mask
+    _assert_same_clustering(clusters(tuple(map(tuple, mask[:4]))), clusters(mask[:4]))
+    with pytest.raises(ValueError, match="cols index 5 out of range"):
+        clusters((5, 5, [0], [5]))
+    with pytest.raises(ValueError, match="rows index -1 out of range"):
+        clusters((5, 5, [-1], [0]))
+    with pytest.raises(ValueError, match="same length"):
+        clusters((5, 5, [0, 1], [0]))
+    with pytest.raises(ValueError, match="integer index"):
+        clusters((5, 5, [0.5], [0]))
+    with pytest.raises(ValueError, match="non-negative"):
+        clusters((-1, 5, [], []))

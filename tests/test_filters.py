@@ -627,6 +627,9 @@ def test_long_gap_tracker_sequence_regression():
             xu, Pu = update(xp, Pp, z, H, R)
             _assert_sym_pd(Pu)
             assert np.all(np.diag(Pu)[:2] <= np.diag(Pp)[:2])
+            # the position variance is P R/(P + R) ≈ R: no cancellation in I − K H
+            ppos = Pp[0, 0] * 100.0 / (Pp[0, 0] + 100.0)
+            np.testing.assert_allclose(np.diag(Pu)[:2], [ppos, ppos], rtol=1e-9)
             _, Pa = pda_update(xp, Pp, np.array([z, z + 20.0]), H, R, [0.1, 0.6, 0.3])
             _assert_sym_pd(Pa)
             # the next scan (dt = 1 s) keeps it positive definite too
@@ -658,3 +661,29 @@ def test_predict_overflow_names_the_time_step():
     F = model.transition(1e200)  # F is finite, but F P Fᵀ is not
     with pytest.raises(ValueError, match=r"predicted covariance overflows.*dt"):
         predict(np.zeros(4), np.eye(4), F, np.zeros((4, 4)))
+
+
+@pytest.mark.parametrize("accel", [False, True])
+@pytest.mark.parametrize("dt", [1e4, 1e8, 1e12])
+def test_long_gap_update_is_accurate(accel, dt):
+    """With process noise the posterior after a long gap is well conditioned and is
+    computed to ~1e-12 in correlation units (reference: the same update in 100-digit
+    arithmetic)."""
+    mp = pytest.importorskip("mpmath")
+    from jointtrack.models import ConstantAcceleration
+
+    model = (ConstantAcceleration if accel else ConstantVelocity)(2, 1.0)
+    n = model.state_dim
+    P0 = np.diag(np.r_[[100.0, 100.0], np.full(n - 2, 25.0)])
+    F, Q = model.transition(dt), model.noise(dt)
+    H, R = np.eye(2, n), 100.0 * np.eye(2)
+    _, Pp = predict(np.zeros(n), P0, F, Q)
+    _, Pu = update(np.zeros(n), Pp, np.array([1.0, 2.0]), H, R)
+    with mp.workdps(100):
+        Fm, P0m, Qm, Hm, Rm = (mp.matrix(a.tolist()) for a in (F, P0, Q, H, R))
+        Pm = Fm * P0m * Fm.T + Qm
+        Km = Pm * Hm.T * (Hm * Pm * Hm.T + Rm) ** -1
+        Em = Pm - Km * Hm * Pm
+        E = np.array([[float(Em[i, j]) for j in range(n)] for i in range(n)])
+    s = np.sqrt(np.diag(E))
+    np.testing.assert_allclose(Pu / np.outer(s, s), E / np.outer(s, s), rtol=0, atol=1e-12)

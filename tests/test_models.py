@@ -290,7 +290,9 @@ def test_max_dt_is_the_overflow_limit(accel, q):
 def test_huge_dt_message_names_dt_and_limit():
     with pytest.raises(ValueError, match=r"dt = 1e\+300 .*beyond dt = 8\.1397.*e\+102"):
         ConstantVelocity(2, 1.0).noise(1e300)
-    with pytest.raises(ValueError, match=r"dt\[1\] \(track 1\) = 1e\+300.*beyond dt = 1\.89615e\+154"):
+    with pytest.raises(
+        ValueError, match=r"dt\[1\] \(track 1\) = 1e\+300.*beyond dt = 1\.89615e\+154"
+    ):
         ConstantAcceleration(3, 1.0).transition([1.0, 1e300])
     with pytest.raises(ValueError, match=r"constant-acceleration process noise Q.*q = 1"):
         ConstantAcceleration(3, 1.0).noise(1e100)

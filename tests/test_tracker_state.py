@@ -58,10 +58,14 @@ def _warm_tracker(n_scans=12, **kw):
 # every stage of a scan, as the name the tracker module looks it up by
 STAGES = [
     "predict",
-    "gate_measurements",
+    "predict_measurement",
+    "gate_pairs",
     "clusters",
+    "likelihood_ratio_pairs",
+    "pda_pair_marginals",
     "marginals",
-    "pda_update",
+    "pda_pairs_update",
+    "pair_returns",
 ]
 
 
@@ -69,7 +73,9 @@ class Injected(RuntimeError):
     pass
 
 
-@pytest.mark.parametrize("stage", STAGES + ["_track_logic", "_initiate", "_existence_update"])
+@pytest.mark.parametrize(
+    "stage", STAGES + ["_track_logic", "_initiate", "_existence_update", "_cluster_marginals"]
+)
 def test_failing_stage_leaves_state_unchanged_and_retry_matches(stage, monkeypatch):
     k = 25  # a scan whose confirmed tracks form a two-track cluster (every stage runs)
     trk, sc = _warm_tracker(k)
@@ -107,7 +113,7 @@ def test_keyboard_interrupt_mid_step_is_atomic(monkeypatch):
     def interrupt(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(jpda_module, "pda_update", interrupt)
+    monkeypatch.setattr(jpda_module, "pda_pairs_update", interrupt)
     with pytest.raises(KeyboardInterrupt):
         trk.step(sc.times[12], sc.detections[12])
     np.testing.assert_array_equal(trk.P, snapshot["P"])

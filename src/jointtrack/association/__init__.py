@@ -37,7 +37,7 @@ from jointtrack.association.hypotheses import (
     enumerate_marginals,
     iter_hypotheses,
 )
-from jointtrack.association.pda import pda_marginals
+from jointtrack.association.pda import pda_marginals, pda_pair_marginals
 from jointtrack.errors import InfeasibleAssignmentError
 
 # Public names of the sibling modules (gating, clustering, clutter, lbp, mcmc,
@@ -45,7 +45,10 @@ from jointtrack.errors import InfeasibleAssignmentError
 # cheap and does not depend on all of them being importable.
 _LAZY = {
     "Gating": "gating",
+    "PairGating": "gating",
     "gate_measurements": "gating",
+    "gate_pairs": "gating",
+    "likelihood_ratio_pairs": "gating",
     "likelihood_ratios": "gating",
     "unit_ball_log_volume": "gating",
     "Cluster": "clustering",
@@ -56,6 +59,7 @@ _LAZY = {
     "UnionVolume": "clutter",
     "cluster_clutter_density": "clutter",
     "cluster_heuristic_density": "clutter",
+    "cluster_heuristic_densities": "clutter",
     "known_density": "clutter",
     "track_sample_density": "clutter",
     "union_gate_volume": "clutter",
@@ -105,5 +109,6 @@ __all__ = [
     "iter_hypotheses",
     "marginals",
     "pda_marginals",
+    "pda_pair_marginals",
     *_LAZY,
 ]

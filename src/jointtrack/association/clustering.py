@@ -90,17 +90,80 @@ def _as_mask(mask) -> np.ndarray:
     return mask
 
 
+def _is_index_scalar(x) -> bool:
+    return isinstance(x, int | np.integer) and not isinstance(x, bool | np.bool_)
+
+
+def _sparse_pairs(obj):
+    """``(n, m, rows, cols)`` if ``obj`` is a sparse gating description, else None.
+
+    Accepted: a :class:`~jointtrack.association.gating.PairGating` (anything with
+    ``n_tracks``, ``n_measurements``, ``rows``, ``cols``) or a 4-tuple
+    ``(n_tracks, n_measurements, rows, cols)`` of two integers and two 1-D
+    index arrays. (A nested sequence of mask rows never has integer first
+    elements, so it stays a dense mask.)
+    """
+    if isinstance(obj, np.ndarray):
+        return None
+    if all(hasattr(obj, a) for a in ("n_tracks", "n_measurements", "rows", "cols")):
+        return obj.n_tracks, obj.n_measurements, obj.rows, obj.cols
+    if (
+        isinstance(obj, tuple)
+        and len(obj) == 4
+        and _is_index_scalar(obj[0])
+        and _is_index_scalar(obj[1])
+        and np.ndim(obj[2]) == 1
+        and np.ndim(obj[3]) == 1
+    ):
+        return obj
+    return None
+
+
+def _check_pairs(n, m, rows, cols) -> tuple[int, int, np.ndarray, np.ndarray]:
+    if not (_is_index_scalar(n) and _is_index_scalar(m)) or n < 0 or m < 0:
+        raise ValueError(
+            f"n_tracks and n_measurements must be non-negative integers, got {n!r}, {m!r}"
+        )
+    n, m = int(n), int(m)
+    out = []
+    for name, idx, size in (("rows", rows, n), ("cols", cols, m)):
+        a = np.asarray(idx)
+        if a.ndim != 1:
+            raise ValueError(f"{name} must be a 1-D index array, got {a.ndim} dimension(s)")
+        if a.size == 0:
+            a = a.astype(np.int64)
+        if a.dtype.kind not in "iu":
+            raise ValueError(f"{name} must be an integer index array, got dtype {a.dtype}")
+        a = a.astype(np.int64, copy=False)
+        if a.size and (a.min() < 0 or a.max() >= size):
+            bad = a[(a < 0) | (a >= size)][0]
+            raise ValueError(f"{name} index {bad} out of range 0..{size - 1}")
+        out.append(a)
+    if out[0].size != out[1].size:
+        raise ValueError(
+            f"rows and cols must have the same length, got {out[0].size} and {out[1].size}"
+        )
+    return n, m, out[0], out[1]
+
+
 def clusters(mask) -> Clustering:
     """Partition tracks and measurements into independent JPDA clusters.
 
     Connected components of the bipartite gating graph (Bojilov et al. §2,
     "clusterisation"), computed with
     :func:`scipy.sparse.csgraph.connected_components` (a union–find equivalent,
-    O(N + M + nnz)).
+    O(N + M + nnz)); the clusters are then gathered by a stable sort of the
+    labels, so no step costs O(N · clusters).
 
     Parameters
     ----------
-    mask : (N, M) bool array, or a likelihood-ratio matrix ``L`` (non-zero = gated)
+    mask : (N, M) bool array, a likelihood-ratio matrix ``L`` (non-zero = gated),
+        a :class:`~jointtrack.association.gating.PairGating` (from
+        :func:`~jointtrack.association.gating.gate_pairs`), or a tuple
+        ``(n_tracks, n_measurements, rows, cols)`` listing the gated pairs
+        (duplicates allowed, any order). The sparse forms never build an N × M
+        array and give the identical :class:`Clustering` to the dense mask with
+        exactly those entries set.
 
     Returns
     -------
@@ -109,33 +172,58 @@ def clusters(mask) -> Clustering:
         unassociated measurements, and per-node cluster labels. 0 tracks or 0
         measurements are fine.
     """
-    mask = _as_mask(mask)
-    n, m = mask.shape
-    rows, cols = np.nonzero(mask)
+    sparse = _sparse_pairs(mask)
+    if sparse is not None:
+        n, m, rows, cols = _check_pairs(*sparse)
+    else:
+        mask = _as_mask(mask)
+        n, m = mask.shape
+        rows, cols = np.nonzero(mask)
+    return _clustering_from_pairs(n, m, rows, cols)
+
+
+def _clustering_from_pairs(n: int, m: int, rows: np.ndarray, cols: np.ndarray) -> Clustering:
+    """:class:`Clustering` of the bipartite graph with edges (rows[p], cols[p]); O(N + M + P)."""
     graph = coo_matrix(
-        (np.ones(rows.size, dtype=np.int8), (rows, n + cols)), shape=(n + m, n + m)
+        (np.ones(rows.size, dtype=np.float64), (rows, n + cols)), shape=(n + m, n + m)
     ).tocsr()
     _, labels = connected_components(graph, directed=False)
+    labels = labels.astype(np.int64, copy=False)
     t_lab = labels[:n]
     m_lab = labels[n:]
     # relabel components by first appearance among tracks: cluster order = min track index
     n_lab = int(labels.max()) + 1 if labels.size else 0
+    first = np.full(n_lab, n, dtype=np.int64)
+    np.minimum.at(first, t_lab, np.arange(n, dtype=np.int64))
+    has_track = first < n
+    is_first = np.zeros(n, dtype=bool)
+    is_first[first[has_track]] = True
+    rank = np.cumsum(is_first, dtype=np.int64) - 1  # rank[first track of a cluster] = its index
+    n_clusters = int(is_first.sum())
     remap = np.full(n_lab, -1, dtype=np.int64)
-    uniq, first = np.unique(t_lab, return_index=True)
-    remap[uniq[np.argsort(first)]] = np.arange(uniq.size)
+    remap[has_track] = rank[first[has_track]]
     track_cluster = remap[t_lab]
-    gated = mask.any(axis=0) if n else np.zeros(m, dtype=bool)
+    gated = np.bincount(cols, minlength=m) > 0 if cols.size else np.zeros(m, dtype=bool)
     measurement_cluster = np.where(gated, remap[m_lab], -1).astype(np.int64)
-    out = []
-    for k in range(uniq.size):
-        out.append(
-            Cluster(
-                tracks=np.flatnonzero(track_cluster == k),
-                measurements=np.flatnonzero(measurement_cluster == k),
-            )
+
+    # gather members: stable argsort by cluster label keeps indices increasing in each cluster
+    t_order = np.argsort(track_cluster, kind="stable")
+    t_bounds = np.zeros(n_clusters + 1, dtype=np.int64)
+    np.cumsum(np.bincount(track_cluster, minlength=n_clusters), out=t_bounds[1:])
+    g_idx = np.flatnonzero(gated)
+    g_lab = measurement_cluster[g_idx]
+    m_order = g_idx[np.argsort(g_lab, kind="stable")]
+    m_bounds = np.zeros(n_clusters + 1, dtype=np.int64)
+    np.cumsum(np.bincount(g_lab, minlength=n_clusters), out=m_bounds[1:])
+    out = tuple(
+        Cluster(
+            tracks=t_order[t_bounds[k] : t_bounds[k + 1]],
+            measurements=m_order[m_bounds[k] : m_bounds[k + 1]],
         )
+        for k in range(n_clusters)
+    )
     return Clustering(
-        clusters=tuple(out),
+        clusters=out,
         unassociated=np.flatnonzero(~gated),
         track_cluster=track_cluster,
         measurement_cluster=measurement_cluster,

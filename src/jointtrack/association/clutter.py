@@ -42,6 +42,7 @@ __all__ = [
     "UnionVolume",
     "cluster_clutter_density",
     "cluster_heuristic_density",
+    "cluster_heuristic_densities",
     "known_density",
     "track_sample_density",
     "union_gate_volume",
@@ -143,7 +144,22 @@ def cluster_heuristic_density(n_gated, gate_volume) -> float:
     m, V = _counts_volumes(n_gated, gate_volume)
     if m.size == 0:
         raise ValueError("cluster has no tracks: the density (8) is undefined")
-    return float(m.sum() / V.sum())
+    return float(cluster_heuristic_densities(m, V, np.zeros(m.size, np.int64))[0])
+
+
+def cluster_heuristic_densities(n_gated, gate_volume, track_cluster) -> np.ndarray:
+    """Bojilov's (8), λ_k = Σ_{i ∈ k} m_i / Σ_{i ∈ k} V_i, for every cluster k at once.
+
+    ``track_cluster`` (N,) gives each track's cluster label 0…K−1 (e.g.
+    ``Clustering.track_cluster``); returns the (K,) densities in one pass, so a
+    scan with thousands of clusters costs O(N).
+    """
+    m, V = _counts_volumes(n_gated, gate_volume)
+    lab = np.asarray(track_cluster)
+    if lab.shape != m.shape or (lab.size and (lab.min() < 0 or lab.dtype.kind not in "iu")):
+        raise ValueError("track_cluster must hold one non-negative integer label per track")
+    k = int(lab.max()) + 1 if lab.size else 0
+    return np.bincount(lab, weights=m, minlength=k) / np.bincount(lab, weights=V, minlength=k)
 
 
 def _gates(centers, S, P_G, gamma):

@@ -30,12 +30,21 @@ overflow before the final ratio.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import special, stats
 
-__all__ = ["Gating", "gate_measurements", "likelihood_ratios", "unit_ball_log_volume"]
+__all__ = [
+    "Gating",
+    "PairGating",
+    "gate_measurements",
+    "gate_pairs",
+    "likelihood_ratio_pairs",
+    "likelihood_ratios",
+    "unit_ball_log_volume",
+]
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
 # exp() of anything above this overflows float64
@@ -233,6 +242,37 @@ def _checked_residual(residual, z: np.ndarray, z_pred: np.ndarray) -> np.ndarray
     return innov
 
 
+def _validate_gate_inputs(z_pred, S, z, P_G):
+    """Shared input checks of :func:`gate_measurements` and :func:`gate_pairs`.
+
+    Returns ``(P_G, z_pred, S, z)`` as floats / float64 arrays, ``z`` of shape (M, d).
+    """
+    P_G = _check_prob(P_G, "P_G")
+    z_pred = _as_float(z_pred, "z_pred")
+    S = _as_float(S, "S")
+    z = _as_float(z, "z")
+    if z_pred.ndim != 2:
+        raise ValueError(f"z_pred must be 2-D (tracks × dimension), got shape {z_pred.shape}")
+    n, d = z_pred.shape
+    if d < 1:
+        raise ValueError("measurement dimension d must be at least 1")
+    if S.shape != (n, d, d):
+        raise ValueError(
+            f"S must have shape (N, d, d) = ({n}, {d}, {d}) to match z_pred, got {S.shape}"
+        )
+    if z.ndim == 1 and z.size == 0:
+        z = z.reshape(0, d)
+    if z.ndim != 2 or z.shape[1] != d:
+        raise ValueError(f"z must have shape (M, {d}) to match z_pred, got {z.shape}")
+    if not np.isfinite(z_pred).all():
+        i = int(np.argwhere(~np.isfinite(z_pred))[0, 0])
+        raise ValueError(f"z_pred[{i}] (track {i}) is not finite")
+    if not np.isfinite(z).all():
+        j = int(np.argwhere(~np.isfinite(z))[0, 0])
+        raise ValueError(f"measurement z[{j}] is not finite")
+    return P_G, z_pred, S, z
+
+
 def gate_measurements(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> Gating:
     """Chi-square validation gates of N tracks applied to M measurements.
 
@@ -269,29 +309,8 @@ def gate_measurements(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> Gati
         the track), or a ``residual`` function returning NaN/inf, complex or
         wrongly shaped innovations (the message names the function).
     """
-    P_G = _check_prob(P_G, "P_G")
-    z_pred = _as_float(z_pred, "z_pred")
-    S = _as_float(S, "S")
-    z = _as_float(z, "z")
-    if z_pred.ndim != 2:
-        raise ValueError(f"z_pred must be 2-D (tracks × dimension), got shape {z_pred.shape}")
+    P_G, z_pred, S, z = _validate_gate_inputs(z_pred, S, z, P_G)
     n, d = z_pred.shape
-    if d < 1:
-        raise ValueError("measurement dimension d must be at least 1")
-    if S.shape != (n, d, d):
-        raise ValueError(
-            f"S must have shape (N, d, d) = ({n}, {d}, {d}) to match z_pred, got {S.shape}"
-        )
-    if z.ndim == 1 and z.size == 0:
-        z = z.reshape(0, d)
-    if z.ndim != 2 or z.shape[1] != d:
-        raise ValueError(f"z must have shape (M, {d}) to match z_pred, got {z.shape}")
-    if not np.isfinite(z_pred).all():
-        i = int(np.argwhere(~np.isfinite(z_pred))[0, 0])
-        raise ValueError(f"z_pred[{i}] (track {i}) is not finite")
-    if not np.isfinite(z).all():
-        j = int(np.argwhere(~np.isfinite(z))[0, 0])
-        raise ValueError(f"measurement z[{j}] is not finite")
     m = z.shape[0]
 
     chol = _cholesky_checked(S)
@@ -325,6 +344,30 @@ def gate_measurements(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> Gati
         S=0.5 * (S + np.swapaxes(S, 1, 2)),
         chol=chol,
     )
+
+
+def _check_pd_clutter(P_D, clutter_density, n: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Validated ``(P_D per track, clutter density per measurement)`` float arrays."""
+    pd = _as_float(P_D, "P_D")
+    if pd.ndim == 0:
+        pd = np.full(n, float(pd))
+    if pd.shape != (n,):
+        raise ValueError(f"P_D must be a scalar or have shape ({n},), got {pd.shape}")
+    if not np.all(np.isfinite(pd)) or np.any((pd <= 0) | (pd > 1)):
+        bad = pd[~(np.isfinite(pd) & (pd > 0) & (pd <= 1))][0]
+        raise ValueError(f"P_D must lie in (0, 1], got {bad}")
+    lam = _as_float(clutter_density, "clutter_density")
+    if lam.ndim == 0:
+        lam = np.full(m, float(lam))
+    if lam.shape != (m,):
+        raise ValueError(
+            f"clutter_density must be a scalar or have shape ({m},) (one per measurement), "
+            f"got {lam.shape}"
+        )
+    if not np.all(np.isfinite(lam)) or np.any(lam <= 0):
+        bad = lam[~(np.isfinite(lam) & (lam > 0))][0]
+        raise ValueError(f"clutter_density must be positive and finite, got {bad}")
+    return pd, lam
 
 
 def likelihood_ratios(gating: Gating, P_D, clutter_density) -> tuple[np.ndarray, np.ndarray]:
@@ -362,31 +405,311 @@ def likelihood_ratios(gating: Gating, P_D, clutter_density) -> tuple[np.ndarray,
     if not isinstance(gating, Gating):
         raise ValueError("gating must be a Gating result from gate_measurements")
     n, m = gating.mask.shape
-    pd = _as_float(P_D, "P_D")
-    if pd.ndim == 0:
-        pd = np.full(n, float(pd))
-    if pd.shape != (n,):
-        raise ValueError(f"P_D must be a scalar or have shape ({n},), got {pd.shape}")
-    if not np.all(np.isfinite(pd)) or np.any((pd <= 0) | (pd > 1)):
-        bad = pd[~(np.isfinite(pd) & (pd > 0) & (pd <= 1))][0]
-        raise ValueError(f"P_D must lie in (0, 1], got {bad}")
-    lam = _as_float(clutter_density, "clutter_density")
-    if lam.ndim == 0:
-        lam = np.full(m, float(lam))
-    if lam.shape != (m,):
-        raise ValueError(
-            f"clutter_density must be a scalar or have shape ({m},) (one per measurement), "
-            f"got {lam.shape}"
-        )
-    if not np.all(np.isfinite(lam)) or np.any(lam <= 0):
-        bad = lam[~(np.isfinite(lam) & (lam > 0))][0]
-        raise ValueError(f"clutter_density must be positive and finite, got {bad}")
+    pd, lam = _check_pd_clutter(P_D, clutter_density, n, m)
     log_L = np.log(pd)[:, None] + gating.log_g - np.log(lam)[None, :]
     log_L = np.where(gating.mask, log_L, -np.inf)
     if np.any(log_L > _MAX_LOG):
         i, j = (int(v) for v in np.argwhere(log_L > _MAX_LOG)[0])
         raise ValueError(
             f"likelihood ratio L[{i}, {j}] = exp({log_L[i, j]:.4g}) overflows float64: the "
+            "clutter density is too small relative to the measurement likelihood"
+        )
+    L = np.exp(log_L)
+    miss = 1.0 - pd * gating.P_G
+    return L, miss
+
+
+# ------------------------------------------------------------------ sparse (pair) gating
+
+# relative slack on the KD-tree search radius √(γ λ_max(S_i)): covers the rounding of
+# λ_max (eigvalsh, ~d·ε relative), of the tree's distance arithmetic (~d·ε) and of the
+# whitened distance d²_ij itself (≲ √cond(S)·ε ≈ 3e-8 at the singularity limit of
+# _cholesky_checked), so that no pair the dense computation would gate is ever missed.
+_RADIUS_SLACK = 1e-4
+
+
+@dataclass(frozen=True)
+class PairGating:
+    """Sparse result of :func:`gate_pairs`: only the gated (track, measurement) pairs.
+
+    Same quantities and definitions as :class:`Gating`, stored per gated pair
+    instead of as dense N × M arrays. Pairs are sorted by track (``rows``), then
+    by measurement (``cols``) — the order of ``np.nonzero(gating.mask)``.
+
+    Attributes
+    ----------
+    rows, cols : (P,) int64
+        track and measurement index of each gated pair (d²_ij ≤ γ).
+    d2 : (P,) float
+        squared Mahalanobis distances d²_ij of the gated pairs.
+    log_g : (P,) float
+        log N(z_j; ẑ_i, S_i) of the gated pairs.
+    gate_volume, log_gate_volume : (N,) float
+        V_i = c_d γ^{d/2} √|S_i| and its log, as in :class:`Gating`.
+    gamma, P_G : float
+        gate threshold γ = χ²_d⁻¹(P_G) and gate probability.
+    n_tracks, n_measurements : int
+        N and M.
+    n_candidates : int
+        number of (track, measurement) pairs whose d² was evaluated: the
+        KD-tree ball candidates, or N·M on the dense fallback (``residual``
+        given). At constant density this grows like N + M, not N·M.
+    z_pred : (N, d) float
+        gate centres.
+    S : (N, d, d) float
+        innovation covariances (symmetrised copy of the input).
+    chol : (N, d, d) float
+        lower Cholesky factors of ``S``.
+    """
+
+    rows: np.ndarray
+    cols: np.ndarray
+    d2: np.ndarray
+    log_g: np.ndarray
+    gate_volume: np.ndarray
+    log_gate_volume: np.ndarray
+    gamma: float
+    P_G: float
+    n_tracks: int
+    n_measurements: int
+    n_candidates: int
+    z_pred: np.ndarray
+    S: np.ndarray
+    chol: np.ndarray
+
+    @property
+    def dim(self) -> int:
+        return int(self.z_pred.shape[1])
+
+    @property
+    def n_pairs(self) -> int:
+        """P, the number of gated pairs."""
+        return int(self.rows.size)
+
+    @property
+    def n_gated(self) -> np.ndarray:
+        """m_i: number of measurements in each track's gate (Bojilov's m_i(k), eq. (8))."""
+        return np.bincount(self.rows, minlength=self.n_tracks).astype(np.int64)
+
+    @property
+    def indptr(self) -> np.ndarray:
+        """(N + 1,) CSR row pointer: track i's pairs are ``indptr[i]:indptr[i + 1]``."""
+        out = np.zeros(self.n_tracks + 1, dtype=np.int64)
+        np.cumsum(self.n_gated, out=out[1:])
+        return out
+
+    def dense(self) -> Gating:
+        """The equivalent dense :class:`Gating` (for tests and small problems).
+
+        ``mask``, ``gate_volume``, ``gamma`` … equal those of
+        :func:`gate_measurements`, and so do ``d2`` / ``log_g`` on the gated
+        pairs. Entries of ungated pairs are not computed by :func:`gate_pairs`:
+        they hold ``d2 = inf`` and ``log_g = -inf`` (g = 0), which every
+        consumer of a :class:`Gating` ignores or treats as "not gated".
+        Allocates three N × M arrays.
+        """
+        n, m = self.n_tracks, self.n_measurements
+        mask = np.zeros((n, m), dtype=bool)
+        d2 = np.full((n, m), np.inf)
+        log_g = np.full((n, m), -np.inf)
+        mask[self.rows, self.cols] = True
+        d2[self.rows, self.cols] = self.d2
+        log_g[self.rows, self.cols] = self.log_g
+        return Gating(
+            mask=mask,
+            d2=d2,
+            log_g=log_g,
+            gate_volume=self.gate_volume.copy(),
+            log_gate_volume=self.log_gate_volume.copy(),
+            gamma=self.gamma,
+            P_G=self.P_G,
+            z_pred=self.z_pred.copy(),
+            S=self.S.copy(),
+            chol=self.chol.copy(),
+        )
+
+
+def _pair_d2(chol: np.ndarray, rows: np.ndarray, innov: np.ndarray) -> np.ndarray:
+    """d²_p = |L_{rows[p]}⁻¹ innov_p|² by batched forward substitution over the pairs."""
+    p, d = innov.shape
+    Lr = chol[rows]  # (P, d, d)
+    w = np.empty((p, d))
+    with np.errstate(over="ignore", invalid="ignore"):
+        for k in range(d):
+            acc = innov[:, k].copy()
+            for l in range(k):
+                acc -= Lr[:, k, l] * w[:, l]
+            w[:, k] = acc / Lr[:, k, k]
+        return np.einsum("pd,pd->p", w, w)
+
+
+def _ball_candidates(
+    z_pred: np.ndarray, Ssym: np.ndarray, z: np.ndarray, gamma: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate pairs (rows, cols), sorted, with z_j in the ball ⊇ track i's gate.
+
+    The gate {e : eᵀS_i⁻¹e ≤ γ} lies in the ball |e| ≤ √(γ λ_max(S_i)); the balls
+    are queried on a KD-tree of the measurements.
+    """
+    from scipy.spatial import cKDTree
+
+    n = z_pred.shape[0]
+    m = z.shape[0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        lam_max = np.linalg.eigvalsh(Ssym)[:, -1]
+        radius = np.sqrt(gamma * np.maximum(lam_max, 0.0)) * (1.0 + _RADIUS_SLACK)
+    finite = np.isfinite(radius)
+    radius = np.where(finite, radius, 0.0)
+    # the tree squares coordinate differences: past ~1e150 they overflow, so query the
+    # enclosing cube (Chebyshev ball, p = inf, same radius ⊇ Euclidean ball) instead
+    with np.errstate(over="ignore"):
+        extent = 2.0 * max(np.abs(z).max(), np.abs(z_pred).max()) + radius.max()
+    p_norm = 2.0 if extent < 1e150 else np.inf
+    tree = cKDTree(z)
+    hits = tree.query_ball_point(z_pred, radius, p=p_norm, return_sorted=True)
+    if not finite.all():  # λ_max overflowed: every measurement is a candidate
+        everything = list(range(m))
+        for i in np.flatnonzero(~finite):
+            hits[i] = everything
+    counts = np.fromiter(map(len, hits), dtype=np.int64, count=n)
+    total = int(counts.sum())
+    cols = np.fromiter(itertools.chain.from_iterable(hits), dtype=np.int64, count=total)
+    rows = np.repeat(np.arange(n, dtype=np.int64), counts)
+    return rows, cols
+
+
+def gate_pairs(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> PairGating:
+    """Sparse chi-square gating: :func:`gate_measurements` without N × M arrays.
+
+    Same gate d²_ij ≤ γ, γ = χ²_d⁻¹(P_G), likelihoods log g_ij and gate volumes
+    V_i as :func:`gate_measurements` (Bar-Shalom & Li 1995; Bojilov et al.
+    eq. (2), (8)), but only the gated pairs are returned and, with the default
+    Euclidean residual, only O(N + M) candidate pairs are examined at constant
+    measurement density:
+
+    1. KD-tree (:class:`scipy.spatial.cKDTree`) on the measurements;
+    2. per track, the ball of radius √(γ λ_max(S_i)) — which contains the gate
+       ellipsoid — is queried (λ_max batched with :func:`numpy.linalg.eigvalsh`);
+    3. d² is evaluated for the candidates only, with the per-track Cholesky
+       factors (batched forward substitution), and the pairs with d² ≤ γ kept.
+
+    Cost O((N + M) log M + candidates) time and O(N + M + candidates) memory.
+
+    With a ``residual`` function (e.g. a wrapped bearing) Euclidean balls do not
+    bound the gate, so it falls back to the dense :func:`gate_measurements` and
+    converts the result to pairs (O(N·M)).
+
+    Parameters, validation and error messages are those of
+    :func:`gate_measurements`. The gated set and the per-pair values agree with
+    it up to floating-point rounding of d² (≈1e-15 relative; a pair exactly on
+    the gate boundary may round either way).
+
+    Returns
+    -------
+    PairGating
+    """
+    P_G, z_pred, S, z = _validate_gate_inputs(z_pred, S, z, P_G)
+    n, d = z_pred.shape
+    m = z.shape[0]
+    if residual is not None:
+        g = gate_measurements(z_pred, S, z, P_G=P_G, residual=residual)
+        rows, cols = (a.astype(np.int64) for a in np.nonzero(g.mask))
+        return PairGating(
+            rows=rows,
+            cols=cols,
+            d2=g.d2[rows, cols],
+            log_g=g.log_g[rows, cols],
+            gate_volume=g.gate_volume,
+            log_gate_volume=g.log_gate_volume,
+            gamma=g.gamma,
+            P_G=g.P_G,
+            n_tracks=n,
+            n_measurements=m,
+            n_candidates=n * m,
+            z_pred=g.z_pred,
+            S=g.S,
+            chol=g.chol,
+        )
+
+    chol = _cholesky_checked(S)
+    Ssym = 0.5 * (S + np.swapaxes(S, 1, 2))
+    gamma = float(stats.chi2.ppf(P_G, d))
+    half_logdet = np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1) if n else np.zeros(0)
+
+    if n and m:
+        rows, cols = _ball_candidates(z_pred, Ssym, z, gamma)
+    else:
+        rows = cols = np.zeros(0, dtype=np.int64)
+    n_candidates = int(rows.size)
+    d2 = _pair_d2(chol, rows, z[cols] - z_pred[rows])
+    keep = d2 <= gamma
+    rows, cols, d2 = rows[keep], cols[keep], d2[keep]
+    # same expression (and evaluation order) as gate_measurements
+    log_g = -0.5 * d2 - 0.5 * d * _LOG_2PI - half_logdet[rows]
+    log_vol = unit_ball_log_volume(d) + 0.5 * d * np.log(gamma) + half_logdet
+    with np.errstate(over="ignore"):
+        vol = np.exp(log_vol)
+    return PairGating(
+        rows=rows,
+        cols=cols,
+        d2=d2,
+        log_g=log_g,
+        gate_volume=vol,
+        log_gate_volume=log_vol,
+        gamma=gamma,
+        P_G=P_G,
+        n_tracks=n,
+        n_measurements=m,
+        n_candidates=n_candidates,
+        z_pred=z_pred.copy(),
+        S=Ssym,
+        chol=chol,
+    )
+
+
+def likelihood_ratio_pairs(
+    gating: PairGating, P_D, clutter_density
+) -> tuple[np.ndarray, np.ndarray]:
+    """Likelihood ratios of the gated pairs of a :class:`PairGating` and miss weights.
+
+    The sparse counterpart of :func:`likelihood_ratios`, same conventions
+    (DESIGN.md; Bojilov eq. (5)/(7) divided by λ^{N_M}): for pair p = (i, j)
+
+        L_p = P_D,i g_ij / λ_j = exp(log P_D,i + log g_ij − log λ_j),
+        miss[i] = 1 − P_D,i P_G,
+
+    so ``L_p`` equals ``likelihood_ratios(gating.dense(), …)[0][i, j]`` and every
+    ungated entry of the dense matrix is 0.
+
+    Parameters
+    ----------
+    gating : PairGating
+        from :func:`gate_pairs`.
+    P_D : float or (N,) array in (0, 1]
+    clutter_density : float or (M,) array, > 0
+        one value or one per measurement.
+
+    Returns
+    -------
+    (L, miss) : ((P,) array aligned with ``gating.rows`` / ``gating.cols``, (N,) array)
+
+    Raises
+    ------
+    ValueError
+        as :func:`likelihood_ratios`.
+    """
+    if not isinstance(gating, PairGating):
+        raise ValueError("gating must be a PairGating result from gate_pairs")
+    n, m = gating.n_tracks, gating.n_measurements
+    pd, lam = _check_pd_clutter(P_D, clutter_density, n, m)
+    rows, cols = gating.rows, gating.cols
+    log_L = np.log(pd)[rows] + gating.log_g - np.log(lam)[cols]
+    over = log_L > _MAX_LOG
+    if np.any(over):
+        p = int(np.argmax(over))
+        i, j = int(rows[p]), int(cols[p])
+        raise ValueError(
+            f"likelihood ratio L[{i}, {j}] = exp({log_L[p]:.4g}) overflows float64: the "
             "clutter density is too small relative to the measurement likelihood"
         )
     L = np.exp(log_L)

@@ -17,7 +17,7 @@ from jointtrack.filters.kalman import (
     predict_measurement,
     update,
 )
-from jointtrack.filters.pda import pda_ekf_update, pda_update
+from jointtrack.filters.pda import pda_ekf_update, pda_pairs_update, pda_update
 
 __all__ = [
     "ekf_innovation",
@@ -26,6 +26,7 @@ __all__ = [
     "innovation",
     "log_likelihood",
     "pda_ekf_update",
+    "pda_pairs_update",
     "pda_update",
     "predict",
     "predict_measurement",

@@ -22,6 +22,17 @@ Numerics
 * Covariance updates use the Joseph form and the result is symmetrised, so
   covariances stay symmetric positive semi-definite even when the gain is
   computed inaccurately (Bar-Shalom, Li & Kirubarajan 2001, Joseph form).
+* Long gaps (Δt up to the model's ``max_dt``, covariances spanning 60+ orders of
+  magnitude): the prediction is formed from a Cholesky factor,
+  ``P⁻ = (F L)(F L)ᵀ + Q``, and the Joseph form as the Gram matrix of
+  ``[(I − K H) L, K L_R]``, so neither can cancel into an indefinite matrix; for a
+  measurement matrix with orthonormal rows (position measurements) the measured
+  rows of ``I − K H`` are ``R S⁻¹ H``, not ``1 − (1 − R/S)``. Every covariance
+  returned by ``predict``, ``update``, ``ekf_update`` and the PDA updates
+  factorises by Cholesky: where the exact matrix is singular to working precision
+  (e.g. ``F P Fᵀ`` with ``q = 0`` and a long gap) its variances are raised by a
+  few units in the last place (``_ensure_pd``). A prediction that overflows
+  raises ``ValueError`` asking for a smaller ``dt``.
 * The innovation covariance ``S`` is factorised once by Cholesky, ``S = L Lᵀ``;
   the gain and the log-likelihood use triangular solves with ``L``. No matrix is
   inverted and no determinant is formed.
@@ -380,16 +391,34 @@ def _ensure_pd(P):
     return P
 
 
-def _joseph(P, K, H, R):
+def _complement(K, H, R, L):
+    """I − K H for the Joseph form.
+
+    When H has orthonormal rows (a position measurement ``[I 0]``, any motion
+    model), the measured rows are formed as ``Hᵀ R S⁻¹ H`` — the identity
+    ``H (I − K H) = R S⁻¹ H`` — instead of ``1 − (1 − R/S)``, which cancels to
+    rounding noise once the prior variance exceeds R by 1/ε (long gaps); the
+    other rows are ``(I − HᵀH)(I − K H)``, which has no cancellation.
+    """
+    A = np.eye(K.shape[-2]) - K @ H
+    Ht = np.swapaxes(H, -1, -2)
+    if L is None or H.shape[0] == 0 or np.abs(H @ Ht - np.eye(H.shape[-2])).max() > 4 * _EPS:
+        return A
+    SiR = _solve_upper_t(L, _solve_lower(L, np.broadcast_to(R, L.shape)))  # S⁻¹ R
+    Pi = Ht @ H  # projector onto the measured coordinates
+    return (np.eye(K.shape[-2]) - Pi) @ A + Ht @ np.swapaxes(SiR, -1, -2) @ H
+
+
+def _joseph(P, K, H, R, L=None):
     """Joseph form (I − K H) P (I − K H)ᵀ + K R Kᵀ, symmetrised.
 
     Evaluated as the Gram matrix ``W Wᵀ`` of ``W = [(I − K H) L_P, K L_R]`` with
     ``L_P``, ``L_R`` square-root factors of P and R, so that it is positive
     semi-definite up to rounding relative to its own diagonal even when P spans
-    many orders of magnitude (e.g. after a long prediction gap).
+    many orders of magnitude (e.g. after a long prediction gap). ``L``, the
+    Cholesky factor of S, enables the accurate ``I − K H`` of :func:`_complement`.
     """
-    A = np.eye(P.shape[-1]) - K @ H
-    M = A @ _factor(P)
+    M = _complement(K, H, R, L) @ _factor(P)
     KL = K @ np.linalg.cholesky(R)
     G = M @ np.ascontiguousarray(np.swapaxes(M, -1, -2))
     G += KL @ np.ascontiguousarray(np.swapaxes(KL, -1, -2))
@@ -500,9 +529,9 @@ def update(x, P, z, H, R):
 
 
 def _update_core(x, P, nu, H, R, single):
-    _, _, K = _gain(P, H, R, not single)
+    _, L, K = _gain(P, H, R, not single)
     xu = x + np.einsum("kij,kj->ki", K, nu)
-    Pu = _ensure_pd(_joseph(P, K, H, R))
+    Pu = _ensure_pd(_joseph(P, K, H, R, L))
     return _out(xu, Pu, single)
 
 

@@ -22,7 +22,8 @@ with the β's computed jointly over a cluster (Bojilov, the JPDA extension of
 ``β_0 N(x, P) + Σ_j β_j N(x + K ν_j, P^c)``. The spread term is evaluated as
 ``Σ_{j≥1} β_j (ν_j − ν)(ν_j − ν)ᵀ + β_0 ν νᵀ`` — the same matrix, written as a
 sum of positive semi-definite terms so that it cannot lose definiteness to
-cancellation — and ``P⁺`` is symmetrised.
+cancellation — and ``P⁺`` is symmetrised and guaranteed Cholesky-factorisable
+(see the Numerics notes of :mod:`jointtrack.filters.kalman`).
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ from jointtrack.filters.kalman import (
     _sym,
 )
 
-__all__ = ["pda_ekf_update", "pda_update"]
+__all__ = ["pda_ekf_update", "pda_pairs_update", "pda_update"]
 
 _BETA_SUM_TOL = 1e-6  # accepted |Σ_j β_ij − 1|; rows are renormalised exactly
 
@@ -87,14 +88,22 @@ def _beta(beta, N: int, M: int, single: bool) -> np.ndarray:
 
 
 def _pda_core(x, P, zhat, H, R, z, beta, residual, single):
-    """Shared linear/EKF PDA update; x (N,n), P (N,n,n), ẑ (N,m), H (1|N,m,n), R (1|N,m,m)."""
-    N, m = zhat.shape
-    _, _, K = _gain(P, H, R, not single)
-    Pc = _joseph(P, K, H, R)
-
-    # (track, measurement) pairs that carry probability: the ragged gated sets
+    """Dense-β front of :func:`_pda_pairs_core`: the pairs that carry probability."""
     ti, mj = np.nonzero(beta[:, 1:] > 0)
-    w = beta[ti, 1 + mj]
+    return _pda_pairs_core(
+        x, P, zhat, H, R, z, beta[:, 0], ti, mj, beta[ti, 1 + mj], residual, single
+    )
+
+
+def _pda_pairs_core(x, P, zhat, H, R, z, b0, ti, mj, w, residual, single):
+    """Shared linear/EKF PDA update on (track, measurement, β) pairs.
+
+    x (N,n), P (N,n,n), ẑ (N,m), H (1|N,m,n), R (1|N,m,m); ``b0`` (N,) the
+    no-measurement probabilities; pair k = (ti[k], mj[k]) has probability w[k].
+    """
+    N, m = zhat.shape
+    _, L, K = _gain(P, H, R, not single)
+    Pc = _joseph(P, K, H, R, L)
     nu_p = np.asarray(residual(z[mj], zhat[ti]), dtype=np.float64)  # (K, m)
 
     nu = np.zeros((N, m))
@@ -102,7 +111,6 @@ def _pda_core(x, P, zhat, H, R, z, beta, residual, single):
     dev = nu_p - nu[ti]
     spread = np.zeros((N, m, m))
     np.add.at(spread, ti, w[:, None, None] * dev[:, :, None] * dev[:, None, :])
-    b0 = beta[:, 0]
     spread += b0[:, None, None] * nu[:, :, None] * nu[:, None, :]
 
     xu = x + np.einsum("kij,kj->ki", K, nu)
@@ -166,3 +174,59 @@ def pda_ekf_update(x, P, z, model, beta):
     z = _measurements(z, zhat.shape[1])
     beta = _beta(beta, x.shape[0], z.shape[0], single)
     return _pda_core(x, P, zhat, H, R, z, beta, model.residual, single)
+
+
+def pda_pairs_update(x, P, z, beta0, rows, cols, weights, *, H=None, R=None, model=None):
+    """:func:`pda_update` (``H``, ``R``) or :func:`pda_ekf_update` (``model``) on sparse β.
+
+    For scans with thousands of tracks and returns, where the dense N × (M+1)
+    β matrix would not fit: ``beta0`` (N,) are the no-measurement
+    probabilities and pair k says that measurement ``cols[k]`` is track
+    ``rows[k]``'s with probability ``weights[k]``; each track's ``beta0`` plus
+    its pair weights must sum to 1 (to 1e-6; renormalised exactly). Same
+    equations as :func:`pda_update` (Bojilov et al. eq. (4)).
+    """
+    if (H is None) == (model is None):
+        raise ValueError("give either H and R (linear) or model (EKF)")
+    x, P, single = _state(x, P)
+    if single:
+        raise ValueError("pda_pairs_update works on a batch: x (N, n), P (N, n, n)")
+    N = x.shape[0]
+    if model is None:
+        H, R = _linear_model(H, R, x.shape, single)
+        zhat, residual = _apply(H, x), np.subtract
+    else:
+        zhat, H, R = _linearise(x, model, single)
+        residual = model.residual
+    z = _measurements(z, zhat.shape[1])
+    b0 = _arr(beta0, "beta0").reshape(-1)
+    rows = np.asarray(rows, np.int64).reshape(-1)
+    cols = np.asarray(cols, np.int64).reshape(-1)
+    w = _arr(weights, "weights").reshape(-1)
+    if b0.shape != (N,) or not (rows.shape == cols.shape == w.shape):
+        raise ValueError("beta0 needs one entry per track and rows/cols/weights one per pair")
+    if rows.size and (rows.min() < 0 or rows.max() >= N or cols.min() < 0 or cols.max() >= len(z)):
+        raise ValueError("rows/cols index outside the tracks/measurements")
+    if not (np.isfinite(b0).all() and np.isfinite(w).all()) or (b0 < 0).any() or (w < 0).any():
+        raise ValueError("association probabilities must be finite and non-negative")
+    tot = b0.copy()
+    np.add.at(tot, rows, w)
+    bad = ~(np.abs(tot - 1.0) <= _BETA_SUM_TOL)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"track {i}'s association probabilities sum to {tot[i]:.12g}, not 1")
+    keep = w > 0
+    return _pda_pairs_core(
+        x,
+        P,
+        zhat,
+        H,
+        R,
+        z,
+        b0 / tot,
+        rows[keep],
+        cols[keep],
+        w[keep] / tot[rows[keep]],
+        residual,
+        single,
+    )

@@ -1,9 +1,11 @@
 """Performance metrics: OSPA, GOSPA (with its decomposition and over time), track statistics.
 
 * :func:`ospa`, :func:`gospa` — distances between two finite sets of points
-  (:mod:`jointtrack.metrics.ospa`).
+  (:mod:`jointtrack.metrics.ospa`), accurate at any finite scale; OSPA also
+  for p = inf (bottleneck assignment).
 * :func:`gospa_series` — GOSPA per scan between truth and tracks with an
-  identity-switch penalty.
+  identity-switch penalty (``switch_convention="partner"`` or Stone Soup's
+  ``"stonesoup"``: half a switch for assigned ↔ unassigned).
 * :func:`track_statistics` — true/false tracks, breaks, fragmentations,
   identity switches and RMSE (:mod:`jointtrack.metrics.tracks`).
 """

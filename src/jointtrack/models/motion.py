@@ -31,8 +31,11 @@ power spectral density ``q`` (per axis),
 Being exact discretisations, both satisfy the semigroup identities
 ``F(a+b) = F(b)F(a)`` and ``Q(a+b) = F(b) Q(a) F(b)ᵀ + Q(b)``, so a scan interval
 may vary from scan to scan without changing the model. A time step must be
-finite and positive; the functions accept a scalar ``dt`` (one ``(n, n)``
-matrix) or a 1-D array of ``N`` steps (an ``(N, n, n)`` stack, e.g. one per track).
+finite, positive and at most the model's ``max_dt`` (the largest Δt for which F and
+Q are finite: ``q Δt³/3`` overflows first for CV, ``q Δt⁵/20`` or ``Δt²/2`` for CA;
+a larger one raises ``ValueError`` naming dt and the limit); the functions accept a
+scalar ``dt`` (one ``(n, n)`` matrix) or a 1-D array of ``N`` steps (an
+``(N, n, n)`` stack, e.g. one per track).
 """
 
 from __future__ import annotations

@@ -134,6 +134,7 @@ from scipy.special import expit, logsumexp
 from jointtrack.assignment._checks import as_float, as_int
 from jointtrack.assignment.lsap import linear_assignment
 from jointtrack.assignment.scaling import group_exponents
+from jointtrack.assignment.sinkhorn import scale_log
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent._validate import check_matrix
 
@@ -266,6 +267,14 @@ def _project(lg, ii, jj, shape, col_free, max_sweeps: int = 5000):
     work = np.full(shape, -np.inf)
     work[ii, jj] = lg
     work -= logsumexp(work, axis=1)[:, None]
+    tight_c = ~col_free
+    if tight_c.any():
+        # square blocks: doubly stochastic scaling by Sinkhorn–Newton (alternating
+        # projections stall on nearly decomposable blocks, e.g. one dominant entry)
+        tight_r = np.isfinite(work[:, tight_c]).any(axis=1)
+        block = work[np.ix_(tight_r, tight_c)]
+        u, v, _ = scale_log(block, np.ones(block.shape[0]), np.ones(block.shape[1]), 1e-15, 100)
+        work[np.ix_(tight_r, tight_c)] = block + u[:, None] + v[None, :]
     violation = np.inf
     for _ in range(max_sweeps):
         lc = logsumexp(work, axis=0)

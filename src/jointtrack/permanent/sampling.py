@@ -80,8 +80,10 @@ import numba
 import numpy as np
 from scipy.special import logsumexp, ndtri
 
-from jointtrack.permanent._validate import check_matrix
-from jointtrack.permanent.bethe import _allowed_support
+from jointtrack.assignment._checks import as_int, as_rng
+from jointtrack.permanent.bethe import _allowed_support, _matrix, _scaling_exponents
+
+_LN2 = math.log(2.0)
 
 __all__ = ["SampledPermanent", "sample_permanent"]
 
@@ -104,12 +106,21 @@ class SampledPermanent:
         (``inf`` if all samples were dead ends, 0.0 for n = 0).
     n_samples : int
         number of samples N.
+    effective_sample_size : float
+        Kish's effective sample size (Σw)² / Σw² of the importance weights
+        (N when all weights are equal, 1 when one sample dominates).
+    converged : bool
+        False when the effective sample size is tiny (below min(50, N/10)): the
+        weights are then dominated by a few samples, `rel_stderr` is itself
+        unreliable and the estimate may be far off (a RuntimeWarning is issued).
     """
 
     log_value: float
     value: float
     rel_stderr: float
     n_samples: int
+    effective_sample_size: float = math.nan
+    converged: bool = True
 
     def confidence_interval(self, level: float = 0.95, *, log: bool = False):
         """Normal-approximation (CLT) confidence interval for Per(A).
@@ -202,16 +213,6 @@ def _sis_kernel(B, ly, U, out):  # pragma: no cover - compiled
         out[s] = logw
 
 
-def _make_rng(rng) -> np.random.Generator:
-    if isinstance(rng, np.random.Generator):
-        return rng
-    if rng is None or isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
-        return np.random.default_rng(rng)
-    raise ValueError(
-        f"rng must be a numpy.random.Generator, an int seed or None, got {type(rng).__name__}"
-    )
-
-
 def sample_permanent(A, n_samples: int = 10_000, *, rng=None) -> SampledPermanent:
     r"""Unbiased importance-sampling estimate of Per(A) with a standard error.
 
@@ -241,21 +242,29 @@ def sample_permanent(A, n_samples: int = 10_000, *, rng=None) -> SampledPermanen
     InfeasibleAssignmentError
         if no assignment of the rows to distinct columns has positive weight.
     """
-    A = check_matrix(A)
-    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 2:
-        raise ValueError(f"n_samples must be an integer ≥ 2, got {n_samples!r}")
-    n_samples = int(n_samples)
-    gen = _make_rng(rng)
+    A = _matrix(A)
+    n_samples = as_int(n_samples, "n_samples", 2)
+    gen = as_rng(rng)
     n, m = A.shape
     if n == 0:
-        return SampledPermanent(0.0, 1.0, 0.0, n_samples)
+        return SampledPermanent(0.0, 1.0, 0.0, n_samples, float(n_samples), True)
 
     allowed = _allowed_support(A > 0)  # raises InfeasibleAssignmentError
     order = np.argsort(allowed.sum(axis=1), kind="stable")
     allowed = allowed[order]
     with np.errstate(divide="ignore"):
         logA = np.where(allowed, np.log(np.where(allowed, A[order], 1.0)), -np.inf)
-    lx, ly = _balance(logA, m - n)
+    # Proposal: the power-of-two dual scaling first (best assignment ≈ 1, nothing
+    # out of range), then log-space Sinkhorn sweeps. Any positive factors keep the
+    # estimator unbiased (the column factors are divided out per pick), so the
+    # column scaling is allowed even for n < m.
+    er, ec = _scaling_exponents(np.where(allowed, A[order], 0.0))
+    ls = logA + (er[:, None] + ec[None, :]) * _LN2
+    lx, ly = _balance(ls, m - n)
+    lx = lx + er * _LN2
+    ly = ly + ec * _LN2
+    logB = logA + lx[:, None] + ly[None, :]
+    lx = lx - np.max(logB, axis=1)  # every row's largest proposal entry is exactly 1
     B = np.ascontiguousarray(np.exp(logA + lx[:, None] + ly[None, :]))
 
     logw = np.empty(n_samples)
@@ -273,9 +282,21 @@ def sample_permanent(A, n_samples: int = 10_000, *, rng=None) -> SampledPermanen
             RuntimeWarning,
             stacklevel=2,
         )
-        return SampledPermanent(-math.inf, 0.0, math.inf, n_samples)
+        return SampledPermanent(-math.inf, 0.0, math.inf, n_samples, 0.0, False)
     w = np.exp(logw - shift)
     mean = float(np.mean(w))
     rel_stderr = float(np.std(w, ddof=1) / (mean * math.sqrt(n_samples)))
+    ess = float(np.sum(w) ** 2 / np.sum(w * w))
+    converged = ess >= min(50.0, 0.1 * n_samples)
+    if not converged:
+        warnings.warn(
+            f"importance sampling did not converge: effective sample size {ess:.3g} of "
+            f"{n_samples} samples; the estimate and its standard error are unreliable — use "
+            "more samples or an exact method",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     log_value = shift + math.log(mean) - float(np.sum(lx))
-    return SampledPermanent(log_value, _safe_exp(log_value), rel_stderr, n_samples)
+    return SampledPermanent(
+        log_value, _safe_exp(log_value), rel_stderr, n_samples, ess, bool(converged)
+    )

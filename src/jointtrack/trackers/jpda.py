@@ -27,12 +27,13 @@ import numpy as np
 
 from jointtrack.association import marginals
 from jointtrack.association.clustering import clusters
-from jointtrack.association.gating import gate_measurements
+from jointtrack.association.clutter import cluster_heuristic_densities
+from jointtrack.association.gating import gate_pairs, likelihood_ratio_pairs
+from jointtrack.association.pda import pda_pair_marginals
 from jointtrack.errors import ExactLimitError
 from jointtrack.filters import (
     ekf_predict_measurement,
-    pda_ekf_update,
-    pda_update,
+    pda_pairs_update,
     predict,
     predict_measurement,
 )
@@ -220,8 +221,8 @@ class JPDATracker:
         # track gated, so clutter-born tentative tracks cannot glue true targets'
         # clusters together (cf. a separate initiator, Blackman & Popoli §6).
         N, M = len(self.ids), len(z)
-        beta = np.zeros((N, M + 1))
-        beta[:, 0] = 1.0
+        beta0 = np.ones(N)
+        pair_rows, pair_cols, pair_w = [], [], []
         hit = np.zeros(N, bool)
         free = np.arange(M)
         sizes, seconds, methods, kinds = [], [], [], []
@@ -231,9 +232,11 @@ class JPDATracker:
         ):
             if len(group) == 0:
                 continue
-            b, h, free_local, info = self._associate(group, z[free], loud)
-            beta[group, 0] = b[:, 0]
-            beta[np.ix_(group, 1 + free)] = b[:, 1:]
+            b0, (pr, pc, pw), h, free_local, info = self._associate(group, z[free], loud)
+            beta0[group] = b0
+            pair_rows.append(group[pr])
+            pair_cols.append(free[pc])
+            pair_w.append(pw)
             hit[group] = h
             for part, extra in zip((sizes, seconds, methods), info, strict=True):
                 part.extend(extra)
@@ -241,10 +244,14 @@ class JPDATracker:
             free = free[free_local]
         unassoc = free
         if N:
+            rows = np.concatenate(pair_rows) if pair_rows else np.zeros(0, np.int64)
+            cols = np.concatenate(pair_cols) if pair_cols else np.zeros(0, np.int64)
+            w = np.concatenate(pair_w) if pair_w else np.zeros(0)
             if self._linear:
-                self.x, self.P = pda_update(self.x, self.P, z, self._sensor.H, self._sensor.R, beta)
+                model = {"H": self._sensor.H, "R": self._sensor.R}
             else:
-                self.x, self.P = pda_ekf_update(self.x, self.P, z, self._sensor, beta)
+                model = {"model": self._sensor}
+            self.x, self.P = pda_pairs_update(self.x, self.P, z, beta0, rows, cols, w, **model)
             self._track_logic(hit)
         self._initiate(z[unassoc], dt)
         self.time = t
@@ -266,103 +273,129 @@ class JPDATracker:
         )
 
     def _associate(self, tracks, z, loud):
-        """β (n, M+1) for the given tracks against ``z``, cluster by cluster.
+        """Association probabilities of the given tracks against ``z``, cluster by cluster.
 
-        Returns ``(beta, hit, unassociated, (sizes, seconds, methods))`` with
-        ``hit`` the tracks that gated a return and ``unassociated`` the returns
-        no track of the group gated.
+        Gating on a KD-tree (:func:`~jointtrack.association.gate_pairs`), clusters
+        from the gated pairs, Bojilov's (8) or the known clutter density, the
+        likelihood ratios of the gated pairs, then per cluster: single tracks by
+        PDA (exact for one track, all at once), the others by the configured
+        method. Returns ``(beta0, (rows, cols, weights), hit, unassociated,
+        (sizes, seconds, methods))`` with rows/cols local to ``tracks``/``z``.
         """
         c = self.config
         n, M = len(tracks), len(z)
         x, P = self.x[tracks], self.P[tracks]
         if self._linear:
             z_pred, S = predict_measurement(x, P, self._sensor.H, self._sensor.R)
-            g = gate_measurements(z_pred, S, z, P_G=c.p_g)
+            g = gate_pairs(z_pred, S, z, P_G=c.p_g)
         else:
             z_pred, S = ekf_predict_measurement(x, P, self._sensor)
-            g = gate_measurements(z_pred, S, z, P_G=c.p_g, residual=self._sensor.residual)
-        mask = g.mask
-        groups = clusters(mask)
-        lam = np.full(M, c.clutter_density if c.clutter_density else 1.0)
-        if c.clutter_density is None:
-            # Bojilov (8): λ = Σ_i m_i / Σ_i V_i over the cluster's tracks
-            m_i = mask.sum(axis=1)
-            for cl in groups.clusters:
-                if len(cl.measurements):
-                    lam[cl.measurements] = m_i[cl.tracks].sum() / g.gate_volume[cl.tracks].sum()
+            g = gate_pairs(z_pred, S, z, P_G=c.p_g, residual=self._sensor.residual)
+        groups = clusters(g)
+        if c.clutter_density is not None:
+            lam = c.clutter_density
+        else:
+            # Bojilov (8): λ = Σ_i m_i / Σ_i V_i over each cluster's tracks
+            dens = cluster_heuristic_densities(g.n_gated, g.gate_volume, groups.track_cluster)
+            lam = np.ones(M)
+            gated = groups.measurement_cluster >= 0
+            lam[gated] = dens[groups.measurement_cluster[gated]]
         r = self.existence[tracks] if c.existence else np.ones(n)
+        L_pairs, _ = likelihood_ratio_pairs(g, c.p_d * r, lam)
         pdg = c.detection_in_gate()
-        with np.errstate(under="ignore", divide="ignore"):
-            L = np.where(mask, np.exp(np.log(c.p_d * r)[:, None] + g.log_g - np.log(lam)), 0.0)
         miss = 1.0 - r * pdg
-        beta = np.zeros((n, M + 1))
-        beta[:, 0] = 1.0
+        rows, cols = g.rows, g.cols
+        # single-track clusters (most of a scan): PDA, vectorised over all of them
+        size = np.bincount(groups.track_cluster, minlength=len(groups.clusters))
+        alone = size[groups.track_cluster] == 1
+        pair_alone = alone[rows]
+        beta0 = np.ones(n)
+        weights = np.zeros(len(rows))
+        b0, w = pda_pair_marginals(rows[pair_alone], L_pairs[pair_alone], miss)
+        beta0[alone] = b0[alone]
+        weights[pair_alone] = w
         sizes, seconds, methods = [], [], []
-        for cl in groups.clusters:
-            tr, ms = cl.tracks, cl.measurements
-            if len(ms) == 0:
-                continue
-            Lc, mc = L[np.ix_(tr, ms)], miss[tr]
-            if len(tr) == 1:  # one track: PDA is exact
-                w = np.concatenate([mc, Lc[0]])
-                beta[tr[0], 0] = w[0] / w.sum()
-                beta[tr[0], 1 + ms] = w[1:] / w.sum()
-                continue
-            method = c.association
-            opts = {}
-            if len(tr) > c.exact_max_tracks and method in ("exact", "enumerate"):
-                method = c.approximation
-                (log.warning if loud else log.debug)(
-                    "cluster of %d %s tracks and %d measurements exceeds exact_max_tracks=%d: "
-                    "using %s",
-                    len(tr),
-                    "confirmed" if loud else "tentative",
-                    len(ms),
-                    c.exact_max_tracks,
-                    method,
-                )
-            if method == "mcmc":
-                opts["rng"] = self.rng
-            t0 = _time.perf_counter()
-            try:
-                bc = marginals(Lc, mc, method=method, **opts)
-            except ExactLimitError as exc:
-                # within exact_max_tracks but beyond the exact engine's state or
-                # memory budget: the configured approximation, counted per cluster
-                fallback = c.approximation
-                (log.warning if loud else log.debug)(
-                    "exact association refused a cluster of %d tracks and %d measurements "
-                    "(%s): using %s",
-                    len(tr),
-                    len(ms),
-                    exc,
-                    fallback,
-                )
-                opts = {"rng": self.rng} if fallback == "mcmc" else {}
-                bc = marginals(Lc, mc, method=fallback, **opts)
-                method = fallback
-            seconds.append(_time.perf_counter() - t0)
-            sizes.append((len(tr), len(ms)))
-            methods.append(method)
-            beta[tr, 0] = bc[:, 0]
-            beta[np.ix_(tr, 1 + ms)] = bc[:, 1:]
-            if self.on_cluster is not None:
-                self.on_cluster(
-                    ClusterRecord(self.ids[tracks[tr]], Lc, mc, bc, seconds[-1], method, loud)
-                )
+        multi = np.flatnonzero(size > 1)
+        if multi.size:
+            # the gated pairs of each multi-track cluster, contiguous
+            pair_cluster = groups.track_cluster[rows]
+            order = np.argsort(pair_cluster, kind="stable")
+            starts = np.searchsorted(pair_cluster[order], multi, side="left")
+            ends = np.searchsorted(pair_cluster[order], multi, side="right")
+            for k, lo, hi in zip(multi, starts, ends, strict=True):
+                cl = groups.clusters[k]
+                tr, ms = cl.tracks, cl.measurements
+                idx = order[lo:hi]
+                if len(ms) == 0:
+                    continue
+                Lc = np.zeros((len(tr), len(ms)))
+                Lc[np.searchsorted(tr, rows[idx]), np.searchsorted(ms, cols[idx])] = L_pairs[idx]
+                bc, method, dt_s = self._cluster_marginals(Lc, miss[tr], loud)
+                seconds.append(dt_s)
+                sizes.append((len(tr), len(ms)))
+                methods.append(method)
+                beta0[tr] = bc[:, 0]
+                weights[idx] = bc[
+                    np.searchsorted(tr, rows[idx]), 1 + np.searchsorted(ms, cols[idx])
+                ]
+                if self.on_cluster is not None:
+                    self.on_cluster(
+                        ClusterRecord(self.ids[tracks[tr]], Lc, miss[tr], bc, dt_s, method, loud)
+                    )
         if c.existence:
-            beta = self._existence_update(tracks, beta, r, pdg)
-        return beta, mask.any(axis=1), groups.unassociated, (sizes, seconds, methods)
+            beta0, weights = self._existence_update(tracks, beta0, rows, weights, r, pdg)
+        return (
+            beta0,
+            (rows, cols, weights),
+            g.n_gated > 0,
+            groups.unassociated,
+            (sizes, seconds, methods),
+        )
 
-    def _existence_update(self, tracks, beta, r, pdg):
+    def _cluster_marginals(self, Lc, mc, loud):
+        """β of one multi-track cluster: the configured method, or the approximation
+        when the cluster exceeds ``exact_max_tracks`` or the exact engine refuses it."""
+        c = self.config
+        method = c.association
+        if len(Lc) > c.exact_max_tracks and method in ("exact", "enumerate"):
+            method = c.approximation
+            (log.warning if loud else log.debug)(
+                "cluster of %d %s tracks and %d measurements exceeds exact_max_tracks=%d: using %s",
+                len(Lc),
+                "confirmed" if loud else "tentative",
+                Lc.shape[1],
+                c.exact_max_tracks,
+                method,
+            )
+        t0 = _time.perf_counter()
+        try:
+            bc = marginals(Lc, mc, method=method, **self._method_options(method))
+        except ExactLimitError as exc:
+            # within exact_max_tracks but beyond the exact engine's state or
+            # memory budget: the configured approximation, counted per cluster
+            (log.warning if loud else log.debug)(
+                "exact association refused a cluster of %d tracks and %d measurements "
+                "(%s): using %s",
+                len(Lc),
+                Lc.shape[1],
+                exc,
+                c.approximation,
+            )
+            method = c.approximation
+            bc = marginals(Lc, mc, method=method, **self._method_options(method))
+        return bc, method, _time.perf_counter() - t0
+
+    def _method_options(self, method):
+        return {"rng": self.rng} if method == "mcmc" else {}
+
+    def _existence_update(self, tracks, beta0, rows, weights, r, pdg):
         """JIPDA: posterior existence and β conditioned on existence (Mušicki & Evans 2004)."""
-        exists_missed = beta[:, 0] * r * (1.0 - pdg) / (1.0 - r * pdg)
-        r_post = np.clip(exists_missed + (1.0 - beta[:, 0]), 1e-12, 1.0)
-        cond = beta.copy()
-        cond[:, 0] = exists_missed
-        cond /= cond.sum(axis=1, keepdims=True)
+        exists_missed = beta0 * r * (1.0 - pdg) / (1.0 - r * pdg)
+        detected = 1.0 - beta0
+        r_post = np.clip(exists_missed + detected, 1e-12, 1.0)
         self.existence[tracks] = r_post
-        return cond
+        total = exists_missed + detected
+        return exists_missed / total, weights / total[rows]
 
     def _track_logic(self, hit):
         c = self.config
