@@ -40,6 +40,8 @@ def _as_real_array(value, name: str) -> np.ndarray:
     except (TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"{name} must be an array of real numbers: {exc}") from None
     kind = raw.dtype.kind
+    if kind in "iuf" and _holds_bool(value):
+        raise ValueError(f"{name} holds a boolean; pass numbers")
     if kind == "c":
         raise ValueError(
             f"{name} has complex entries; weights must be real (the imaginary part "
@@ -67,6 +69,17 @@ def _as_real_array(value, name: str) -> np.ndarray:
     if kind not in "iuf":
         raise ValueError(f"{name} must be an array of real numbers, got dtype {raw.dtype}")
     return np.asarray(raw, dtype=np.float64)
+
+
+def _holds_bool(value) -> bool:
+    """A nested list/tuple with a bool among numbers (numpy would coerce it silently)."""
+    if isinstance(value, np.ndarray):
+        return False
+    if isinstance(value, bool | np.bool_):
+        return True
+    if isinstance(value, list | tuple):
+        return any(_holds_bool(v) for v in value)
+    return False
 
 
 def _first_bad(mask: np.ndarray) -> tuple:
@@ -123,7 +136,7 @@ def as_counts(counts, length: int, name: str) -> np.ndarray:
             f"{name} must have one entry per group of the compressed matrix ({length}), "
             f"got shape {raw.shape}"
         )
-    if raw.dtype.kind == "b" or any(isinstance(x, bool | np.bool_) for x in raw.tolist()):
+    if raw.dtype.kind == "b" or _holds_bool(counts if not isinstance(counts, np.ndarray) else []):
         raise ValueError(f"{name} holds booleans; group sizes are positive integers")
     if raw.dtype.kind == "c":
         raise ValueError(f"{name} holds complex numbers; group sizes are positive integers")

@@ -17,6 +17,24 @@ Run as ``jointtrack bench tracker [--quick] [--out FILE]`` or
   cluster of confirmed tracks is timed by the tracker (``"exact"`` method);
   mean and max seconds per cluster size are printed beside Bojilov's Table 3
   (his optimised enumeration). Target: 5-target clusters ≤ 1 ms on average.
+* **scaling at constant density**: ``many_targets(n, 0.5·n, seed=0, region=side²)``
+  with side = 10 km·√(n/100) (the target and clutter density of the 100-target
+  scene), n = 100, 300, 1000, 3000, 10000, tracker set up as in the many-target
+  row. The first ``SKIP_SCANS`` scans (two-point initiation of every target) run
+  untimed; each later ``step`` is timed. Printed: steady-state scans/s (median
+  over repeated runs), median and mean ms per scan, µs per target per scan and
+  its ratio to n = 100, and the least-squares slope of log(ms/scan) against
+  log n. Targets: ≥ 10 scans/s at n = 3000 (1500 clutter/scan); slope ≤ 1.2
+  (cost per scan roughly linear in n). With ``--out FILE`` a log-log plot is
+  written next to it (``<stem>_scaling.png``).
+* **large single scans**: ``TrackerConfig(clutter_density=1e-6)`` fed
+  ``LARGE_SCANS`` consecutive scans of M = 5,000, 10,000 (full run only) and
+  20,000 uniform detections over 1e5 × 1e5 m (so two-point initiation pairs
+  some of them and the third scan gates tentative tracks), each M in a fresh
+  subprocess under ``RLIMIT_AS`` = 2 GiB: completes or not, seconds per scan
+  (after a small untimed warm-up scene that loads the numba kernels) and peak
+  RSS (``getrusage(RUSAGE_SELF).ru_maxrss``), beside the numbers of the
+  issue before the linear-scaling rewrite.
 
 Stone Soup is not run here: wiring its full tracker (initiator, deleter,
 updater) on these scenes would time Stone Soup's object model more than its
@@ -27,8 +45,12 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import statistics
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from rich.table import Table
@@ -197,12 +219,353 @@ def _bojilov(console, quick, results):
     )
 
 
+# ---------------------------------------------------------------- scaling curve
+SKIP_SCANS = 5  # initiation transient: untimed
+# n targets -> (timed scans per run, runs); full aims at ≥ 2 s of timed steps per point
+SCALING_FULL = {100: (120, 3), 300: (80, 3), 1000: (50, 3), 3000: (25, 3), 10000: (15, 1)}
+SCALING_QUICK = {100: (30, 1), 300: (20, 1), 1000: (10, 1), 3000: (8, 1), 10000: (5, 1)}
+
+
+def scaling_scene(n: int, n_scans: int, seed: int = 0):
+    """``many_targets`` with n targets, n/2 clutter/scan, at the 100-target scene's density."""
+    side = 10_000.0 * math.sqrt(n / 100.0)
+    return many_targets(n, 0.5 * n, seed=seed, n_scans=n_scans, region=((0, side), (0, side)))
+
+
+def _timed_steps(sc, cfg):
+    """Per-scan seconds of ``JPDATracker.step`` and the final result."""
+    trk = JPDATracker(cfg)
+    times = []
+    r = None
+    for t, z in zip(sc.times, sc.detections, strict=True):
+        t0 = time.perf_counter()
+        r = trk.step(t, z)
+        times.append(time.perf_counter() - t0)
+    return np.array(times), r
+
+
+def loglog_slope(n, y) -> float:
+    """Least-squares slope of log y against log n."""
+    return float(np.polyfit(np.log(np.asarray(n, float)), np.log(np.asarray(y, float)), 1)[0])
+
+
+def _scaling(console, quick, results):
+    plan = SCALING_QUICK if quick else SCALING_FULL
+    points = []
+    logging.disable(logging.WARNING)
+    try:
+        warm = scaling_scene(100, 10)
+        _timed_steps(warm, scenario_config(warm))  # numba kernels, caches
+        for n, (timed, runs) in plan.items():
+            sc = scaling_scene(n, SKIP_SCANS + timed)
+            cfg = scenario_config(sc)
+            per_run, all_steps, last = [], [], None
+            for _ in range(runs):
+                steps, last = _timed_steps(sc, cfg)
+                steady = steps[SKIP_SCANS:]
+                per_run.append(float(steady.sum()))
+                all_steps.append(steady)
+            steps = np.concatenate(all_steps)
+            seconds = statistics.median(per_run)
+            rate = timed / seconds
+            ms_mean = 1e3 / rate
+            alive = len(sc.truth_ids[-1])
+            points.append(
+                dict(
+                    n_targets=n,
+                    clutter_per_scan=0.5 * n,
+                    side_m=10_000.0 * math.sqrt(n / 100.0),
+                    clutter_density=cfg.clutter_density,
+                    mean_detections=float(np.mean([len(d) for d in sc.detections[SKIP_SCANS:]])),
+                    timed_scans=timed,
+                    runs=runs,
+                    run_seconds=per_run,
+                    scans_per_second=rate,
+                    ms_per_scan_mean=ms_mean,
+                    ms_per_scan_median=float(np.median(steps) * 1e3),
+                    ms_per_scan_max=float(steps.max() * 1e3),
+                    us_per_target_scan=ms_mean * 1e3 / n,
+                    confirmed_tracks_last_scan=len(last.ids),
+                    tentative_tracks_last_scan=last.n_tentative,
+                    truths_last_scan=alive,
+                )
+            )
+    finally:
+        logging.disable(logging.NOTSET)
+    ns = [p["n_targets"] for p in points]
+    ms = [p["ms_per_scan_mean"] for p in points]
+    slope = loglog_slope(ns, ms)
+    big = [i for i, n in enumerate(ns) if n >= 1000]
+    slope_big = loglog_slope([ns[i] for i in big], [ms[i] for i in big]) if len(big) > 1 else None
+    base = points[0]["us_per_target_scan"]
+    t = Table(
+        title="Scaling at constant density: n targets + n/2 clutter/scan, "
+        f"side = 10 km·√(n/100) (steady state, first {SKIP_SCANS} scans untimed)"
+    )
+    for col in (
+        "targets",
+        "clutter/scan",
+        "detections/scan",
+        "timed scans × runs",
+        "scans/s",
+        "ms/scan median",
+        "ms/scan mean",
+        "µs/target/scan",
+        "vs n=100",
+        "confirmed (truths) last scan",
+    ):
+        t.add_column(col)
+    for p in points:
+        t.add_row(
+            f"{p['n_targets']:,}",
+            f"{p['clutter_per_scan']:,.0f}",
+            f"{p['mean_detections']:,.0f}",
+            f"{p['timed_scans']} × {p['runs']}",
+            f"{p['scans_per_second']:.1f}",
+            f"{p['ms_per_scan_median']:.1f}",
+            f"{p['ms_per_scan_mean']:.1f}",
+            f"{p['us_per_target_scan']:.1f}",
+            f"{p['us_per_target_scan'] / base:.2f}×",
+            f"{p['confirmed_tracks_last_scan']:,} ({p['truths_last_scan']:,})",
+        )
+    console.print(t)
+    at3000 = next((p for p in points if p["n_targets"] == 3000), None)
+    rate_ok = at3000 is not None and at3000["scans_per_second"] >= 10.0
+    slope_ok = slope <= 1.2
+    console.print(
+        f"log-log slope of ms/scan vs n: {slope:.2f} (all n)"
+        + (f", {slope_big:.2f} (n ≥ 1000)" if slope_big is not None else "")
+        + f" — {'PASS' if slope_ok else 'FAIL'} (≤ 1.2, roughly linear)"
+    )
+    if at3000 is not None:
+        console.print(
+            f"3000 targets + 1500 clutter: {at3000['scans_per_second']:.1f} scans/s — "
+            f"{'PASS' if rate_ok else 'FAIL'} (≥ 10)"
+        )
+    results["scaling"] = dict(
+        skip_scans=SKIP_SCANS,
+        points=points,
+        slope=slope,
+        slope_n_ge_1000=slope_big,
+        scans_per_second_3000=None if at3000 is None else at3000["scans_per_second"],
+        target_rate_met=rate_ok,
+        target_slope_met=slope_ok,
+        target_met=rate_ok and slope_ok,
+    )
+
+
+def plot_scaling(points, path) -> Path:
+    """Log-log plot of scans/s and ms per scan against n (matplotlib, Agg)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = np.array([p["n_targets"] for p in points], float)
+    rate = np.array([p["scans_per_second"] for p in points])
+    ms_mean = np.array([p["ms_per_scan_mean"] for p in points])
+    ms_med = np.array([p["ms_per_scan_median"] for p in points])
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
+    a.loglog(n, rate, "o-", color="C0", label="steady-state scans/s")
+    a.axhline(10, color="C3", ls="--", lw=1, label="target at n = 3000: 10 scans/s")
+    a.axhline(20, color="C2", ls=":", lw=1, label="target at n = 100: 20 scans/s")
+    a.set_xlabel("targets n (clutter n/2 per scan, constant density)")
+    a.set_ylabel("scans per second")
+    a.set_title("JPDATracker scan rate")
+    a.grid(True, which="both", alpha=0.3)
+    a.legend(fontsize=8)
+    for x, y in zip(n, rate, strict=True):
+        a.annotate(
+            f"{y:.0f}" if y >= 10 else f"{y:.1f}",
+            (x, y),
+            textcoords="offset points",
+            xytext=(4, 4),
+            fontsize=8,
+        )
+    slope = loglog_slope(n, ms_mean)
+    b.loglog(n, ms_mean, "o-", color="C1", label=f"mean ms/scan (fitted slope {slope:.2f})")
+    b.loglog(n, ms_med, "s--", color="C4", ms=4, label="median ms/scan")
+    b.loglog(n, ms_mean[0] * n / n[0], color="grey", ls=":", lw=1, label="∝ n (slope 1)")
+    b.set_xlabel("targets n (clutter n/2 per scan, constant density)")
+    b.set_ylabel("milliseconds per scan")
+    b.set_title("Cost per scan")
+    b.grid(True, which="both", alpha=0.3)
+    b.legend(fontsize=8)
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+# ------------------------------------------------------------ large single scans
+LARGE_SIZES_FULL = (5_000, 10_000, 20_000)
+LARGE_SIZES_QUICK = (5_000, 20_000)
+LARGE_SCANS = 3
+LARGE_REGION = 1e5
+ADDRESS_LIMIT = 2 * 2**30
+# the issue, before the linear-scaling rewrite: (peak memory, seconds) or the failure
+LARGE_BEFORE = {
+    5_000: "2.1 GB, 10 s",
+    10_000: "7.8 GB, 47 s",
+    20_000: "tried to allocate 11.9 GiB: fails",
+}
+
+_CHILD = (
+    "import sys; from jointtrack.bench.tracker import large_scan_child; "
+    "large_scan_child(int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]))"
+)
+
+
+def large_scan_child(m: int, n_scans: int = LARGE_SCANS, limit: int = ADDRESS_LIMIT) -> None:
+    """Run in a fresh process: the address-space limit, then ``n_scans`` scans of m
+    uniform detections; prints one JSON line (seconds per scan, peak RSS)."""
+    import resource
+
+    if limit > 0:
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    rng = np.random.default_rng(0)
+    # untimed warm-up on a small scene of the same kind: loads the numba kernels
+    warm = JPDATracker(TrackerConfig(clutter_density=1e-6))
+    for k in range(3):
+        warm.step(float(k), rng.uniform(0, 1e4, (200, 2)))
+    trk = JPDATracker(TrackerConfig(clutter_density=1e-6))
+    seconds, tracks, confirmed, clusters = [], [], [], []
+    for k in range(n_scans):
+        z = rng.uniform(0.0, LARGE_REGION, (m, 2))
+        t0 = time.perf_counter()
+        r = trk.step(float(k), z)
+        seconds.append(time.perf_counter() - t0)
+        tracks.append(len(trk.ids))
+        confirmed.append(len(r.ids))
+        clusters.append(len(r.cluster_sizes))
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # KiB on Linux
+    print(
+        json.dumps(
+            dict(
+                detections=m,
+                seconds=seconds,
+                tracks=tracks,
+                confirmed=confirmed,
+                clusters=clusters,
+                peak_rss_bytes=rss,
+            )
+        ),
+        flush=True,
+    )
+
+
+def run_large_scan(
+    m: int, n_scans: int = LARGE_SCANS, limit: int = ADDRESS_LIMIT, timeout: float = 600.0
+) -> dict:
+    """``large_scan_child`` in a fresh interpreter; its JSON plus completion status."""
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-c", _CHILD, str(m), str(n_scans), str(limit)],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
+    except subprocess.TimeoutExpired:
+        return dict(detections=m, completed=False, returncode=None, error=f"timeout {timeout} s")
+    wall = time.perf_counter() - t0
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
+    if proc.returncode != 0 or not lines:
+        tail = (proc.stderr.strip().splitlines() or ["(no stderr)"])[-1]
+        return dict(
+            detections=m,
+            completed=False,
+            returncode=proc.returncode,
+            error=tail,
+            process_seconds=wall,
+        )
+    res = json.loads(lines[-1])
+    res.update(completed=True, returncode=0, process_seconds=wall)
+    return res
+
+
+def _large(console, quick, results):
+    sizes = LARGE_SIZES_QUICK if quick else LARGE_SIZES_FULL
+    rows = [run_large_scan(m) for m in sizes]
+    t = Table(
+        title=f"Large single scans: M uniform detections over 1e5 × 1e5 m, {LARGE_SCANS} "
+        "consecutive scans, TrackerConfig(clutter_density=1e-6), fresh process, "
+        "RLIMIT_AS = 2 GiB"
+    )
+    for col in (
+        "detections/scan",
+        "before (issue)",
+        "completes ≤ 2 GiB",
+        "s/scan median",
+        "s/scan max",
+        "s all scans",
+        "peak RSS",
+        "tracks after each scan",
+        "before/after",
+    ):
+        t.add_column(col)
+    for r in rows:
+        m = r["detections"]
+        before = LARGE_BEFORE.get(m, "—")
+        if not r["completed"]:
+            t.add_row(f"{m:,}", before, f"FAIL ({r['error']})", *["—"] * 6)
+            continue
+        s = r["seconds"]
+        r["seconds_median"] = statistics.median(s)
+        r["seconds_max"] = max(s)
+        r["seconds_total"] = sum(s)
+        rss = r["peak_rss_bytes"]
+        ratio = {5_000: (2.1e9, 10.0), 10_000: (7.8e9, 47.0)}.get(m)
+        if ratio is not None:
+            r["memory_ratio"] = ratio[0] / rss
+            r["time_ratio_vs_total"] = ratio[1] / r["seconds_total"]
+            cmp = f"{ratio[0] / rss:.0f}× less memory, {ratio[1] / r['seconds_total']:.0f}× faster"
+        elif m == 20_000:
+            cmp = "failed before, completes now"
+        else:
+            cmp = "—"
+        t.add_row(
+            f"{m:,}",
+            before,
+            "PASS",
+            f"{r['seconds_median']:.3f}",
+            f"{r['seconds_max']:.3f}",
+            f"{r['seconds_total']:.3f}",
+            f"{rss / 2**20:.0f} MiB",
+            " → ".join(f"{k:,}" for k in r["tracks"]),
+            cmp,
+        )
+    console.print(t)
+    console.print(
+        "before/after: the issue's memory (GB, 1e9 bytes) over the peak RSS (whole process: "
+        "interpreter, numpy, numba, jointtrack) and its seconds over all timed scans here."
+    )
+    ok = all(r["completed"] for r in rows)
+    results["large_scans"] = dict(
+        scans=LARGE_SCANS,
+        region=LARGE_REGION,
+        address_limit_bytes=ADDRESS_LIMIT,
+        before=LARGE_BEFORE,
+        rows=rows,
+        target_met=ok,
+    )
+    console.print(f"all large scans complete under RLIMIT_AS = 2 GiB — {'PASS' if ok else 'FAIL'}")
+
+
 def run(quick: bool = False, out: str | None = None) -> dict:
     console = make_console()
     results: dict = {"quick": quick}
     _many(console, quick, results)
     _bojilov(console, quick, results)
+    _scaling(console, quick, results)
+    _large(console, quick, results)
     if out:
+        png = Path(out).with_name(Path(out).stem + "_scaling.png")
+        try:
+            results["scaling"]["plot"] = str(plot_scaling(results["scaling"]["points"], png))
+            console.print(f"scaling plot: {png}")
+        except ImportError as exc:  # matplotlib is a dependency, but say so rather than fail
+            console.print(f"scaling plot not written: {exc}")
         with open(out, "w") as fh:
             json.dump(results, fh, indent=2, default=float)
     return results

@@ -26,6 +26,11 @@ from jointtrack.permanent._validate import check_problem
 
 __all__ = ["GLYNN_TOLERANCE", "METHODS", "log_permanent", "permanent"]
 
+# exp(log Per) carries a relative error up to ~|log|·2⁻⁵³ ≈ 1.6e-13 near the top of
+# the range: values this close to the largest float may truly lie beyond it
+_FLOAT_MAX_SAFE = 1.7976931348623157e308 * (1.0 - 4e-13)
+_LOG_FLOAT_MAX = math.log(1.7976931348623157e308)
+
 METHODS = ("auto", "dp", "multiset", "glynn", "ryser", "reference")
 _CORE_METHOD = {
     "auto": "auto",
@@ -115,18 +120,35 @@ def permanent(A, method: str = "auto", *, row_counts=None, col_counts=None) -> f
                 _exp_or_raise(log_value)  # raises: the exact value is outside float64
         return value
     log_value = log_permanent(A, method, row_counts=row_counts, col_counts=col_counts)
+    if abs(log_value - _LOG_FLOAT_MAX) <= 1e-12 * _LOG_FLOAT_MAX and int(rows.sum()) <= 10:
+        # within rounding of the float64 limit: let the exact rational value decide
+        return permanent(A, "reference", row_counts=rows, col_counts=cols)
     return _exp_or_raise(log_value)
 
 
 def _exp_or_raise(log_value: float) -> float:
-    """exp of a log-permanent, or OverflowError when it leaves the float64 range."""
+    """exp of a log-permanent, or OverflowError when it leaves the float64 range.
+
+    ``log(max float64) ≈ 709.7827``: a log within a few ulps of it may round to
+    either side, so the boundary is decided on the exponentiated value (an
+    overflowing exp, or a result at the largest finite float, is refused
+    rather than returned as a value that may be 1 ulp beyond the range).
+    """
     if log_value == -math.inf:
         return 0.0
-    value = math.exp(log_value) if log_value < 709.8 else math.inf
+    try:
+        value = math.exp(log_value)
+    except OverflowError:
+        value = math.inf
     if value == math.inf or value == 0.0:
         kind = "overflows" if log_value > 0 else "underflows"
         raise OverflowError(
             f"the permanent is e^{log_value:.6g}, which {kind} float64; use log_permanent"
+        )
+    if value >= _FLOAT_MAX_SAFE:
+        raise OverflowError(
+            f"the permanent is e^{log_value:.15g}, within rounding of the float64 limit, so "
+            "whether it is representable cannot be decided; use log_permanent"
         )
     # exp(log) is off by |log|·2⁻⁵³ relative at most; round the integer-valued case
     nearest = round(value)
