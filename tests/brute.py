@@ -207,7 +207,7 @@ def brute_grouped(W, null=None, row_counts=None, col_counts=None):
                         acc[qq][c] += w * k
             return
         for kq in row_vectors(q, free):
-            rec(q + 1, [f - k for f, k in zip(free, kq)], ks + [kq])
+            rec(q + 1, [f - k for f, k in zip(free, kq, strict=True)], ks + [kq])
 
     rec(0, list(cc), [])
     if total == 0:

@@ -63,7 +63,9 @@ ENTRY = st.one_of(FLOAT_ENTRY, WIDE_ENTRY, TIE_ENTRY)
 NULL_VALUES = {
     "zeros": st.just(0.0),
     "subnormal": st.floats(
-        min_value=5e-324, max_value=2.2250738585072014e-308, exclude_max=True,
+        min_value=5e-324,
+        max_value=2.2250738585072014e-308,
+        exclude_max=True,
         allow_subnormal=True,
     ),
     "range": st.floats(min_value=1e-300, max_value=1.0),
@@ -133,7 +135,9 @@ _CACHE: dict = {}
 def truth(W, null, rows=None, cols=None):
     """(Z, P, Pnull) exactly; cached so the parametrised tests enumerate once."""
     key = (
-        W.shape, W.tobytes(), None if null is None else np.asarray(null, float).tobytes(),
+        W.shape,
+        W.tobytes(),
+        None if null is None else np.asarray(null, float).tobytes(),
         None if rows is None else tuple(int(x) for x in rows),
         None if cols is None else tuple(int(x) for x in cols),
     )
@@ -323,9 +327,11 @@ def test_compressed_matches_brute_and_expansion(problem, method, marginals):
             assignment_sum(Wx, nx, marginals=True, method="frontier")
         return
     ex = assignment_sum(Wx, nx, marginals=marginals, method="frontier")
-    assert abs(ex.log_normalizer - res.log_normalizer) <= 2 * TOL_LOG * max(
-        1.0, abs(res.log_normalizer)
-    ) or ex.log_normalizer == res.log_normalizer
+    assert (
+        abs(ex.log_normalizer - res.log_normalizer)
+        <= 2 * TOL_LOG * max(1.0, abs(res.log_normalizer))
+        or ex.log_normalizer == res.log_normalizer
+    )
     if marginals:
         assert np.abs(ex.P - expand(res.P, rows, cols)).max() <= 2 * TOL_P
         assert np.abs(ex.null - np.repeat(res.null, rows)).max() <= 2 * TOL_P
@@ -400,7 +406,8 @@ def test_permanent_is_jpda_with_zero_miss(problem):
         via_jpda = math.exp(jp.log_normalizer)
         assert abs(value - via_jpda) <= 2 * TOL_LOG * max(1.0, abs(lp)) * value + SMALLEST
     P = assignment_marginals(A)
-    assert np.array_equal(jp.beta[:, 0], np.zeros(A.shape[0])) or np.abs(jp.beta[:, 0]).max() <= TOL_P
+    no_miss = jp.beta[:, 0]
+    assert np.array_equal(no_miss, np.zeros(A.shape[0])) or np.abs(no_miss).max() <= TOL_P
     assert np.abs(P - jp.beta[:, 1:]).max() <= 2 * TOL_P
     check_marginals(P, np.zeros(A.shape[0]), Pt, Pnt, np.ones(A.shape[1]))
 
@@ -442,11 +449,16 @@ def rank_one(draw):
     n = draw(st.integers(1, 4))
     m = draw(st.integers(n, 5))
     a = [2.0 ** draw(st.integers(-600, 600)) for _ in range(n)]
-    b = draw(st.lists(
-        st.one_of(st.floats(min_value=1e-100, max_value=1e100),
-                  st.integers(-100, 100).map(lambda e: 10.0**e)),
-        min_size=m, max_size=m,
-    ))
+    b = draw(
+        st.lists(
+            st.one_of(
+                st.floats(min_value=1e-100, max_value=1e100),
+                st.integers(-100, 100).map(lambda e: 10.0**e),
+            ),
+            min_size=m,
+            max_size=m,
+        )
+    )
     return np.array(a), np.array(b)
 
 
@@ -477,7 +489,7 @@ def test_rank_one_closed_form(ab):
         expected = np.full((n, m), 1.0 / n)
     else:
         row = [
-            float(Fb[i] * elementary_symmetric(Fb[:i] + Fb[i + 1:], n - 1) / (n * en))
+            float(Fb[i] * elementary_symmetric(Fb[:i] + Fb[i + 1 :], n - 1) / (n * en))
             for i in range(m)
         ]
         expected = np.tile(row, (n, 1))
@@ -536,8 +548,16 @@ FACES = {
         [[1.0, 10**400]],
         [[-(10**400), 1.0]],
     ],
-    ids=["complex-array", "complex-list", "bool-array", "bool-list", "bool-mixed-list", "int-1e400",
-         "mixed-int-1e400", "neg-int-1e400"],
+    ids=[
+        "complex-array",
+        "complex-list",
+        "bool-array",
+        "bool-list",
+        "bool-mixed-list",
+        "int-1e400",
+        "mixed-int-1e400",
+        "neg-int-1e400",
+    ],
 )
 def test_bad_matrix_is_named_value_error(face, A):
     with pytest.raises(ValueError, match=r"\bA\b"):
@@ -556,8 +576,7 @@ def test_bad_matrix_is_named_value_error(face, A):
         (dict(row_counts=[10**20], col_counts=[1, 1]), "row_counts"),
         (dict(row_counts=[1], col_counts=[np.int64(2), True]), "col_counts"),
     ],
-    ids=["bool-list", "bool-array", "col-2.5", "row-2.5", "col-1e20", "row-1e20",
-         "mixed-bool"],
+    ids=["bool-list", "bool-array", "col-2.5", "row-2.5", "col-1e20", "row-1e20", "mixed-bool"],
 )
 def test_bad_counts_are_named_value_errors(face, kw, name):
     A = [[1.0, 2.0]]

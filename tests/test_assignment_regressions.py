@@ -23,7 +23,6 @@ import pytest
 from brute import brute_assignment, log_fraction
 from jointtrack.assignment import assignment_sum
 from jointtrack.association import exact_jpda, marginals
-from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent import assignment_marginals, log_permanent, permanent
 
 TOL = 1e-12
@@ -79,7 +78,7 @@ def assert_probabilities(P, Pt, what="P", cols=None):
 
 
 def beta_true(Pt, Pnt):
-    return [[pn, *row] for pn, row in zip(Pnt, Pt)]
+    return [[pn, *row] for pn, row in zip(Pnt, Pt, strict=True)]
 
 
 def check_permanent(A, method, row_counts=None, col_counts=None):
@@ -105,8 +104,12 @@ PERMANENT_CASES = [
     # permanent: true 1.8e201
     ("per-1.8e201", [[1, 1, 1, 1e200]] * 3, None, None),
     # permanent: true 1e-10
-    ("per-1e-10", [[0, 0, 1, 0, 0], [0, 0, 0, 1, 0], [1e-54, 0, 0, 1e68, 0],
-                   [0, 0, 1e249, 0, 1e44]], None, None),
+    (
+        "per-1e-10",
+        [[0, 0, 1, 0, 0], [0, 0, 0, 1, 0], [1e-54, 0, 0, 1e68, 0], [0, 0, 1e249, 0, 1e44]],
+        None,
+        None,
+    ),
     # log_permanent: true -297.03; assignment_marginals was a bare OverflowError
     ("per-e-297", [[1, 1, 0], [0, 1e-129, 1e188], [0, 0, 1]], None, None),
     # assignment_marginals: were NaN rows
@@ -127,8 +130,11 @@ JPDA_CASES = [
     # was ZeroDivisionError
     ("jpda-miss-1e-300", [[1.0, 1e171], [1e-164, 1.0], [1e199, 0.0]], [1e-300] * 3),
     # was ZeroDivisionError
-    ("jpda-subnormal", [[0, 1, 4.904079099405633e-294, 0], [0, 0, 1e162, 0], [0, 1e162, 1, 0]],
-     [1.0, 1.0, 0.0]),
+    (
+        "jpda-subnormal",
+        [[0, 1, 4.904079099405633e-294, 0], [0, 0, 1e162, 0], [0, 1e162, 1, 0]],
+        [1.0, 1.0, 0.0],
+    ),
 ]
 JPDA_IDS = [c[0] for c in JPDA_CASES]
 
@@ -136,8 +142,11 @@ JPDA_IDS = [c[0] for c in JPDA_CASES]
 def test_reported_true_values():
     """The values the examples were reported with are those of the exact sums."""
     reported = {
-        "per-1e-208": -478.94, "per-e-297": -297.03, "per-5e-324": -744.44,
-        "grp-e-491": -491.37, "grp-e188": 187.90,
+        "per-1e-208": -478.94,
+        "per-e-297": -297.03,
+        "per-5e-324": -744.44,
+        "grp-e-491": -491.37,
+        "grp-e188": 187.90,
     }
     for name, A, rc, cc in PERMANENT_CASES:
         Z = exact(A, None, rc, cc)[0]
@@ -157,8 +166,9 @@ def test_reported_true_values():
 def test_log_permanent_regression(case, method):
     _, A, rc, cc = case
     Z = exact(A, None, rc, cc)[0]
-    assert_log(log_permanent(A, method, row_counts=rc, col_counts=cc), Z,
-               f"log_permanent({method})")
+    assert_log(
+        log_permanent(A, method, row_counts=rc, col_counts=cc), Z, f"log_permanent({method})"
+    )
 
 
 @pytest.mark.parametrize("method", PERMANENT_METHODS)
@@ -202,8 +212,7 @@ def test_assignment_marginals_regression(case):
 def test_core_on_permanent_regressions(case, method, marginals_):
     _, A, rc, cc = case
     Z, Pt, Pnt = exact(A, None, rc, cc)
-    res = assignment_sum(A, None, row_counts=rc, col_counts=cc, marginals=marginals_,
-                         method=method)
+    res = assignment_sum(A, None, row_counts=rc, col_counts=cc, marginals=marginals_, method=method)
     assert_log(res.log_normalizer, Z, f"assignment_sum({method})")
     if marginals_:
         assert_probabilities(res.beta, beta_true(Pt, Pnt), f"assignment_sum({method}).beta")
@@ -244,19 +253,19 @@ MAX = sys.float_info.max
 # permanent(A) must raise OverflowError (naming log_permanent) exactly when the
 # exact permanent, rounded to float64, is 0 or inf although it is positive.
 OVERFLOW_CASES = [
-    ("diag(1e200,1e200)", diag(1e200, 1e200)),                 # 1e400: overflows
-    ("diag(1e-200,1e-200)", diag(1e-200, 1e-200)),             # 1e-400: underflows
-    ("diag(1e200,1.8e108)", diag(1e200, 1.8e108)),             # 1.8e308 > MAX: overflows
-    ("diag(2^600,2^424)", diag(2.0**600, 2.0**424)),           # 2^1024: overflows
-    ("diag(2^-600,2^-476)", diag(2.0**-600, 2.0**-476)),       # 2^-1076: rounds to 0
-    ("4x4 all 1e100", np.full((4, 4), 1e100)),                 # 24e400
-    ("2x3 all 1e-200", np.full((2, 3), 1e-200)),               # 6e-400
-    ("diag(1e200,1.7e108)", diag(1e200, 1.7e108)),             # 1.7e308: representable
-    ("[[MAX]]", np.array([[MAX]])),                            # the largest float
-    ("diag(2^600,2^423)", diag(2.0**600, 2.0**423)),           # 2^1023
-    ("diag(2^-600,2^-474)", diag(2.0**-600, 2.0**-474)),       # 2^-1074: smallest subnormal
-    ("diag(1e-200,3e-124)", diag(1e-200, 3e-124)),             # 3e-324 → 5e-324
-    ("3x3 all 1e100", np.full((3, 3), 1e100)),                 # 6e300
+    ("diag(1e200,1e200)", diag(1e200, 1e200)),  # 1e400: overflows
+    ("diag(1e-200,1e-200)", diag(1e-200, 1e-200)),  # 1e-400: underflows
+    ("diag(1e200,1.8e108)", diag(1e200, 1.8e108)),  # 1.8e308 > MAX: overflows
+    ("diag(2^600,2^424)", diag(2.0**600, 2.0**424)),  # 2^1024: overflows
+    ("diag(2^-600,2^-476)", diag(2.0**-600, 2.0**-476)),  # 2^-1076: rounds to 0
+    ("4x4 all 1e100", np.full((4, 4), 1e100)),  # 24e400
+    ("2x3 all 1e-200", np.full((2, 3), 1e-200)),  # 6e-400
+    ("diag(1e200,1.7e108)", diag(1e200, 1.7e108)),  # 1.7e308: representable
+    ("[[MAX]]", np.array([[MAX]])),  # the largest float
+    ("diag(2^600,2^423)", diag(2.0**600, 2.0**423)),  # 2^1023
+    ("diag(2^-600,2^-474)", diag(2.0**-600, 2.0**-474)),  # 2^-1074: smallest subnormal
+    ("diag(1e-200,3e-124)", diag(1e-200, 3e-124)),  # 3e-324 → 5e-324
+    ("3x3 all 1e100", np.full((3, 3), 1e100)),  # 6e300
     ("[[1,1,1,1e200]]*3", np.array([[1, 1, 1, 1e200]] * 3, dtype=float)),
 ]
 OVERFLOW_IDS = [c[0] for c in OVERFLOW_CASES]

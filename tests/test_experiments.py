@@ -26,7 +26,8 @@ from jointtrack.scenarios import bojilov, crossing, ncv_matrices
 from jointtrack.trackers import TrackerConfig
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-SHARED_TABLES = Path("/work/shared/reference/bojilov_tables.json")
+# the project shared folder sits beside the repository (never read by the package)
+SHARED_TABLES = Path(__file__).resolve().parents[2] / "shared" / "reference" / "bojilov_tables.json"
 
 
 # ----------------------------------------------------------------------------- run

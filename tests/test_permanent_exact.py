@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from brute import brute_log_permanent, brute_marginals, brute_permanent
+from brute import brute_log_permanent, brute_marginals, brute_permanent, expand
 from jointtrack import InfeasibleAssignmentError
 from jointtrack.permanent import (
     assignment_marginals,
@@ -18,7 +18,6 @@ from jointtrack.permanent import (
     permanent,
     sinkhorn,
 )
-from brute import expand
 
 EXACT = ["dp", "multiset", "auto"]
 

@@ -14,9 +14,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from brute import brute_marginals, brute_permanent
+from brute import brute_marginals, brute_permanent, expand
 from jointtrack.errors import InfeasibleAssignmentError
-from brute import expand
 from jointtrack.permanent.reference import (
     reference_log_permanent,
     reference_marginals,

@@ -133,7 +133,64 @@ def test_exact_refusal_falls_back_to_the_approximation(monkeypatch):
     monkeypatch.setattr(jpda_module, "marginals", refusing)
     r = trk.step(1.0, np.array([[1.0, 0], [6.0, 0]]))
     assert r.cluster_methods == ["lbp"]
+    assert r.n_fallbacks == 1 and r.cluster_fallbacks[0].startswith("refused: ")
     assert trk.n_scans == 1
+
+
+def test_size_fallback_is_counted():
+    trk = JPDATracker(TrackerConfig(clutter_density=1e-4, exact_max_tracks=1))
+    trk.start_tracks(np.array([[0.0, 0, 1, 0], [5.0, 0, 1, 0]]), np.diag([100.0, 100, 1, 1]))
+    r = trk.step(1.0, np.array([[1.0, 0], [6.0, 0]]))
+    assert r.cluster_fallbacks == ["exact_max_tracks"] and r.n_fallbacks == 1
+
+
+# ---------------------------------------------------------------- models and miss weight
+
+
+def test_miss_model_sets_the_no_detection_weight(monkeypatch):
+    seen = {}
+    real = jpda_module.marginals
+
+    def spy(L, miss, method="exact", **kw):
+        seen["miss"] = np.array(miss)
+        return real(L, miss, method=method, **kw)
+
+    monkeypatch.setattr(jpda_module, "marginals", spy)
+    x0 = np.array([[0.0, 0, 1, 0], [5.0, 0, 1, 0]])
+    for model, expected in (("1-pd*pg", 1 - 0.9 * 0.99), ("1-pd", 1 - 0.9)):
+        cfg = TrackerConfig(clutter_density=1e-4, p_d=0.9, p_g=0.99, miss_model=model)
+        trk = JPDATracker(cfg)
+        trk.start_tracks(x0, np.diag([100.0, 100, 1, 1]), existence=1.0)
+        trk.step(1.0, np.array([[1.0, 0], [6.0, 0]]))
+        np.testing.assert_allclose(seen["miss"], expected, rtol=1e-12)
+    with pytest.raises(ValueError, match="miss_model"):
+        TrackerConfig(miss_model="1-pg")
+
+
+def test_model_objects_replace_the_config_strings():
+    from jointtrack.models import ConstantVelocity, LinearPosition
+
+    sc = _scenario()
+    cfg = _config()
+    default = JPDATracker(cfg)
+    explicit = JPDATracker(
+        cfg,
+        motion=ConstantVelocity(dim=2, q=cfg.process_noise),
+        sensor=LinearPosition(2, cfg.measurement_noise, state_dim=4),
+    )
+    for k in range(15):
+        a = default.step(sc.times[k], sc.detections[k])
+        b = explicit.step(sc.times[k], sc.detections[k])
+        np.testing.assert_array_equal(a.x, b.x)
+    # a noisier user model changes the result
+    noisy = JPDATracker(cfg, motion=ConstantVelocity(dim=2, q=50.0))
+    for k in range(15):
+        c = noisy.step(sc.times[k], sc.detections[k])
+    assert not np.array_equal(c.P, a.P)
+    with pytest.raises(ValueError, match="motion model .* has no 'state_dim'"):
+        JPDATracker(cfg, motion=object())
+    with pytest.raises(ValueError, match="sensor model"):
+        JPDATracker(cfg, sensor=object())
 
 
 # ---------------------------------------------------------------- state files

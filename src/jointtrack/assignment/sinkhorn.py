@@ -393,15 +393,19 @@ def sinkhorn(A, *, tol: float = 1e-12, max_iter: int = 10_000, row_counts=None, 
     # have a free relative gauge; centre each such block, keep it if the sums hold.
     with np.errstate(divide="ignore"):
         strong = L + u[:, None] + v[None, :] > math.log(tol) - 30.0
+    lr, lc = _center_gauge(S, lr, lc)
+    u, v = lr - er * _LN2, lc - ec * _LN2
     lr2, lc2 = _center_gauge(strong, lr, lc)
-    u2, v2 = u + (lr2 - lr), v + (lc2 - lc)
-    _, r, c = _sums(L, u2, v2, a, b)
-    if _error(r, c, tau) <= tol:
-        lr, lc, u, v = lr2, lc2, u2, v2
-    else:
-        lr, lc = _center_gauge(S, lr, lc)
-        u, v = lr - er * _LN2, lc - ec * _LN2
-    d1, d2 = np.exp(lr), np.exp(lc)
+    dr, dc = lr2 - lr, lc2 - lc
+    frac = 1.0
+    for _ in range(12):  # largest fraction of the block shifts that keeps the sums
+        _, r, c = _sums(L, u + frac * dr, v + frac * dc, a, b)
+        if _error(r, c, tau) <= tol:
+            lr, lc, u, v = lr + frac * dr, lc + frac * dc, u + frac * dr, v + frac * dc
+            break
+        frac *= 0.5
+    with np.errstate(over="ignore", under="ignore"):
+        d1, d2 = np.exp(lr), np.exp(lc)
     if not (np.all(np.isfinite(d1) & (d1 > 0)) and np.all(np.isfinite(d2) & (d2 > 0))):
         raise ValueError(
             "the Sinkhorn factors of A are not representable in float64 (A's entries span "

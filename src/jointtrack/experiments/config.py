@@ -60,7 +60,12 @@ class RunConfig:
 
 
 _TABLES = ("tracker", "scenario", "metrics")
-_METRIC_KEYS = {"c": "number > 0", "p": "number ≥ 1", "switch_penalty": "number ≥ 0"}
+_METRIC_KEYS = {
+    "c": "number > 0",
+    "p": "number ≥ 1",
+    "switch_penalty": "number ≥ 0",
+    "switch_convention": "'partner' or 'stonesoup'",
+}
 
 
 def load_config(path) -> RunConfig:
@@ -96,9 +101,12 @@ def load_config(path) -> RunConfig:
             raise RunConfigError(
                 f"{path}: unknown key '{key}' in [metrics] (known: {', '.join(_METRIC_KEYS)})"
             )
-        ok = isinstance(value, int | float) and not isinstance(value, bool)
-        ok = ok and math.isfinite(value)
-        ok = ok and {"c": value > 0, "p": value >= 1, "switch_penalty": value >= 0}[key]
+        if key == "switch_convention":
+            ok = value in ("partner", "stonesoup")
+        else:
+            ok = isinstance(value, int | float) and not isinstance(value, bool)
+            ok = ok and math.isfinite(value)
+            ok = ok and {"c": value > 0, "p": value >= 1, "switch_penalty": value >= 0}[key]
         if not ok:
             raise RunConfigError(
                 f"{path}: [metrics] key '{key}' must be a {_METRIC_KEYS[key]}, got {value!r}"

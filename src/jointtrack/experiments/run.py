@@ -61,6 +61,7 @@ Config file (``--config FILE``, TOML)
     [metrics]
     c = 50.0               # GOSPA/OSPA cut-off (default 5σ)
     switch_penalty = 0.0   # GOSPA identity-switch penalty
+    switch_convention = "partner"  # or "stonesoup" (half a switch for assigned↔unassigned)
 
 Unknown tables or keys, wrong types and bad values raise :class:`RunConfigError`
 with a one-line message naming the file and the key; so does a sensor that does

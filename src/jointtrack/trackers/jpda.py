@@ -65,8 +65,11 @@ class ScanResult:
     ``P`` (K, n, n), ``existence`` (K,) (1.0 without JIPDA).
     ``cluster_sizes`` lists (tracks, measurements) of every multi-track
     cluster, ``cluster_seconds`` the association time of each,
-    ``cluster_methods`` the method used and ``cluster_confirmed`` whether it
-    was a cluster of confirmed (True) or tentative (False) tracks.
+    ``cluster_methods`` the method used, ``cluster_confirmed`` whether it
+    was a cluster of confirmed (True) or tentative (False) tracks and
+    ``cluster_fallbacks`` why the approximation replaced the configured method
+    (``""`` when it did not; ``"exact_max_tracks"`` for a cluster above the
+    budget; ``"refused: …"`` when the exact engine declined it).
     """
 
     time: float
@@ -81,6 +84,12 @@ class ScanResult:
     cluster_seconds: list = field(default_factory=list)
     cluster_methods: list = field(default_factory=list)
     cluster_confirmed: list = field(default_factory=list)
+    cluster_fallbacks: list = field(default_factory=list)
+
+    @property
+    def n_fallbacks(self) -> int:
+        """Clusters solved by the approximation instead of the configured method."""
+        return sum(1 for f in self.cluster_fallbacks if f)
 
 
 @dataclass(frozen=True)
@@ -225,7 +234,7 @@ class JPDATracker:
         pair_rows, pair_cols, pair_w = [], [], []
         hit = np.zeros(N, bool)
         free = np.arange(M)
-        sizes, seconds, methods, kinds = [], [], [], []
+        sizes, seconds, methods, fallbacks, kinds = [], [], [], [], []
         for group, loud in (
             (np.flatnonzero(self.confirmed), True),
             (np.flatnonzero(~self.confirmed), False),
@@ -238,7 +247,7 @@ class JPDATracker:
             pair_cols.append(free[pc])
             pair_w.append(pw)
             hit[group] = h
-            for part, extra in zip((sizes, seconds, methods), info, strict=True):
+            for part, extra in zip((sizes, seconds, methods, fallbacks), info, strict=True):
                 part.extend(extra)
             kinds.extend([loud] * len(info[0]))
             free = free[free_local]
@@ -270,6 +279,7 @@ class JPDATracker:
             cluster_seconds=seconds,
             cluster_methods=methods,
             cluster_confirmed=kinds,
+            cluster_fallbacks=fallbacks,
         )
 
     def _associate(self, tracks, z, loud):
@@ -314,7 +324,7 @@ class JPDATracker:
         b0, w = pda_pair_marginals(rows[pair_alone], L_pairs[pair_alone], miss)
         beta0[alone] = b0[alone]
         weights[pair_alone] = w
-        sizes, seconds, methods = [], [], []
+        sizes, seconds, methods, fallbacks = [], [], [], []
         multi = np.flatnonzero(size > 1)
         if multi.size:
             # the gated pairs of each multi-track cluster, contiguous
@@ -330,7 +340,8 @@ class JPDATracker:
                     continue
                 Lc = np.zeros((len(tr), len(ms)))
                 Lc[np.searchsorted(tr, rows[idx]), np.searchsorted(ms, cols[idx])] = L_pairs[idx]
-                bc, method, dt_s = self._cluster_marginals(Lc, miss[tr], loud)
+                bc, method, reason, dt_s = self._cluster_marginals(Lc, miss[tr], loud)
+                fallbacks.append(reason)
                 seconds.append(dt_s)
                 sizes.append((len(tr), len(ms)))
                 methods.append(method)
@@ -349,7 +360,7 @@ class JPDATracker:
             (rows, cols, weights),
             g.n_gated > 0,
             groups.unassociated,
-            (sizes, seconds, methods),
+            (sizes, seconds, methods, fallbacks),
         )
 
     def _cluster_marginals(self, Lc, mc, loud):
@@ -357,8 +368,10 @@ class JPDATracker:
         when the cluster exceeds ``exact_max_tracks`` or the exact engine refuses it."""
         c = self.config
         method = c.association
+        reason = ""
         if len(Lc) > c.exact_max_tracks and method in ("exact", "enumerate"):
             method = c.approximation
+            reason = "exact_max_tracks"
             (log.warning if loud else log.debug)(
                 "cluster of %d %s tracks and %d measurements exceeds exact_max_tracks=%d: using %s",
                 len(Lc),
@@ -382,8 +395,9 @@ class JPDATracker:
                 c.approximation,
             )
             method = c.approximation
+            reason = f"refused: {exc}"
             bc = marginals(Lc, mc, method=method, **self._method_options(method))
-        return bc, method, _time.perf_counter() - t0
+        return bc, method, reason, _time.perf_counter() - t0
 
     def _method_options(self, method):
         return {"rng": self.rng} if method == "mcmc" else {}
