@@ -79,7 +79,8 @@ def test_read_csv_3d_with_sensor(tmp_path):
 
 
 def test_header_only_gives_no_scans(tmp_path):
-    d = read_detections(_csv(tmp_path, "time,x,y\n"))
+    # a header-only file is an error by default (see test_header_only_is_an_error)
+    d = read_detections(_csv(tmp_path, "time,x,y\n"), allow_empty=True)
     assert len(d) == 0 and d.n_detections == 0
 
 
@@ -457,3 +458,211 @@ def test_gzip_csv_is_readable_by_gzip(tmp_path):
     p = write_tracks(_tracks(), tmp_path / "t.csv.gz")
     with gzip.open(p, "rt") as fh:
         assert fh.readline().strip() == "time,track_id,x,y,vx,vy"
+
+
+# ----------------------------------------------------------------------------- layout
+
+
+def test_io_is_a_package_split_by_concern():
+    import jointtrack.io as jio
+    from jointtrack.io import detections, errors, jsonify, metrics, tracks
+
+    assert hasattr(jio, "__path__")  # a package, not a module
+    assert detections.Detections is Detections and detections.read_detections is read_detections
+    assert tracks.read_tracks is read_tracks and tracks.write_tracks is write_tracks
+    assert metrics.write_metrics is write_metrics
+    assert errors.DataFileError is DataFileError and errors.TrackFileError is TrackFileError
+    for name in jio.__all__:
+        assert getattr(jio, name) is not None
+    assert jsonify.to_jsonable is jio.to_jsonable
+
+
+def test_one_json_helper_in_the_package():
+    """No private numpy-aware JSON copies left: every user imports jointtrack.io's."""
+    import pathlib
+    import re
+
+    import jointtrack
+
+    root = pathlib.Path(jointtrack.__file__).parent
+    copies = []
+    for f in root.rglob("*.py"):
+        text = f.read_text(encoding="utf-8")
+        if f.parent.name == "io" and f.name == "jsonify.py":
+            continue
+        if re.search(r"def _json(able|ify)\b", text) or re.search(
+            r"json\.dumps?\(.*default=", text
+        ):
+            copies.append(str(f.relative_to(root)))
+    assert copies == []
+
+
+def test_to_jsonable_options():
+    from jointtrack.io import to_jsonable
+
+    data = {"a": np.float64("nan"), "b": [np.inf], "e": ValueError("bad")}
+    assert to_jsonable(data, nonfinite="string", fallback="text") == {
+        "a": "nan",
+        "b": ["inf"],
+        "e": "ValueError: bad",
+    }
+    assert to_jsonable({"x": np.int64(3), "y": np.arange(2)}, fallback=float) == {
+        "x": 3,
+        "y": [0, 1],
+    }
+    with pytest.raises(ValueError, match="ValueError"):
+        to_jsonable(data)
+
+
+# ----------------------------------------------------------------------------- ISO-8601 times
+
+
+def test_iso_times_become_seconds_since_the_first_scan(tmp_path):
+    p = _csv(
+        tmp_path,
+        "time,x,y\n"
+        "2026-11-23T10:00:00Z,1,2\n"
+        "2026-11-23T10:00:00Z,3,4\n"
+        "2026-11-23T10:00:00.5Z,5,6\n"
+        "2026-11-23T11:00:01.25+01:00,7,8\n",  # = 10:00:01.25Z
+    )
+    d = read_detections(p)
+    assert d.times.tolist() == [0.0, 0.5, 1.25]
+    assert d.time_origin == "2026-11-23T10:00:00Z"
+    assert [z.shape[0] for z in d.scans] == [2, 1, 1]
+    assert d.timestamps() == [
+        "2026-11-23T10:00:00Z",
+        "2026-11-23T10:00:00.5Z",
+        "2026-11-23T10:00:01.25Z",
+    ]
+
+
+def test_iso_times_without_offset_or_fraction(tmp_path):
+    p = _csv(tmp_path, "time,x,y\n2026-11-23 23:59:59,1,2\n2026-11-24T00:00:01,3,4\n")
+    d = read_detections(p)
+    assert d.times.tolist() == [0.0, 2.0]
+    assert d.time_origin == "2026-11-23T23:59:59"  # naive in, naive out
+
+
+def test_numeric_times_have_no_origin(tmp_path):
+    d = read_detections(_csv(tmp_path, "time,x,y\n0.5,1,2\n1.5,3,4\n"))
+    assert d.times.tolist() == [0.5, 1.5] and d.time_origin is None
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".csv.gz", ".parquet"])
+def test_iso_times_round_trip(tmp_path, suffix):
+    p = _csv(
+        tmp_path,
+        "time,x,y\n2026-11-23T10:00:00.123456789Z,1,2\n2026-11-23T10:00:07.5Z,3,4\n",
+    )
+    d = read_detections(p)
+    back = read_detections(write_detections(d, tmp_path / f"again{suffix}"))
+    assert np.array_equal(back.times, d.times)
+    assert back.time_origin == d.time_origin == "2026-11-23T10:00:00.123456789Z"
+
+
+def test_parquet_timestamp_column(tmp_path):
+    import datetime as dt
+
+    utc = dt.UTC
+    t0 = dt.datetime(2026, 11, 23, 10, 0, 0, tzinfo=utc)
+    times = [t0, t0, t0 + dt.timedelta(seconds=0.25), t0 + dt.timedelta(seconds=2)]
+    p = _parquet(
+        tmp_path,
+        {"time": pa.array(times, pa.timestamp("us", tz="UTC")), "x": [1.0] * 4, "y": [2.0] * 4},
+    )
+    d = read_detections(p)
+    assert d.times.tolist() == [0.0, 0.25, 2.0]
+    assert d.time_origin == "2026-11-23T10:00:00Z"
+    naive = _parquet(
+        tmp_path,
+        {
+            "time": pa.array([t.replace(tzinfo=None) for t in times], pa.timestamp("ms")),
+            "x": [1.0] * 4,
+            "y": [2.0] * 4,
+        },  # fmt: skip
+        name="naive.parquet",
+    )
+    assert read_detections(naive).time_origin == "2026-11-23T10:00:00"
+
+
+@pytest.mark.parametrize(
+    "cell",
+    ["ten o'clock", "2026-11-23T10:00:00.5Q", "23/11/2026 10:00", "2026-13-01T00:00:00Z"],
+)
+def test_time_neither_number_nor_iso(tmp_path, cell):
+    p = _csv(tmp_path, f"time,x,y\n2026-11-23T10:00:00Z,1,2\n{cell},3,4\n")
+    e = _err(p)
+    assert (e.row, e.line, e.column) == (2, 3, "time")
+    msg = str(e)
+    assert "2026-13-01" in msg or cell in msg  # the bad cell is shown
+    assert "number" in msg and "ISO-8601" in msg and "2026-11-23T10:00:00.5Z" in msg
+    # the same when the column starts with a number, and in Parquet
+    e = _err(_csv(tmp_path, f"time,x,y\n0.0,1,2\n{cell},3,4\n", name="n.csv"))
+    assert e.row == 2 and "ISO-8601" in str(e)
+    q = _parquet(tmp_path, {"time": ["x0", "1"], "x": [1.0, 2.0], "y": [1.0, 2.0]})
+    e = _err(q)
+    assert e.row == 1 and "'x0'" in str(e) and "ISO-8601" in str(e)
+
+
+def test_time_kinds_may_not_be_mixed(tmp_path):
+    e = _err(_csv(tmp_path, "time,x,y\n0.0,1,2\n2026-11-23T10:00:00Z,3,4\n"))
+    assert e.row == 2 and "column of numbers" in str(e)
+    e = _err(_csv(tmp_path, "time,x,y\n2026-11-23T10:00:00Z,1,2\n5,3,4\n", name="b.csv"))
+    assert e.row == 2 and "column of timestamps" in str(e)
+    e = _err(
+        _csv(tmp_path, "time,x,y\n2026-11-23T10:00:00Z,1,2\n2026-11-23T10:00:01,3,4\n", "c.csv")
+    )
+    assert e.row == 2 and "UTC offset" in str(e)
+
+
+def test_iso_times_out_of_order_name_the_timestamps(tmp_path):
+    p = _csv(tmp_path, "time,x,y\n2026-11-23T10:00:01Z,1,2\n2026-11-23T10:00:00Z,3,4\n")
+    e = _err(p)
+    assert e.row == 2 and "2026-11-23T10:00:00Z" in str(e) and "earlier" in str(e)
+
+
+def test_detections_time_origin_validation():
+    d = Detections(times=[0.0], scans=[np.zeros((1, 2))], time_origin="2026-11-23T11:00:00+01:00")
+    assert d.time_origin == "2026-11-23T10:00:00Z"
+    with pytest.raises(ValueError, match="time_origin"):
+        Detections(times=[0.0], scans=[np.zeros((1, 2))], time_origin="yesterday")
+    with pytest.raises(ValueError, match="time_origin"):
+        Detections(times=[0.0], scans=[np.zeros((1, 2))], time_origin=0.0)
+
+
+# ----------------------------------------------------------------------------- header only
+
+
+@pytest.mark.parametrize("kind", ["csv", "csv.gz", "parquet", "range-bearing"])
+def test_header_only_is_an_error(tmp_path, kind):
+    if kind == "parquet":
+        p = _parquet(tmp_path, {"time": pa.array([], pa.float64()), "x": pa.array([], pa.float64()),
+                                "y": pa.array([], pa.float64())})  # fmt: skip
+    elif kind == "csv.gz":
+        p = tmp_path / "det.csv.gz"
+        with gzip.open(p, "wt") as fh:
+            fh.write("time,x,y\n\n")
+    else:
+        header = "time,range,bearing" if kind == "range-bearing" else "time,x,y"
+        p = _csv(tmp_path, header + "\n\n")
+    e = _err(p)
+    assert "has no detections" in str(e)
+    assert str(e).startswith(f"{p}: has no detections")
+
+
+def test_header_only_with_missing_columns_names_the_columns(tmp_path):
+    assert "missing required column" in str(_err(_csv(tmp_path, "time,x\n")))
+
+
+def test_cli_run_on_header_only_file_fails(tmp_path):
+    from typer.testing import CliRunner
+
+    from jointtrack.cli import app
+
+    p = _csv(tmp_path, "time,x,y\n")
+    res = CliRunner().invoke(app, ["run", "--no-progress", "--detections", str(p),
+                                   "--out", str(tmp_path / "out")])  # fmt: skip
+    assert res.exit_code != 0
+    assert "has no detections" in res.output
+    assert not (tmp_path / "out" / "tracks.csv").exists()

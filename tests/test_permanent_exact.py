@@ -166,7 +166,8 @@ def compressed(draw):
     return W, np.array(rows), np.array(cols)
 
 
-@settings(max_examples=100, deadline=None)
+# the rational brute force of a 7×7 expansion dominates: fewer, still drawn, cases
+@settings(max_examples=35, deadline=None)
 @given(compressed())
 def test_repeated_rows_and_columns_equal_expanded(case):
     W, rows, cols = case

@@ -104,21 +104,27 @@ def run_command(
         str | None,
         typer.Option("--scenario", help="Built-in scenario: bojilov (default) | crossing | many."),
     ] = None,
-    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("jointtrack-out"),
+    out: Annotated[
+        Path | None, typer.Option("--out", help="Output directory (default jointtrack-out).")
+    ] = None,
     seed: Annotated[int | None, typer.Option("--seed", help="Scenario seed (default 0).")] = None,
     fmt: Annotated[
-        str, typer.Option("--format", help="Tracks file format: csv | parquet.")
-    ] = "csv",
+        str | None, typer.Option("--format", help="Tracks file format: csv (default) | parquet.")
+    ] = None,
     checkpoint: Annotated[
         Path | None,
         typer.Option("--checkpoint", help="Save the tracker state to this file as the run goes."),
     ] = None,
     checkpoint_every: Annotated[
-        int, typer.Option("--checkpoint-every", help="Scans between checkpoints.")
-    ] = 10,
+        int | None, typer.Option("--checkpoint-every", help="Scans between checkpoints (10).")
+    ] = None,
     resume: Annotated[
         Path | None,
-        typer.Option("--resume", help="Continue from this checkpoint with the next scan."),
+        typer.Option(
+            "--resume",
+            help="Continue the run saved in this checkpoint (its inputs, settings and output "
+            "directory come from the checkpoint; other flags only if they agree).",
+        ),
     ] = None,
     max_scans: Annotated[
         int | None,
@@ -142,6 +148,17 @@ def run_command(
     try:
         from jointtrack.experiments import run as runmod
 
+        if resume is not None:
+            detections, config, scenario, seed, out, fmt, checkpoint_every, restored = (
+                _from_checkpoint(
+                    resume, detections, config, scenario, seed, out, fmt, checkpoint_every
+                )
+            )
+        else:
+            restored = None
+        out = Path("jointtrack-out") if out is None else out
+        fmt = "csv" if fmt is None else fmt
+        checkpoint_every = 10 if checkpoint_every is None else checkpoint_every
         if fmt not in runmod.FORMATS:
             raise runmod.RunConfigError(f"--format must be csv or parquet, got {fmt!r}")
         if scenario is not None and scenario not in runmod.SCENARIOS:
@@ -149,6 +166,8 @@ def run_command(
                 f"--scenario must be one of {', '.join(runmod.SCENARIOS)}, got {scenario!r}"
             )
         cfg = runmod.load_config(config) if config is not None else runmod.RunConfig()
+        if restored is not None:
+            cfg = restored
         common = dict(
             out_dir=out,
             fmt=fmt,
@@ -216,6 +235,77 @@ def run_command(
         _fail(exc)
     runmod.print_summary(metrics, console)
     console.print(f"outputs in {out}/", markup=False, highlight=False)
+
+
+def _from_checkpoint(resume, detections, config, scenario, seed, out, fmt, checkpoint_every):
+    """Fill the run's inputs from a checkpoint; a flag that disagrees is an error naming it."""
+    from jointtrack.experiments import run as runmod
+    from jointtrack.trackers.state_io import read_run
+
+    info = read_run(resume)
+    if not isinstance(info, dict) or "inputs" not in info:
+        raise runmod.RunConfigError(
+            f"{resume}: a tracker state without the bookkeeping of a jointtrack run; it "
+            "cannot resume `jointtrack run`"
+        )
+    inputs = info["inputs"]
+    what = runmod._describe(inputs)
+
+    def conflict(flag, value):
+        return runmod.RunConfigError(
+            f"{flag} {value} conflicts with the checkpoint {resume}, which continues "
+            f"{what} into {info['out_dir']}; omit {flag}"
+        )
+
+    if out is not None and Path(out).resolve() != Path(info["out_dir"]):
+        raise conflict("--out", out)
+    if fmt is not None and fmt != info["format"]:
+        raise conflict("--format", fmt)
+    if "detections" in inputs:
+        if scenario is not None:
+            raise conflict("--scenario", scenario)
+        if seed is not None:
+            raise conflict("--seed", seed)
+        if detections is not None and Path(detections).resolve() != Path(inputs["detections"]):
+            raise conflict("--detections", detections)
+        detections = Path(inputs["detections"])
+    else:
+        if detections is not None:
+            raise conflict("--detections", detections)
+        if scenario is not None and scenario != inputs.get("scenario"):
+            raise conflict("--scenario", scenario)
+        if seed is not None and seed != inputs.get("seed"):
+            raise conflict("--seed", seed)
+        scenario, seed = inputs.get("scenario"), inputs.get("seed")
+    # the tracker settings are in the checkpoint; the scenario and metrics tables here
+    table = {} if "detections" in inputs else dict(inputs.get("kwargs") or {})
+    if "start_from_truth" in inputs:
+        table["start_from_truth"] = inputs["start_from_truth"]
+    from jointtrack.trackers import JPDATracker
+
+    tracker = JPDATracker.load(resume).config.to_dict()  # exactly the checkpoint's settings
+    tracker = {k: list(v) if isinstance(v, tuple) else v for k, v in tracker.items()}
+    restored = runmod.RunConfig(
+        tracker=tracker, scenario=table, metrics=dict(info.get("metrics_opts") or {})
+    )
+    if config is not None:
+        given = runmod.load_config(config)
+        if given.metrics != restored.metrics or (
+            "detections" not in inputs
+            and {k: v for k, v in given.scenario.items() if k not in ("name", "seed")}
+            != {k: v for k, v in restored.scenario.items() if k != "start_from_truth"}
+        ):
+            raise conflict("--config", config)
+    return (
+        detections,
+        None,
+        scenario,
+        seed,
+        Path(info["out_dir"]),
+        info["format"],
+        checkpoint_every if checkpoint_every is not None else info.get("checkpoint_every"),
+        restored,
+    )
 
 
 @reproduce_app.command("bojilov")

@@ -66,6 +66,8 @@ import time
 
 import numpy as np
 
+from jointtrack.io import to_jsonable
+
 DENSE_SIZES = [(5, 10), (8, 16), (10, 20), (12, 24), (16, 32), (20, 40)]
 # peers are run where they finish in about a minute on this machine (anchors in DESIGN.md)
 SS_EHM2_SIZES = {(5, 10), (8, 16)}
@@ -912,5 +914,5 @@ def run(quick: bool = False, out: str | None = None) -> dict:
     log(f"total wall time {results['wall_s']:.1f} s")
     if out:
         with open(out, "w") as f:
-            json.dump(results, f, indent=2, default=float)
+            json.dump(to_jsonable(results, fallback=float), f, indent=2)
     return results

@@ -66,6 +66,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from jointtrack.io import to_jsonable
+
 TARGET_SPEEDUP = 1.5
 TARGET_UNIFORM_ERR = 1e-12
 TARGET_SCALED_ERR = 1e-11
@@ -176,20 +178,6 @@ def _peer_log_err(value, ref_log: float) -> float | str:
     if math.isinf(x):
         return "inf"
     return abs(math.expm1(math.log(x) - ref_log))
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return str(obj)
-    if isinstance(obj, Exception):
-        return f"{type(obj).__name__}: {obj}"
-    return obj
 
 
 def _dp_reference(A) -> float:
@@ -789,6 +777,6 @@ def run(quick: bool = False, out: str | None = None) -> dict:
     }
     if out:
         with open(out, "w", encoding="utf-8") as fh:
-            json.dump(_jsonable(result), fh, indent=2)
+            json.dump(to_jsonable(result, nonfinite="string", fallback="text"), fh, indent=2)
         console.print(f"results written to {out}")
     return result

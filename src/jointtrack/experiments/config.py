@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from jointtrack.trackers import JPDATracker, TrackerConfig
+from jointtrack.trackers.config import check_field
 
 __all__ = [
     "SCENARIOS",
@@ -133,37 +134,29 @@ def _is_int(v) -> bool:
 
 
 def _check_tracker_keys(d: Mapping, where: str) -> None:
-    """Known keys and TOML-level value types of a ``[tracker]`` table."""
-    ann = {f.name: str(f.type) for f in dataclasses.fields(TrackerConfig)}
+    """Known keys and value types / ranges of a ``[tracker]`` table, each on its own.
+
+    Every value is checked by :func:`jointtrack.trackers.config.check_field`
+    (a string, bool or list where a number is expected, NaN, a float where an
+    integer is expected, out of range, …); the message names the key. Rules
+    between keys are checked when the :class:`TrackerConfig` is built
+    (:func:`make_tracker_config`).
+    """
+    known = {f.name for f in dataclasses.fields(TrackerConfig)}
     for key, value in d.items():
-        if key not in ann:
+        if key not in known:
             raise RunConfigError(
-                f"{where}: unknown key '{key}' in [tracker] (known: {', '.join(sorted(ann))})"
+                f"{where}: unknown key '{key}' in [tracker] (known: {', '.join(sorted(known))})"
             )
-        a = ann[key]
         if key == "clutter_density" and value == "estimate":
             continue
-        if a == "tuple":  # sensor_position
-            ok = (
-                isinstance(value, list | tuple)
-                and len(value) == 2
-                and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
-            )
-            want = "an array of two numbers, e.g. [0.0, 0.0]"
-        elif "bool" in a:
-            ok = isinstance(value, bool)
-            want = "true or false"
-        elif "int" in a:
-            ok = _is_int(value)
-            want = "an integer"
-        elif "float" in a:
-            ok = isinstance(value, int | float) and not isinstance(value, bool)
-            want = "a number" + (' or "estimate"' if key == "clutter_density" else "")
-        else:
-            ok = isinstance(value, str)
-            want = "a string"
-        if not ok:
-            raise RunConfigError(f"{where}: [tracker] key '{key}' must be {want}, got {value!r}")
+        try:
+            check_field(key, value)
+        except ValueError as exc:
+            msg = _one_line(exc)
+            for prefix in ("TrackerConfig: ", f"{key} "):
+                msg = msg.removeprefix(prefix)
+            raise RunConfigError(f"{where}: [tracker] key '{key}' {msg}") from None
 
 
 def make_tracker_config(
@@ -258,7 +251,7 @@ def scenario_tracker_settings(scenario) -> dict:
         "dim": scenario.dim,
         "motion": "cv",
         "process_noise": max(float(scenario.process_noise), 1e-9),
-        "measurement_noise": float(np.mean(np.diag(scenario.R))),
+        "measurement_noise": _noise_setting(scenario.R),
         "p_d": float(scenario.p_d),
         "p_g": float(scenario.info.get("p_g", 0.99)),
         "clutter_density": float(scenario.clutter_density)
@@ -269,25 +262,42 @@ def scenario_tracker_settings(scenario) -> dict:
     return d
 
 
-def steady_state_covariance(dt: float, q: float, r: float, dim: int = 2) -> np.ndarray:
+def _noise_setting(R) -> float | tuple:
+    """``measurement_noise`` for a scenario's R: σ² when R = σ² I, the per-axis
+    σ² when R is diagonal, else the full matrix (as tuples)."""
+    R = np.atleast_2d(np.asarray(R, dtype=float))
+    d = np.diag(R)
+    if np.count_nonzero(R - np.diag(d)) == 0:
+        if np.all(d == d[0]):
+            return float(d[0])
+        return tuple(float(v) for v in d)
+    return tuple(tuple(float(v) for v in row) for row in R)
+
+
+def steady_state_covariance(dt: float, q: float, r, dim: int = 2) -> np.ndarray:
     """Steady-state updated covariance of the NCV Kalman filter, layout [pos…, vel…].
 
     Per axis: the discrete Riccati equation for F = [[1, T], [0, 1]],
     Q = q [[T³/3, T²/2], [T²/2, T]], H = [1 0], R = r gives the predicted P⁻;
-    the updated P = P⁻ − P⁻Hᵀ S⁻¹ H P⁻ with S = P⁻ₓₓ + r.
+    the updated P = P⁻ − P⁻Hᵀ S⁻¹ H P⁻ with S = P⁻ₓₓ + r. ``r``: σ² (all
+    axes), per-axis σ² (length ``dim``) or a ``dim × dim`` covariance (its
+    diagonal is used per axis — the axes are solved independently).
     """
     from scipy import linalg
 
     from jointtrack.scenarios import ncv_matrices
 
+    ra = np.asarray(r, dtype=float)
+    rs = np.diag(ra) if ra.ndim == 2 else np.broadcast_to(ra, (dim,))
     F, Q = ncv_matrices(dt, max(q, 1e-12), 1)
     H = np.array([[1.0, 0.0]])
-    Pp = linalg.solve_discrete_are(F.T, H.T, Q, np.array([[r]]))
-    S = Pp[0, 0] + r
-    Pu = Pp - np.outer(Pp[:, 0], Pp[0, :]) / S
-    Pu = 0.5 * (Pu + Pu.T)
     P = np.zeros((2 * dim, 2 * dim))
     for a in range(dim):
+        ri = float(rs[a])
+        Pp = linalg.solve_discrete_are(F.T, H.T, Q, np.array([[ri]]))
+        S = Pp[0, 0] + ri
+        Pu = Pp - np.outer(Pp[:, 0], Pp[0, :]) / S
+        Pu = 0.5 * (Pu + Pu.T)
         idx = [a, dim + a]
         P[np.ix_(idx, idx)] = Pu
     return P

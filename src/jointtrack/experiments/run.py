@@ -87,8 +87,8 @@ here.
 
 from __future__ import annotations
 
-import json
 import math
+import os
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -128,14 +128,14 @@ from jointtrack.experiments.summary import (  # noqa: F401 - re-exported
 from jointtrack.experiments.writers import (  # noqa: F401 - re-exported
     FORMATS,
     PARQUET_ROW_GROUP_SCANS,
-    _load_bookkeeping,
     _save_checkpoint,
-    _sidecar,
     _track_columns,
     _TrackWriter,
+    fault,
 )
-from jointtrack.io import Detections, write_metrics
+from jointtrack.io import Detections, to_jsonable, write_metrics
 from jointtrack.trackers import JPDATracker, TrackerConfig
+from jointtrack.trackers.state_io import read_run
 
 __all__ = [
     "SCENARIOS",
@@ -183,10 +183,58 @@ def _cartesian(scans, sensor_position) -> list:
     return out
 
 
-def _jsonify(obj):
-    return json.loads(
-        json.dumps(obj, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
-    )
+def _file_sha256(path: Path) -> str:
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _check_writable(path: Path, flag: str) -> None:
+    """Fail before the first scan if ``path`` cannot be written (not after ten scans)."""
+    parent = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise RunConfigError(f"{flag} {path} is a directory; give a file name")
+    if not parent.is_dir():
+        raise RunConfigError(f"{flag} {path}: the directory {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise RunConfigError(f"{flag} {path}: the directory {parent} is not writable")
+
+
+def _check_resume(resume: Path, info, trk, src, identity, out_dir: Path, fmt: str) -> None:
+    """The checkpoint belongs to this run: same inputs, output directory and format."""
+    if not isinstance(info, dict) or "parts" not in info:
+        raise RunConfigError(
+            f"{resume}: a tracker state without the bookkeeping of a jointtrack run "
+            "(saved by JPDATracker.save?); it cannot resume `jointtrack run`"
+        )
+    if info.get("inputs") != identity:
+        raise RunConfigError(
+            f"{resume}: the checkpoint was made for {_describe(info.get('inputs'))}, "
+            f"not {_describe(identity)}"
+        )
+    if Path(info["out_dir"]) != out_dir.resolve():
+        raise RunConfigError(
+            f"{resume}: the run writes to {info['out_dir']}; resuming into {out_dir} would "
+            f"score only the scans after the checkpoint — omit --out or use --out "
+            f"{info['out_dir']}"
+        )
+    if info.get("format") != fmt:
+        raise RunConfigError(
+            f"{resume}: the run writes {info.get('format')} tracks; --format {fmt} conflicts"
+        )
+    if trk.config.dim != src.dim:
+        raise RunConfigError(
+            f"{resume}: the checkpoint tracks {trk.config.dim}-D data, these scans are {src.dim}-D"
+        )
+    if (trk.config.sensor == "range-bearing") != (src.kind == "range-bearing"):
+        raise RunConfigError(
+            f"{resume}: the checkpoint's tracker reads {trk.config.sensor} measurements, "
+            f"these scans are {src.kind} detections"
+        )
 
 
 def _warm_up(cfg: TrackerConfig) -> None:
@@ -244,27 +292,26 @@ def _run(
     if max_scans is not None and max_scans < 1:
         raise RunConfigError(f"--max-scans must be ≥ 1, got {max_scans}")
     out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise RunConfigError(f"--out {out_dir} is a file, not a directory")
     out_dir.mkdir(parents=True, exist_ok=True)
     checkpoint = Path(checkpoint) if checkpoint is not None else None
-    identity = _jsonify(src.identity)
+    if checkpoint is not None:
+        _check_writable(checkpoint, "--checkpoint")
+    identity = to_jsonable(src.identity, fallback="text")
+    metrics_opts = dict(metrics_opts or {})
 
     clusters: list = []  # [n_tracks, n_measurements, seconds] of multi-track confirmed clusters
     elapsed_before = 0.0
     start = 0
+    writer = _TrackWriter(out_dir, src.dim, fmt, scan_times=src.times)
     if resume is not None:
         resume = Path(resume)
         trk = JPDATracker.load(resume)
-        if trk.config.dim != src.dim:
-            raise RunConfigError(
-                f"{resume}: the checkpoint tracks {trk.config.dim}-D data, these scans are "
-                f"{src.dim}-D"
-            )
-        if (trk.config.sensor == "range-bearing") != (src.kind == "range-bearing"):
-            raise RunConfigError(
-                f"{resume}: the checkpoint's tracker reads {trk.config.sensor} measurements, "
-                f"these scans are {src.kind} detections"
-            )
-        clusters, elapsed_before = _load_bookkeeping(resume, trk, identity, warn)
+        info = read_run(resume)
+        _check_resume(resume, info, trk, src, identity, out_dir, fmt)
+        clusters = list(info.get("clusters", []))
+        elapsed_before = float(info.get("elapsed_seconds", 0.0))
         if trk.config != cfg:
             diff = sorted(k for k, v in cfg.to_dict().items() if trk.config.to_dict()[k] != v)
             warn(
@@ -274,7 +321,11 @@ def _run(
         cfg = trk.config
         if trk.time is not None:
             start = int(np.searchsorted(src.times, trk.time, side="right"))
+        writer.resume(int(info["parts"]))
+        if checkpoint is None:
+            checkpoint = resume  # keep checkpointing where the run was checkpointed
     else:
+        writer.start_fresh()
         trk = JPDATracker(cfg)
         if src.x0 is not None and len(src.x0):
             dt = float(np.median(np.diff(src.times))) if len(src.times) > 1 else 1.0
@@ -282,16 +333,20 @@ def _run(
 
     K = len(src.times)
     stop = K if max_scans is None else min(K, int(max_scans))
-    ext = "csv" if fmt == "csv" else "parquet"
-    writer = _TrackWriter(
-        out_dir / f"tracks.{ext}",
-        src.dim,
-        fmt,
-        resume_time=trk.time if resume is not None else None,
-        warn=warn,
-    )
-    if resume is not None and start > 0 and writer.n_kept_scans == 0:
-        warn(f"no earlier rows in {writer.path}: it holds only the scans from this run")
+
+    def run_info(n_parts: int, seconds: float) -> dict:
+        return {
+            "inputs": identity,
+            "out_dir": str(out_dir.resolve()),
+            "format": fmt,
+            "checkpoint_every": int(checkpoint_every),
+            "max_scans": None if max_scans is None else int(max_scans),
+            "metrics_opts": to_jsonable(metrics_opts, fallback="text"),
+            "parts": int(n_parts),
+            "n_scans": int(trk.n_scans),
+            "clusters": clusters,
+            "elapsed_seconds": seconds,
+        }
 
     from rich.progress import (
         BarColumn,
@@ -327,21 +382,26 @@ def _run(
                     if conf:
                         clusters.append([int(n_tr), int(n_me), float(sec)])
                 writer.write_scan(t, res)
+                fault("scan", k)
                 n_done += 1
                 if checkpoint is not None and trk.n_scans % checkpoint_every == 0:
-                    _save_checkpoint(
-                        trk,
-                        checkpoint,
-                        identity,
-                        clusters,
-                        elapsed_before + time.perf_counter() - loop0,
-                    )
+                    # part first, then the checkpoint that counts it (see writers)
+                    n_parts = writer.commit()
+                    fault("part", k)
+                    seconds = elapsed_before + time.perf_counter() - loop0
+                    _save_checkpoint(trk, checkpoint, run_info(n_parts, seconds))
+                    fault("checkpoint", k)
                 bar.update(task, advance=1)
+        loop_seconds = time.perf_counter() - loop0
+        if checkpoint is not None and (n_done or resume is not None):
+            n_parts = writer.commit() if writer._pending else writer.n_parts
+            _save_checkpoint(trk, checkpoint, run_info(n_parts, elapsed_before + loop_seconds))
+        writer.finish(keep_parts=checkpoint is not None)
+    except KeyboardInterrupt:
+        writer.snapshot()
+        raise
     finally:
         writer.close()
-    loop_seconds = time.perf_counter() - loop0
-    if checkpoint is not None and n_done:
-        _save_checkpoint(trk, checkpoint, identity, clusters, elapsed_before + loop_seconds)
 
     # ------------------------------------------------------------ metrics
     tracks = writer.table()
@@ -527,12 +587,13 @@ def run_detections(
         if kind == "range-bearing":  # keep the sensor in view
             allz = np.vstack([allz, cfg.sensor_position])
         region = np.stack([allz.min(axis=0), allz.max(axis=0)], axis=1)
+    identity = {"detections": "<memory>"}
+    if detections.source:
+        path = Path(detections.source).resolve()
+        # the file's content, so that a resume notices a changed file
+        identity = {"detections": str(path), "sha256": _file_sha256(path)}
     src = _Source(
-        identity={
-            "detections": str(Path(detections.source).resolve())
-            if detections.source
-            else "<memory>"
-        },
+        identity=identity,
         times=detections.times,
         scans=detections.scans,
         dim=detections.dim,

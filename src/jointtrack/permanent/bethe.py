@@ -275,6 +275,7 @@ def _project(lg, ii, jj, shape, col_free, max_sweeps: int = 5000):
         block = work[np.ix_(tight_r, tight_c)]
         u, v, _ = scale_log(block, np.ones(block.shape[0]), np.ones(block.shape[1]), 1e-15, 100)
         work[np.ix_(tight_r, tight_c)] = block + u[:, None] + v[None, :]
+        work -= logsumexp(work, axis=1)[:, None]
     violation = np.inf
     for _ in range(max_sweeps):
         lc = logsumexp(work, axis=0)

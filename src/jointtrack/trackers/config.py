@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import asdict, dataclass, fields
 
-__all__ = ["MISS_MODELS", "TrackerConfig"]
+import numpy as np
+
+__all__ = ["MISS_MODELS", "TrackerConfig", "check_field"]
 
 #: How the weight of "track detected nothing" is formed (see ``TrackerConfig.miss_model``).
 MISS_MODELS = ("1-pd*pg", "1-pd")
@@ -20,8 +23,12 @@ class TrackerConfig:
     dim : 2 or 3, spatial dimension; measurements are positions ``[x, y(, z)]``.
     motion : ``"cv"`` (nearly constant velocity) or ``"ca"`` (constant acceleration).
     process_noise : q of the motion model (m²/s³ for CV, m²/s⁵ for CA).
-    measurement_noise : σ² of each position coordinate (R = σ² I), for
-        ``sensor="position"``.
+    measurement_noise : measurement noise R of ``sensor="position"``: a number
+        σ² (R = σ² I), a per-axis σ² vector of length ``dim`` (R = diag), or a
+        full ``dim × dim`` symmetric positive definite covariance (TOML: a list
+        or a list of lists). Stored as a float or a tuple (of tuples), so the
+        config stays hashable and TOML-friendly; :meth:`measurement_covariance`
+        gives the matrix. Passed to :class:`jointtrack.models.LinearPosition`.
     sensor : ``"position"`` (linear, measurements ``[x, y(, z)]``) or
         ``"range-bearing"`` (2-D only; measurements ``[r, θ]`` from a sensor at
         ``sensor_position``, EKF with the bearing residual wrapped to (−π, π]).
@@ -29,7 +36,9 @@ class TrackerConfig:
     range_noise, bearing_noise : σ_r² (m²) and σ_θ² (rad²) of the range–bearing
         sensor; ``clutter_density`` is then per unit of range × bearing.
     p_d : detection probability P_D.
-    p_g : gate probability P_G (chi-square gate γ = χ²_d⁻¹(P_G)).
+    p_g : gate probability P_G in (0, 1] (chi-square gate γ = χ²_d⁻¹(P_G)).
+        ``p_g = 1`` means an infinite gate, γ = ∞: every measurement is gated
+        with every track (no gating; each track's miss weight is then 1 − P_D).
     clutter_density : λ, false returns per unit volume; ``None`` estimates it per
         cluster by Bojilov's heuristic (8), λ = Σ m_i / Σ V_i.
     association : method for clusters within budget (``"exact"`` by default).
@@ -42,7 +51,8 @@ class TrackerConfig:
     max_speed : largest target speed, m/s.
     max_acceleration : largest target acceleration, m/s² (initial acceleration
         uncertainty σ_a = max_acceleration/2 of constant-acceleration tracks).
-    confirm_m, confirm_n : M-of-N confirmation (hits = scans with a gated return).
+    confirm_m, confirm_n : M-of-N confirmation (hits = scans with a gated return);
+        1 ≤ confirm_m ≤ confirm_n ≤ 30.
     delete_misses : consecutive scans without a gated return that delete a
         confirmed track.
     max_position_std : delete a track whose position standard deviation
@@ -52,8 +62,15 @@ class TrackerConfig:
         about one false return each.
     p_survive : probability that a target survives one scan (JIPDA).
     r_init, r_confirm, r_delete : initial, confirmation and deletion thresholds
-        of the existence probability (JIPDA).
-    seed : seed of the random generator used by randomised approximations.
+        of the existence probability (JIPDA); 0 < r_delete < r_init ≤ r_confirm ≤ 1.
+    seed : seed of the random generator used by randomised approximations
+        (an integer ≥ 0, or None).
+
+    Every field is checked on construction — type (a string, a bool or a list
+    where a number is expected, NaN, a float where an integer is expected) and
+    range — and cross-field rules (``confirm_m ≤ confirm_n``, ``r_delete <
+    r_init ≤ r_confirm``); a bad value raises ValueError naming the field
+    (:func:`check_field` checks one field on its own).
     miss_model : weight of "track detected nothing" in the cluster's joint
         events: ``"1-pd*pg"`` (default; a target-originated return may fall
         outside the gate, Bar-Shalom, Daum & Huang 2009) or ``"1-pd"``
@@ -64,7 +81,7 @@ class TrackerConfig:
     dim: int = 2
     motion: str = "cv"
     process_noise: float = 1.0
-    measurement_noise: float = 100.0
+    measurement_noise: float | tuple = 100.0
     sensor: str = "position"
     sensor_position: tuple = (0.0, 0.0)
     range_noise: float = 25.0
@@ -91,57 +108,43 @@ class TrackerConfig:
     miss_model: str = "1-pd*pg"
 
     def __post_init__(self):
+        for f in fields(self):
+            object.__setattr__(self, f.name, check_field(f.name, getattr(self, f.name)))
+
         def need(cond, msg):
             if not cond:
                 raise ValueError(f"TrackerConfig: {msg}")
 
-        need(self.dim in (2, 3), f"dim must be 2 or 3, got {self.dim}")
         need(
-            self.sensor in ("position", "range-bearing"),
-            f"sensor must be 'position' or 'range-bearing', got {self.sensor!r}",
+            self.sensor == "position" or self.dim == 2,
+            f"sensor: the range-bearing sensor is 2-D, but dim = {self.dim}",
         )
-        need(self.sensor == "position" or self.dim == 2, "the range-bearing sensor is 2-D")
-        try:
-            pos = tuple(float(v) for v in self.sensor_position)
-        except (TypeError, ValueError):
-            pos = ()
-        need(len(pos) == 2 and all(map(math.isfinite, pos)), "sensor_position must be (x, y)")
-        object.__setattr__(self, "sensor_position", pos)
-        need(self.motion in ("cv", "ca"), f"motion must be 'cv' or 'ca', got {self.motion!r}")
-        for name in (
-            "process_noise",
-            "measurement_noise",
-            "max_speed",
-            "max_acceleration",
-            "range_noise",
-            "bearing_noise",
-        ):
-            v = getattr(self, name)
-            need(math.isfinite(v) and v > 0, f"{name} must be positive and finite, got {v}")
-        for name in ("p_d", "p_g", "p_survive"):
-            v = getattr(self, name)
-            need(0 < v <= 1 and (name != "p_g" or v < 1), f"{name} must lie in (0, 1], got {v}")
-        if self.clutter_density is not None:
-            c = self.clutter_density
-            need(math.isfinite(c) and c > 0, f"clutter_density must be positive, got {c}")
-        from jointtrack.association.core import METHODS
+        object.__setattr__(
+            self, "measurement_noise", _check_noise(self.measurement_noise, self.dim)
+        )
+        need(
+            self.confirm_m <= self.confirm_n,
+            f"confirm_m must be ≤ confirm_n (M-of-N), got confirm_m = {self.confirm_m} "
+            f"> confirm_n = {self.confirm_n}",
+        )
+        need(
+            self.r_delete < self.r_init,
+            f"r_delete must be < r_init, got r_delete = {self.r_delete} ≥ r_init = {self.r_init}",
+        )
+        need(
+            self.r_init <= self.r_confirm,
+            f"r_init must be ≤ r_confirm (a new track must not start confirmed), got "
+            f"r_init = {self.r_init} > r_confirm = {self.r_confirm}",
+        )
 
-        need(self.association in METHODS, f"association must be one of {METHODS}")
-        need(
-            self.approximation in ("lbp", "mcmc", "kbest", "pda"),
-            f"approximation must be lbp, mcmc, kbest or pda, got {self.approximation!r}",
-        )
-        need(self.exact_max_tracks >= 1, "exact_max_tracks must be ≥ 1")
-        need(
-            self.miss_model in MISS_MODELS,
-            f"miss_model must be one of {', '.join(MISS_MODELS)}, got {self.miss_model!r}",
-        )
-        need(self.initiation in ("two-point", "one-point"), "initiation: two-point|one-point")
-        need(1 <= self.confirm_m <= self.confirm_n <= 30, "need 1 ≤ confirm_m ≤ confirm_n ≤ 30")
-        need(self.delete_misses >= 1, "delete_misses must be ≥ 1")
-        need(self.max_position_std > 0, "max_position_std must be positive")
-        need(0 < self.r_delete < self.r_init < 1, "need 0 < r_delete < r_init < 1")
-        need(self.r_delete < self.r_confirm <= 1, "need r_delete < r_confirm ≤ 1")
+    def measurement_covariance(self) -> np.ndarray:
+        """R of the position sensor as a (dim, dim) array (from ``measurement_noise``)."""
+        R = np.asarray(self.measurement_noise, dtype=np.float64)
+        if R.ndim == 0:
+            return float(R) * np.eye(self.dim)
+        if R.ndim == 1:
+            return np.diag(R)
+        return R.copy()
 
     @classmethod
     def from_dict(cls, d: dict) -> TrackerConfig:
@@ -161,3 +164,225 @@ class TrackerConfig:
     def detection_in_gate(self) -> float:
         """The P_D·P_G or P_D that the miss weight subtracts (see ``miss_model``)."""
         return self.p_d * self.p_g if self.miss_model == "1-pd*pg" else self.p_d
+
+
+# ----------------------------------------------------------------------------- field checks
+
+
+def _fail(name: str, want: str, value) -> ValueError:
+    return ValueError(f"TrackerConfig: {name} must be {want}, got {value!r}")
+
+
+def _real(name: str, v, want: str) -> float:
+    """A real number (not a bool, not NaN) as float."""
+    if isinstance(v, bool | np.bool_) or not isinstance(v, numbers.Real):
+        raise _fail(name, want, v)
+    v = float(v)
+    if math.isnan(v):
+        raise _fail(name, want, v)
+    return v
+
+
+def _int(name: str, v, want: str) -> int:
+    if isinstance(v, bool | np.bool_) or not isinstance(v, numbers.Integral):
+        raise _fail(name, want, v)
+    return int(v)
+
+
+def _positive(name, v):
+    want = "a positive finite number"
+    v = _real(name, v, want)
+    if not (math.isfinite(v) and v > 0):
+        raise _fail(name, want, v)
+    return v
+
+
+def _probability(name, v):
+    want = "a number in (0, 1]"
+    v = _real(name, v, want)
+    if not 0 < v <= 1:
+        raise _fail(name, want, v)
+    return v
+
+
+def _open_probability(name, v):
+    want = "a number in (0, 1)"
+    v = _real(name, v, want)
+    if not 0 < v < 1:
+        raise _fail(name, want, v)
+    return v
+
+
+def _choice(options):
+    def check(name, v):
+        if not isinstance(v, str) or v not in options:
+            raise _fail(name, "one of " + ", ".join(repr(o) for o in options), v)
+        return v
+
+    return check
+
+
+def _int_range(lo, hi=None):
+    def check(name, v):
+        want = f"an integer ≥ {lo}" if hi is None else f"an integer in [{lo}, {hi}]"
+        v = _int(name, v, want)
+        if v < lo or (hi is not None and v > hi):
+            raise _fail(name, want, v)
+        return v
+
+    return check
+
+
+def _dim(name, v):
+    want = "2 or 3"
+    v = _int(name, v, want)
+    if v not in (2, 3):
+        raise _fail(name, want, v)
+    return v
+
+
+def _sensor_position(name, v):
+    want = "a pair of finite numbers (x, y)"
+    if isinstance(v, str | bytes) or not hasattr(v, "__len__") or len(v) != 2:
+        raise _fail(name, want, v)
+    try:
+        out = tuple(_real(name, a, want) for a in v)
+    except ValueError:
+        raise _fail(name, want, v) from None
+    if not all(map(math.isfinite, out)):
+        raise _fail(name, want, v)
+    return out
+
+
+def _clutter(name, v):
+    if v is None:
+        return None
+    want = 'a positive finite number (or None / "estimate" in TOML)'
+    v = _real(name, v, want)
+    if not (math.isfinite(v) and v > 0):
+        raise _fail(name, want, v)
+    return v
+
+
+def _max_position_std(name, v):
+    want = "a positive number (inf allowed)"
+    v = _real(name, v, want)
+    if not v > 0:
+        raise _fail(name, want, v)
+    return v
+
+
+def _bool(name, v):
+    if not isinstance(v, bool | np.bool_):
+        raise _fail(name, "true or false (a bool)", v)
+    return bool(v)
+
+
+def _seed(name, v):
+    if v is None:
+        return None
+    want = "an integer ≥ 0 or None"
+    v = _int(name, v, want)
+    if v < 0:
+        raise _fail(name, want, v)
+    return v
+
+
+def _association(name, v):
+    from jointtrack.association.core import METHODS
+
+    return _choice(tuple(METHODS))(name, v)
+
+
+def _noise_shape(name, v):
+    """measurement_noise without knowing dim: a positive number, or a (nested)
+    sequence of finite numbers, as a float or tuple (of tuples)."""
+    want = (
+        "a positive number σ², a list of per-axis σ² (length dim) or a dim × dim "
+        "covariance (list of lists)"
+    )
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, list | tuple):
+        if not v:
+            raise _fail(name, want, v)
+        if all(isinstance(r, list | tuple | np.ndarray) for r in v):
+            rows = [list(r) for r in v]
+            if any(len(r) != len(rows) for r in rows):
+                raise _fail(name, want + " (a square matrix)", v)
+            return tuple(tuple(_real(name, a, want) for a in r) for r in rows)
+        return tuple(_real(name, a, want) for a in v)
+    return _real(name, v, want)
+
+
+def _check_noise(v, dim: int):
+    """measurement_noise against ``dim``: σ² > 0, per-axis σ² > 0, or an SPD matrix."""
+    name = "measurement_noise"
+    if isinstance(v, float):
+        if not (math.isfinite(v) and v > 0):
+            raise _fail(name, "positive and finite (σ²)", v)
+        return v
+    a = np.asarray(v, dtype=np.float64)
+    if not np.all(np.isfinite(a)):
+        raise _fail(name, "finite", v)
+    if a.ndim == 1:
+        if a.size != dim:
+            raise _fail(name, f"a number or a list of {dim} per-axis variances (dim = {dim})", v)
+        if np.any(a <= 0):
+            raise _fail(name, "positive in every axis (per-axis σ²)", v)
+        return v
+    if a.shape != (dim, dim):
+        raise _fail(name, f"a {dim} × {dim} covariance matrix (dim = {dim})", v)
+    if not np.allclose(a, a.T, rtol=1e-12, atol=0.0):
+        raise _fail(name, "a symmetric covariance matrix", v)
+    try:
+        np.linalg.cholesky(a)
+    except np.linalg.LinAlgError:
+        raise _fail(name, "a positive definite covariance matrix", v) from None
+    return v
+
+
+_CHECKS = {
+    "dim": _dim,
+    "motion": _choice(("cv", "ca")),
+    "process_noise": _positive,
+    "measurement_noise": _noise_shape,
+    "sensor": _choice(("position", "range-bearing")),
+    "sensor_position": _sensor_position,
+    "range_noise": _positive,
+    "bearing_noise": _positive,
+    "p_d": _probability,
+    "p_g": _probability,
+    "clutter_density": _clutter,
+    "association": _association,
+    "exact_max_tracks": _int_range(1),
+    "approximation": _choice(("lbp", "mcmc", "kbest", "pda")),
+    "initiation": _choice(("two-point", "one-point")),
+    "max_speed": _positive,
+    "max_acceleration": _positive,
+    "confirm_m": _int_range(1, 30),
+    "confirm_n": _int_range(1, 30),
+    "delete_misses": _int_range(1),
+    "max_position_std": _max_position_std,
+    "existence": _bool,
+    "p_survive": _probability,
+    "r_init": _open_probability,
+    "r_confirm": _probability,
+    "r_delete": _open_probability,
+    "seed": _seed,
+    "miss_model": _choice(MISS_MODELS),
+}
+
+
+def check_field(name: str, value):
+    """Check one :class:`TrackerConfig` field on its own (type and range).
+
+    Returns the value normalised (numbers as float/int, sequences as tuples);
+    raises ValueError naming the field. Cross-field rules (``confirm_m ≤
+    confirm_n``, ``r_delete < r_init ≤ r_confirm``, the length of a per-axis
+    ``measurement_noise``) need the whole config and are checked by
+    :class:`TrackerConfig`.
+    """
+    if name not in _CHECKS:
+        raise ValueError(f"TrackerConfig: unknown field {name!r}")
+    return _CHECKS[name](name, value)

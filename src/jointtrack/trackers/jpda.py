@@ -44,6 +44,13 @@ from jointtrack.models import (
     RangeBearing,
 )
 from jointtrack.trackers.config import TrackerConfig
+from jointtrack.trackers.history import (
+    TrackHistory,
+    is_datetime,
+    iso_from_ns,
+    ns_from_iso,
+    scan_time_ns,
+)
 from jointtrack.trackers.initiation import pair_returns
 from jointtrack.trackers.state_io import (
     StateFileError,
@@ -52,7 +59,7 @@ from jointtrack.trackers.state_io import (
     write_state,
 )
 
-__all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackerConfig"]
+__all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackHistory", "TrackerConfig"]
 
 log = logging.getLogger("jointtrack.tracker")
 
@@ -62,7 +69,8 @@ class ScanResult:
     """What one call of :meth:`JPDATracker.step` did.
 
     The confirmed tracks after the update: ``ids`` (K,), ``x`` (K, n),
-    ``P`` (K, n, n), ``existence`` (K,) (1.0 without JIPDA).
+    ``P`` (K, n, n), ``existence`` (K,) (1.0 without JIPDA). ``time`` is in
+    seconds — for datetime scans, seconds after the tracker's ``time_origin``.
     ``cluster_sizes`` lists (tracks, measurements) of every multi-track
     cluster, ``cluster_seconds`` the association time of each,
     ``cluster_methods`` the method used, ``cluster_confirmed`` whether it
@@ -117,6 +125,7 @@ class JPDATracker:
     >>> trk = JPDATracker(TrackerConfig(clutter_density=1e-4))
     >>> for t, z in detections:            # z: (M, dim) positions at time t
     ...     result = trk.step(t, z)        # confirmed tracks in result.ids / result.x
+    >>> table = trk.history()              # every confirmed estimate: a TrackHistory
     """
 
     def __init__(
@@ -126,6 +135,7 @@ class JPDATracker:
         motion=None,
         sensor=None,
         on_cluster=None,
+        keep_history: bool = True,
     ):
         """Build a tracker from ``config`` and, optionally, model objects.
 
@@ -139,10 +149,16 @@ class JPDATracker:
         "range-bearing"``); for initiation it must also provide
         ``position_and_covariance(z)``. ``on_cluster(record)`` (optional) is
         called with a :class:`ClusterRecord` for every multi-track cluster; it
-        is not part of the saved state.
+        is not part of the saved state. ``keep_history``: record every confirmed
+        estimate for :meth:`history` (turn off for memory-bound runs; it can be
+        switched at any time through the ``keep_history`` attribute).
         """
         self.config = config or TrackerConfig()
         self.on_cluster = on_cluster
+        self.keep_history = bool(keep_history)
+        # (time, ids, x, P, existence) per successful scan; outside the saved and
+        # restored state: appended only after a step succeeded
+        self._history_rows: list[tuple] = []
         c = self.config
         if motion is None:
             model = ConstantVelocity if c.motion == "cv" else ConstantAcceleration
@@ -174,11 +190,13 @@ class JPDATracker:
         self._mdim = int(np.asarray(sensor.R).shape[-1])
         self.rng = np.random.default_rng(c.seed)
         self.time: float | None = None
+        # ISO-8601 UTC instant of t = 0 when the scans are datetimes (set by the first one)
+        self.time_origin: str | None = None
         self.x = np.zeros((0, n))
         self.P = np.zeros((0, n, n))
         self.ids = np.zeros(0, np.int64)
         self.confirmed = np.zeros(0, bool)
-        self.history = np.zeros(0, np.int64)  # bit k: hit k scans ago
+        self.hit_history = np.zeros(0, np.int64)  # bit k: hit k scans ago
         self.age = np.zeros(0, np.int64)
         self.misses = np.zeros(0, np.int64)
         self.existence = np.zeros(0)
@@ -192,20 +210,65 @@ class JPDATracker:
     def step(self, t: float, z) -> ScanResult:
         """Process the measurements ``z`` (M, dim) taken at time ``t``.
 
+        ``t``: a number (seconds), a ``datetime.datetime`` (naive = UTC, or
+        timezone-aware) or a ``numpy.datetime64``. Datetimes are converted to
+        seconds after ``time_origin``, the instant of the run's first datetime
+        scan (an ISO-8601 string, saved with the state); one run takes either
+        numbers or datetimes, never both. ``ScanResult.time`` is in seconds.
+
         Atomic: if any stage raises (bad input, a failing model, an interrupt),
         the tracker is left exactly as it was before the call and the
-        exception propagates, so the same scan can be retried.
+        exception propagates, so the same scan can be retried. Only a step
+        that succeeded adds rows to :meth:`history`.
         """
         saved = self.state_dict()
         try:
-            return self._step(t, z)
+            result = self._step(t, z)
         except BaseException:
             self._restore(saved)
             raise
+        if self.keep_history and len(result.ids):
+            order = np.argsort(result.ids, kind="stable")
+            self._history_rows.append(
+                (
+                    np.full(len(order), result.time),
+                    result.ids[order],  # fancy indexing: copies, so callers may
+                    result.x[order],  # change the ScanResult's arrays freely
+                    result.P[order],
+                    np.asarray(result.existence, dtype=float)[order],
+                )
+            )
+        return result
 
-    def _step(self, t: float, z) -> ScanResult:
+    def _scan_time(self, t) -> float:
+        """Seconds of a scan time; fixes ``time_origin`` at the first datetime scan."""
+        if is_datetime(t):
+            if self.time is not None and self.time_origin is None:
+                raise ValueError(
+                    f"scan time {t!r} is a datetime, but this run's earlier scan times were "
+                    "numbers; one run takes either numbers (seconds) or datetimes, not both"
+                )
+            ns = scan_time_ns(t)
+            if self.time_origin is None:
+                self.time_origin = iso_from_ns(ns)  # restored by step() if the scan fails
+            return (ns - ns_from_iso(self.time_origin)) / 1e9
+        if self.time_origin is not None:
+            raise ValueError(
+                f"scan time {t!r} is a number, but this run's scan times are datetimes "
+                f"(time_origin {self.time_origin}); one run takes either numbers (seconds) "
+                "or datetimes, not both"
+            )
+        try:
+            return float(t)
+        except TypeError:
+            raise TypeError(
+                "scan time must be a number (seconds), a datetime.datetime or a "
+                f"numpy.datetime64, got {type(t).__name__}"
+            ) from None
+
+    def _step(self, t, z) -> ScanResult:
         c = self.config
-        t = float(t)
+        t = self._scan_time(t)
         if not math.isfinite(t):
             raise ValueError(f"scan time must be finite, got {t}")
         z = np.asarray(z, dtype=float)
@@ -414,7 +477,9 @@ class JPDATracker:
     def _track_logic(self, hit):
         c = self.config
         self.age += 1
-        self.history = ((self.history << 1) | hit.astype(np.int64)) & ((1 << c.confirm_n) - 1)
+        self.hit_history = ((self.hit_history << 1) | hit.astype(np.int64)) & (
+            (1 << c.confirm_n) - 1
+        )
         self.misses = np.where(hit, 0, self.misses + 1)
         pos_var = np.einsum("nii->n", self.P[:, : c.dim, : c.dim]) / c.dim
         blown = np.sqrt(pos_var) > c.max_position_std
@@ -422,14 +487,14 @@ class JPDATracker:
             self.confirmed |= self.existence >= c.r_confirm
             dead = self.existence < c.r_delete
         else:
-            hits = np.array([bin(h).count("1") for h in self.history], dtype=np.int64)
+            hits = np.array([bin(h).count("1") for h in self.hit_history], dtype=np.int64)
             self.confirmed |= hits >= c.confirm_m
             dead_tentative = ~self.confirmed & (self.age >= c.confirm_n)
             dead = dead_tentative | (self.confirmed & (self.misses >= c.delete_misses))
         self._keep(~(dead | blown))
 
     def _keep(self, keep):
-        for name in ("x", "P", "ids", "confirmed", "history", "age", "misses", "existence"):
+        for name in ("x", "P", "ids", "confirmed", "hit_history", "age", "misses", "existence"):
             setattr(self, name, getattr(self, name)[keep])
 
     def _initiate(self, z_new, dt):
@@ -479,7 +544,7 @@ class JPDATracker:
         self.P = np.concatenate([self.P, P0])
         self.ids = np.concatenate([self.ids, ids])
         self.confirmed = np.concatenate([self.confirmed, np.full(k, confirmed)])
-        self.history = np.concatenate([self.history, np.ones(k, np.int64)])
+        self.hit_history = np.concatenate([self.hit_history, np.ones(k, np.int64)])
         self.age = np.concatenate([self.age, np.zeros(k, np.int64)])
         self.misses = np.concatenate([self.misses, np.zeros(k, np.int64)])
         self.existence = np.concatenate([self.existence, np.full(k, float(existence))])
@@ -503,6 +568,43 @@ class JPDATracker:
             raise ValueError("every P0 must be symmetric positive definite")
         return self._append(x0, P0, confirmed=confirmed, existence=existence)
 
+    # -------------------------------------------------------------- history
+    def history(self) -> TrackHistory:
+        """Every confirmed estimate this tracker produced: a :class:`TrackHistory`.
+
+        One row per (scan time, track id) with ``time`` (seconds; after
+        ``time_origin`` for datetime scans), ``track_id``, ``x`` (n,), ``P``
+        (n, n) and ``existence``: the ``ScanResult`` of every successful
+        :meth:`step` since the tracker was built (or :meth:`clear_history`).
+        Not part of the saved state: after :meth:`load` it starts empty.
+        Raises RuntimeError if recording is off (``keep_history=False``) and
+        nothing was recorded.
+        """
+        if not self.keep_history and not self._history_rows:
+            raise RuntimeError(
+                "this tracker does not record its history (JPDATracker(keep_history=False))"
+            )
+        n = self._motion.state_dim
+        if len(self._history_rows) > 1:  # consolidate, so repeated calls are cheap
+            self._history_rows = [
+                tuple(np.concatenate(cols) for cols in zip(*self._history_rows, strict=True))
+            ]
+        if self._history_rows:
+            time, ids, x, P, existence = self._history_rows[0]
+        else:
+            time, ids, x, P, existence = (
+                np.zeros(0),
+                np.zeros(0, np.int64),
+                np.zeros((0, n)),
+                np.zeros((0, n, n)),
+                np.zeros(0),
+            )
+        return TrackHistory(time, ids, x, P, existence, time_origin=self.time_origin)
+
+    def clear_history(self) -> None:
+        """Forget the recorded history (the tracker state is unchanged)."""
+        self._history_rows = []
+
     # ------------------------------------------------------------ save/load
     _ARRAYS = (
         "x",
@@ -516,11 +618,22 @@ class JPDATracker:
         "seeds",
         "seed_covs",
     )
-    _SCALARS = ("time", "next_id", "n_scans")
+    _SCALARS = ("time", "next_id", "n_scans", "time_origin")
+    # state key -> attribute (``history()`` is the track-history method)
+    _ATTRS = {"history": "hit_history"}
+
+    @classmethod
+    def _attr(cls, name: str) -> str:
+        return cls._ATTRS.get(name, name)
 
     def state_dict(self) -> dict:
-        """Everything needed to continue the run identically (copies of plain types and arrays)."""
-        state = {name: np.array(getattr(self, name), copy=True) for name in self._ARRAYS}
+        """Everything needed to continue the run identically (copies of plain types and arrays).
+
+        The track history (:meth:`history`) is not part of it.
+        """
+        state = {
+            name: np.array(getattr(self, self._attr(name)), copy=True) for name in self._ARRAYS
+        }
         state.update({name: getattr(self, name) for name in self._SCALARS})
         state["config"] = self.config.to_dict()
         state["rng"] = self.rng.bit_generator.state
@@ -529,30 +642,39 @@ class JPDATracker:
     def _restore(self, state: dict) -> None:
         """Put back a :meth:`state_dict` (used by :meth:`step` when a stage fails)."""
         for name in self._ARRAYS:
-            setattr(self, name, state[name])
+            setattr(self, self._attr(name), state[name])
         for name in self._SCALARS:
             setattr(self, name, state[name])
         self.rng.bit_generator.state = state["rng"]
 
-    def save(self, path) -> Path:
+    def save(self, path, *, run=None) -> Path:
         """Write the tracker state to ``path`` (see :mod:`jointtrack.trackers.state_io`).
 
         A versioned, checksummed ``.npz`` archive of plain arrays with a JSON
         header, written atomically (temporary file, fsync, rename); never pickle.
+        ``time_origin`` (datetime scans) is saved with the state; the track
+        history (:meth:`history`) is not.
         """
         scalars = {
             "time": None if self.time is None else float(self.time),
             "next_id": int(self.next_id),
             "n_scans": int(self.n_scans),
+            "time_origin": self.time_origin,
         }
-        arrays = {name: getattr(self, name) for name in self._ARRAYS}
+        arrays = {name: getattr(self, self._attr(name)) for name in self._ARRAYS}
+        # ``run``: a caller's JSON-able bookkeeping, saved atomically with the state
         return write_state(
-            path, arrays, self.config.to_dict(), scalars, self.rng.bit_generator.state
+            path, arrays, self.config.to_dict(), scalars, self.rng.bit_generator.state, run=run
         )
 
     @classmethod
-    def load(cls, path) -> JPDATracker:
+    def load(cls, path, *, keep_history: bool = True) -> JPDATracker:
         """Restore a tracker written by :meth:`save`; the run continues identically.
+
+        The track history is not saved: :meth:`history` of the loaded tracker
+        starts empty and records the scans stepped after loading
+        (``keep_history`` as in the constructor). ``time_origin`` is restored,
+        so a datetime run continues on the same time axis.
 
         Raises
         ------
@@ -566,10 +688,17 @@ class JPDATracker:
             cfg = TrackerConfig.from_dict(config)
         except (TypeError, ValueError) as exc:
             raise StateFileError(f"{path}: invalid tracker configuration ({exc})") from None
-        trk = cls(cfg)
+        trk = cls(cfg, keep_history=keep_history)
         validate_tracker_arrays(path, arrays, scalars, trk._motion.state_dim, cfg.dim)
+        origin = scalars.get("time_origin")  # absent in files of numeric-time runs
+        if origin is not None:
+            try:
+                iso_from_ns(ns_from_iso(origin))
+            except (TypeError, ValueError, OverflowError) as exc:
+                raise StateFileError(f"{path}: invalid scalar 'time_origin' ({exc})") from None
         for name in cls._ARRAYS:
-            setattr(trk, name, arrays[name])
+            setattr(trk, cls._attr(name), arrays[name])
+        trk.time_origin = origin
         trk.time = scalars["time"]
         trk.next_id = scalars["next_id"]
         trk.n_scans = scalars["n_scans"]

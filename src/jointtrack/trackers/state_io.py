@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FORMAT", "VERSION", "StateFileError", "read_state", "write_state"]
+__all__ = ["FORMAT", "VERSION", "StateFileError", "read_run", "read_state", "write_state"]
 
 FORMAT = "jointtrack-tracker-state"
 VERSION = 3
@@ -54,8 +54,15 @@ def _digest(header: dict, arrays: dict[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def write_state(path, arrays: dict[str, np.ndarray], config: dict, scalars: dict, rng: dict):
-    """Write a state file atomically; returns the path."""
+def write_state(
+    path, arrays: dict[str, np.ndarray], config: dict, scalars: dict, rng: dict, run=None
+):
+    """Write a state file atomically; returns the path.
+
+    ``run`` (optional, JSON-able) is stored in the same checksummed header — a
+    caller's bookkeeping that must change together with the state (e.g. the
+    run inputs and committed output parts of ``jointtrack run``).
+    """
     path = Path(path)
     arrays = {k: np.ascontiguousarray(v) for k, v in arrays.items()}
     for k, v in arrays.items():
@@ -67,6 +74,7 @@ def write_state(path, arrays: dict[str, np.ndarray], config: dict, scalars: dict
         "config": config,
         "scalars": scalars,
         "rng": rng,
+        "run": run,
     }
     header["sha256"] = _digest(header, arrays)
     blob = np.frombuffer(json.dumps(header).encode("utf-8"), dtype=np.uint8)
@@ -88,12 +96,18 @@ def write_state(path, arrays: dict[str, np.ndarray], config: dict, scalars: dict
 
 
 def read_state(path) -> tuple[dict[str, np.ndarray], dict, dict, dict]:
-    """Read and verify a state file: ``(arrays, config, scalars, rng)``.
+    """Read and verify a state file: ``(arrays, config, scalars, rng)``; see :func:`read_run`.
 
     Raises :class:`StateFileError` (a ValueError) for anything but an intact
     file of this format and version. Value checks beyond the checksum are the
     tracker's (:func:`validate_tracker_arrays`).
     """
+    header, arrays = _read_verified(path)
+    return arrays, header["config"], header["scalars"], header["rng"]
+
+
+def _read_verified(path):
+    """(header, arrays) of an intact state file of this format and version."""
     path = Path(path)
 
     def bad(what: str) -> StateFileError:
@@ -150,7 +164,13 @@ def read_state(path) -> tuple[dict[str, np.ndarray], dict, dict, dict]:
     for key in ("config", "scalars", "rng"):
         if not isinstance(header.get(key), dict):
             raise bad(f"header has no {key}")
-    return arrays, header["config"], header["scalars"], header["rng"]
+    return header, arrays
+
+
+def read_run(path):
+    """The ``run`` bookkeeping stored with a state file (None if there is none); verified."""
+    header, _ = _read_verified(path)
+    return header.get("run")
 
 
 def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, dim: int) -> None:

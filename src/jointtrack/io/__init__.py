@@ -1,0 +1,122 @@
+"""Reading detections and writing tracks and metrics (CSV, Parquet, JSON).
+
+Detections file format
+----------------------
+One row per detection, as CSV (``.csv``, optionally gzip-compressed
+``.csv.gz``) or Parquet (``.parquet`` / ``.pq``). A detection is either a
+measured position (``x, y[, z]``):
+
+=========  ========  ==========================================================
+column     required  meaning
+=========  ========  ==========================================================
+``time``   yes       scan time: a number (any unit, e.g. seconds; finite)
+                     or an ISO-8601 timestamp (see below)
+``x``      yes       position coordinate (any unit, e.g. metres); finite
+``y``      yes       position coordinate; finite
+``z``      no        third coordinate; its presence makes the detections 3-D
+``sensor`` no        integer sensor id (e.g. for several radars)
+=========  ========  ==========================================================
+
+or a range–bearing measurement of a 2-D sensor (``range, bearing``; track it
+with ``TrackerConfig(sensor="range-bearing", sensor_position=…)``):
+
+===========  ========  ========================================================
+column       required  meaning
+===========  ========  ========================================================
+``time``     yes       scan time: a number or an ISO-8601 timestamp
+``range``    yes       distance from the sensor (e.g. metres); finite, ≥ 0
+``bearing``  yes       angle in **radians**, anticlockwise from the +x axis;
+                       finite, within [−2π, 2π] (larger values are taken for
+                       degrees and rejected); not wrapped on reading
+``sensor``   no        integer sensor id
+===========  ========  ========================================================
+
+The columns decide the kind (:attr:`Detections.kind`: ``"position"`` or
+``"range-bearing"``); a file with columns of both kinds (``x``/``y``/``z``
+and ``range``/``bearing``) or of neither is an error.
+
+* CSV: comma-separated, the first non-blank line is the header; column names
+  are matched case-insensitively, surrounding spaces ignored; blank lines are
+  skipped; other columns (``snr``, ``amplitude``, …) are ignored. Parquet:
+  the same column names; numeric column types (or strings holding numbers);
+  ``time`` may also be a Parquet ``timestamp`` column.
+* Times: numbers are used as they are (:attr:`Detections.time_origin` is
+  ``None``). ISO-8601 timestamps (``2026-11-23T10:00:00.5Z``, with or without
+  fraction, ``Z`` or ``±HH:MM`` offset; a space instead of ``T`` is accepted)
+  or a Parquet timestamp column become **seconds since the first row's
+  timestamp**, which is kept as :attr:`Detections.time_origin` (an ISO string,
+  UTC ``…Z`` when the timestamps carry an offset, naive otherwise); details in
+  :mod:`jointtrack.io.times`. All ``time`` values of a file are of one kind.
+* Rows are in time order: ``time`` must be non-decreasing from row to row.
+  Consecutive rows with the *same* time value form one scan; a scan with no
+  detection cannot be represented (it has no row), and a file with a header
+  but no rows is an error ("has no detections"; ``read_detections(…,
+  allow_empty=True)`` reads it as no scans).
+* Errors: every problem raises :class:`DetectionFileError` (a
+  :class:`ValueError`) with a one-line message naming the file and, where
+  there is one, the row — ``line L (data row R)`` for CSV (L the physical
+  line, R the 1-based row after the header), ``data row R`` for Parquet —
+  and the column: missing or unreadable file, unknown extension, missing
+  required columns (all listed), no data rows, a non-numeric, empty, NaN or
+  infinite value (for ``time``: neither a number nor an ISO-8601 timestamp —
+  the message shows the cell and the accepted formats — or numbers and
+  timestamps mixed),
+  a non-integer sensor id, a row with the wrong number of fields, a time
+  earlier than the row before it, position and range–bearing columns together
+  (or neither), a negative range or a bearing outside [−2π, 2π].
+
+Examples::
+
+    time,x,y,sensor
+    0.0,12.5,-3.0,1
+    0.0,250.1,40.2,1
+    1.0,13.4,-2.1,1
+
+    time,x,y
+    2026-11-23T10:00:00Z,12.5,-3.0
+    2026-11-23T10:00:00.5Z,13.0,-2.6
+
+    time,range,bearing
+    0.0,1250.0,0.7854
+    0.0,980.5,-2.9671
+    1.0,1243.2,0.7860
+
+Tracks file format (:func:`write_tracks`, :func:`read_tracks`)
+---------------------------------------------------------------
+Columns ``time, track_id, x, y[, z], vx, vy[, vz]`` (``z`` and ``vz`` together)
+followed by any extra numeric columns the caller supplies, e.g. covariance
+entries (``P_x_x``, ``P_x_vx``, …) or an existence probability
+(``existence``). CSV floats are written with ``repr`` (shortest round-trip),
+so a CSV round trip is exact.
+
+Metrics (:func:`write_metrics`): a JSON object; numpy scalars and arrays,
+dataclasses, tuples and paths are converted; NaN and ±inf become ``null``
+(:func:`to_jsonable`, the package's one numpy-aware JSON conversion).
+
+Modules: :mod:`~jointtrack.io.detections` (:class:`Detections`, reading and
+writing detections), :mod:`~jointtrack.io.tracks` (track tables),
+:mod:`~jointtrack.io.metrics` (metrics JSON), :mod:`~jointtrack.io.jsonify`
+(:func:`to_jsonable`), :mod:`~jointtrack.io.times` (ISO-8601 times),
+:mod:`~jointtrack.io.errors` (:class:`DataFileError` and subclasses). Every
+public name is importable from :mod:`jointtrack.io`.
+"""
+
+from jointtrack.io.detections import KINDS, Detections, read_detections, write_detections
+from jointtrack.io.errors import DataFileError, DetectionFileError, TrackFileError
+from jointtrack.io.jsonify import to_jsonable
+from jointtrack.io.metrics import write_metrics
+from jointtrack.io.tracks import read_tracks, write_tracks
+
+__all__ = [
+    "DataFileError",
+    "DetectionFileError",
+    "Detections",
+    "KINDS",
+    "TrackFileError",
+    "read_detections",
+    "read_tracks",
+    "to_jsonable",
+    "write_detections",
+    "write_metrics",
+    "write_tracks",
+]

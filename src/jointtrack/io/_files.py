@@ -1,0 +1,322 @@
+"""The column layer shared by detections and tracks: CSV/Parquet in, columns out.
+
+Private: :mod:`jointtrack.io.detections` and :mod:`jointtrack.io.tracks` build on it.
+"""
+
+from __future__ import annotations
+
+import csv
+import gzip
+import io as _io
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from jointtrack.io.errors import DataFileError
+
+CSV_SUFFIXES = (".csv", ".csv.gz")
+PARQUET_SUFFIXES = (".parquet", ".pq")
+
+
+def file_kind(path: Path, err) -> str:
+    name = path.name.lower()
+    if name.endswith(CSV_SUFFIXES):
+        return "csv"
+    if name.endswith(PARQUET_SUFFIXES):
+        return "parquet"
+    raise err(
+        path,
+        "unknown file extension; use .csv, .csv.gz, .parquet or .pq",
+    )
+
+
+def read_csv(path: Path, err) -> tuple[list[str], list[list[str]], np.ndarray]:
+    try:
+        if path.name.lower().endswith(".gz"):
+            fh = gzip.open(path, "rt", newline="", encoding="utf-8-sig")
+        else:
+            fh = open(path, newline="", encoding="utf-8-sig")  # noqa: SIM115
+    except FileNotFoundError:
+        raise err(path, "file not found") from None
+    except IsADirectoryError:
+        raise err(path, "is a directory, not a file") from None
+    except OSError as exc:
+        raise err(path, f"cannot open file: {exc.strerror or exc}") from None
+    header = None
+    rows: list[list[str]] = []
+    lines: list[int] = []
+    try:
+        with fh:
+            reader = csv.reader(fh)
+            for rec in reader:
+                if not rec or all(not f.strip() for f in rec):
+                    continue
+                if header is None:
+                    header = [f.strip() for f in rec]
+                    header_line = reader.line_num
+                    continue
+                if len(rec) != len(header):
+                    raise err(
+                        path,
+                        f"has {len(rec)} fields but the header (line {header_line}) "
+                        f"has {len(header)}",
+                        row=len(rows) + 1,
+                        line=reader.line_num,
+                    )
+                rows.append(rec)
+                lines.append(reader.line_num)
+    except UnicodeDecodeError:
+        raise err(path, "is not a UTF-8 text (CSV) file") from None
+    except csv.Error as exc:
+        raise err(path, f"malformed CSV: {exc}", line=reader.line_num) from None
+    except (OSError, EOFError) as exc:  # e.g. a corrupt .gz
+        raise err(path, f"cannot read file: {exc}") from None
+    if header is None:
+        raise err(path, "is empty (no header line)")
+    low = [h.lower() for h in header]
+    dup = sorted({h for h in low if low.count(h) > 1 and h})
+    if dup:
+        raise err(path, f"duplicate column(s) in the header: {', '.join(dup)}")
+    return header, rows, np.asarray(lines, dtype=np.int64)
+
+
+def row_error(err, path, reason: str, i: int, lines, column: str) -> DataFileError:
+    """``err`` for data row ``i`` (0-based) of ``column``; ``lines``: CSV line numbers or None."""
+    return err(
+        path, reason, row=i + 1, line=None if lines is None else int(lines[i]), column=column
+    )
+
+
+def bad_cell(s: str) -> str:
+    """Why the text ``s`` of a cell is not a number."""
+    return "empty value" if not s.strip() else f"non-numeric value {s.strip()!r}"
+
+
+def strings_to_floats(path, err, cells: Sequence[str], lines, name: str) -> np.ndarray:
+    """float64 values of text cells; ``err`` at the first cell that is not a number."""
+    try:
+        return np.array(cells, dtype=np.float64)
+    except (ValueError, TypeError):
+        pass
+    out = np.empty(len(cells), dtype=np.float64)
+    for i, s in enumerate(cells):
+        try:
+            out[i] = float(s)
+        except (ValueError, TypeError):
+            raise row_error(err, path, bad_cell(str(s)), i, lines, name) from None
+    return out  # pragma: no cover - numpy and float() agree
+
+
+def parquet_table(path: Path, err):
+    try:
+        import pyarrow.parquet as pq
+    except ImportError:  # pragma: no cover - pyarrow is a dependency
+        raise err(path, "reading Parquet needs pyarrow (pip install pyarrow)") from None
+    if not path.exists():
+        raise err(path, "file not found")
+    if path.is_dir():
+        raise err(path, "is a directory, not a file")
+    try:
+        table = pq.read_table(path)
+    except Exception as exc:  # pyarrow raises several types for a non-Parquet file
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise err(path, f"cannot read Parquet file: {msg}") from None
+    names = [str(n).strip() for n in table.column_names]
+    low = [h.lower() for h in names]
+    dup = sorted({h for h in low if low.count(h) > 1})
+    if dup:
+        raise err(path, f"duplicate column(s): {', '.join(dup)}")
+    return names, table
+
+
+def parquet_nulls(path, err, col, name: str) -> None:
+    """``err`` at the first null of a pyarrow column."""
+    if col.null_count:
+        mask = np.asarray(col.is_null().to_numpy(zero_copy_only=False), dtype=bool)
+        i = int(np.flatnonzero(mask)[0])
+        raise row_error(err, path, "missing (null) value", i, None, name)
+
+
+def parquet_is_numeric(t) -> bool:
+    import pyarrow as pa
+
+    return pa.types.is_integer(t) or pa.types.is_floating(t) or pa.types.is_decimal(t)
+
+
+def parquet_is_string(t) -> bool:
+    import pyarrow as pa
+
+    return pa.types.is_string(t) or pa.types.is_large_string(t)
+
+
+def parquet_column(path, err, col, name: str) -> np.ndarray:
+    parquet_nulls(path, err, col, name)
+    t = col.type
+    if parquet_is_numeric(t):
+        return np.asarray(col.to_numpy(zero_copy_only=False), dtype=np.float64)
+    if parquet_is_string(t):
+        return strings_to_floats(path, err, col.to_pylist(), None, name)
+    raise err(path, f"has type {t}, expected a numeric column", column=name)
+
+
+def load_columns(
+    path,
+    err,
+    required: Sequence[str],
+    optional: Sequence[str],
+    parse_extras: bool,
+    pick=None,
+    raw: Sequence[str] = (),
+):
+    """Read the named columns of a CSV/Parquet file as float64 arrays.
+
+    Required and optional columns must be finite; other columns are ignored
+    unless ``parse_extras`` (then they must be numeric, NaN allowed).
+    ``pick(path, names)``, if given, chooses ``(required, optional, hint)`` from
+    the file's column names instead (``hint`` is appended to a missing-column
+    message; it may raise ``err``). Columns named in ``raw`` are returned
+    unparsed: a list of cell strings (CSV) or the pyarrow column (Parquet).
+    Returns ``(path, columns dict, extra column names in file order, lines or
+    None, number of data rows)``.
+    """
+    path = Path(os.fspath(path))
+    kind = file_kind(path, err)
+    if kind == "csv":
+        header, rows, lines = read_csv(path, err)
+        names = header
+        n_rows = len(rows)
+
+        def get(j, name):
+            col = [r[j] for r in rows]
+            return col if name in raw else strings_to_floats(path, err, col, lines, name)
+
+    else:
+        names, table = parquet_table(path, err)
+        lines = None
+        n_rows = table.num_rows
+
+        def get(j, name):
+            col = table.column(j)
+            return col if name in raw else parquet_column(path, err, col, name)
+
+    low = [n.lower() for n in names]
+    hint = ""
+    if pick is not None:
+        required, optional, hint = pick(path, names)
+    missing = [c for c in required if c not in low]
+    if missing:
+        raise err(
+            path,
+            f"missing required column(s): {', '.join(missing)} "
+            f"(found: {', '.join(n for n in names if n) or 'none'}){hint}",
+        )
+    cols = {}
+    wanted = list(required) + [c for c in optional if c in low]
+    # extra columns keep their own spelling
+    extras = [(j, n) for j, n in enumerate(names) if n and low[j] not in wanted]
+    todo = [(low.index(c), c) for c in wanted] + (extras if parse_extras else [])
+    for j, name in todo:
+        v = get(j, name)
+        if name in wanted and name not in raw:
+            bad = ~np.isfinite(v)
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise row_error(err, path, f"non-finite value {v[i]}", i, lines, name)
+        cols[name] = v
+    extras = [n for _, n in extras]
+    return path, cols, extras, lines, n_rows
+
+
+def check_integer(path, err, v: np.ndarray, name: str, lines) -> np.ndarray:
+    bad = v != np.round(v)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise row_error(err, path, f"value {float(v[i])!r} is not an integer", i, lines, name)
+    return v.astype(np.int64)
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+def out_path(path, kind_err=ValueError) -> tuple[Path, str]:
+    path = Path(os.fspath(path))
+    name = path.name.lower()
+    if name.endswith(CSV_SUFFIXES):
+        kind = "csv"
+    elif name.endswith(PARQUET_SUFFIXES):
+        kind = "parquet"
+    else:
+        raise kind_err(f"{path}: unknown file extension; use .csv, .csv.gz, .parquet or .pq")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path, kind
+
+
+def as_columns(table, what: str) -> dict[str, np.ndarray]:
+    if isinstance(table, np.ndarray) and table.dtype.names:
+        cols = {n: table[n] for n in table.dtype.names}
+    elif isinstance(table, Mapping):
+        cols = dict(table)
+    else:
+        raise ValueError(
+            f"{what} must be a mapping of column name → 1-D array, or a numpy "
+            f"structured array; got {type(table).__name__}"
+        )
+    out = {}
+    n = None
+    for k, v in cols.items():
+        if not isinstance(k, str) or not k:
+            raise ValueError(f"{what}: column names must be non-empty strings, got {k!r}")
+        a = np.asarray(v)
+        if a.ndim != 1:
+            raise ValueError(f"{what}: column '{k}' must be 1-D, got shape {a.shape}")
+        if a.size and not (np.issubdtype(a.dtype, np.number) or a.dtype == np.bool_):
+            raise ValueError(f"{what}: column '{k}' must be numeric, got dtype {a.dtype}")
+        if n is None:
+            n = a.shape[0]
+        elif a.shape[0] != n:
+            raise ValueError(f"{what}: column '{k}' has {a.shape[0]} rows but the others have {n}")
+        out[k] = a
+    return out
+
+
+def write_columns(
+    path: Path, kind: str, cols: dict, int_cols, text_cols: Mapping | None = None
+) -> None:
+    """Write columns to CSV/Parquet. ``text_cols``: name → ``(strings, pyarrow array)``
+    for columns written as given (CSV text / Parquet array) instead of as numbers."""
+    text_cols = dict(text_cols or {})
+    names = list(cols)
+    if kind == "parquet":
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        arrays = [
+            text_cols[n][1]
+            if n in text_cols
+            else pa.array(cols[n].astype(np.int64 if n in int_cols else np.float64))
+            for n in names
+        ]
+        pq.write_table(pa.Table.from_arrays(arrays, names=names), path)
+        return
+    n = len(next(iter(cols.values()))) if cols else 0
+    txt = []
+    for name in names:
+        a = cols[name]
+        if name in text_cols:
+            txt.append(list(text_cols[name][0]))
+        elif name in int_cols:
+            txt.append([str(int(v)) for v in a.astype(np.int64).tolist()])
+        else:
+            txt.append([repr(float(v)) for v in a.astype(np.float64).tolist()])
+    buf = _io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(names)
+    w.writerows(zip(*txt, strict=True) if n else [])
+    data = buf.getvalue()
+    if path.name.lower().endswith(".gz"):
+        with gzip.open(path, "wt", encoding="utf-8", newline="") as fh:
+            fh.write(data)
+    else:
+        path.write_text(data, encoding="utf-8", newline="")
