@@ -160,7 +160,12 @@ def test_gate_bad_shapes_and_parameters():
     with pytest.raises(ValueError, match="z_pred must be 2-D"):
         gate_measurements(np.zeros(2), S, np.zeros((1, 2)))
     with pytest.raises(ValueError, match="P_G"):
-        gate_measurements(np.zeros((1, 2)), S, np.zeros((1, 2)), P_G=1.0)
+        gate_measurements(np.zeros((1, 2)), S, np.zeros((1, 2)), P_G=1.5)
+    # P_G = 1 is the infinite gate: every measurement gated, infinite volume
+    far = gate_measurements(np.zeros((1, 2)), S, np.array([[1e9, -1e9]]), P_G=1.0)
+    assert far.mask.all() and far.gamma == np.inf and far.gate_volume[0] == np.inf
+    pairs = gate_pairs(np.zeros((1, 2)), S, np.array([[1e9, -1e9], [0.0, 1.0]]), P_G=1.0)
+    assert pairs.rows.tolist() == [0, 0] and pairs.cols.tolist() == [0, 1]
     with pytest.raises(ValueError, match="measurement z\\[0\\]"):
         gate_measurements(np.zeros((1, 2)), S, np.array([[np.inf, 0.0]]))
     g = gate_measurements(np.zeros((1, 2)), S, np.zeros((2, 2)))
@@ -649,7 +654,7 @@ def test_gate_pairs_bad_inputs_and_ratios():
         ((np.zeros((1, 2)), np.eye(2), np.zeros((1, 2))), {}, "S must have shape"),
         ((np.zeros((1, 2)), S, np.zeros((1, 3))), {}, "z must have shape"),
         ((np.zeros(2), S, np.zeros((1, 2))), {}, "z_pred must be 2-D"),
-        ((np.zeros((1, 2)), S, np.zeros((1, 2))), {"P_G": 1.0}, "P_G"),
+        ((np.zeros((1, 2)), S, np.zeros((1, 2))), {"P_G": 1.5}, "P_G"),
         ((np.zeros((1, 2)), S, np.array([[np.inf, 0.0]])), {}, "measurement z\\[0\\]"),
         ((np.array([[np.nan, 0.0]]), S, np.zeros((1, 2))), {}, "z_pred\\[0\\]"),
     ]

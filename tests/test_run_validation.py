@@ -168,23 +168,21 @@ def test_good_edge_values():
 
 
 def test_p_g_one_is_an_infinite_gate_setting():
-    cfg = TrackerConfig(p_g=1.0)
+    cfg = TrackerConfig(p_g=1.0, clutter_density=1e-4)
     assert cfg.p_g == 1.0
     assert cfg.detection_in_gate() == pytest.approx(cfg.p_d)
-    assert make_tracker_config(None, {"p_g": 1}).p_g == 1.0
+    assert make_tracker_config(None, {"p_g": 1, "clutter_density": 1e-4}).p_g == 1.0
+    with pytest.raises(ValueError, match="p_g = 1 .* clutter_density"):
+        TrackerConfig(p_g=1.0)
 
 
-@pytest.mark.xfail(
-    reason="jointtrack.association.gating.gate_pairs rejects P_G = 1 (needs γ = ∞ there)",
-    raises=ValueError,
-    strict=False,
-)
 def test_p_g_one_tracks():
     trk = JPDATracker(TrackerConfig(p_g=1.0, clutter_density=1e-4))
     trk.step(0.0, np.array([[0.0, 0.0], [100.0, 0.0]]))
     trk.step(1.0, np.array([[1.0, 0.0], [101.0, 0.0]]))
     assert len(trk.ids) > 0  # tracks exist, so the next scan is gated
-    trk.step(2.0, np.array([[2.0, 0.0], [102.0, 0.0]]))
+    r = trk.step(2.0, np.array([[2.0, 0.0], [102.0, 0.0], [1e6, -1e6]]))
+    assert r.n_unassociated == 0  # an infinite gate takes every return
 
 
 GOOD_NOISE = [

@@ -130,12 +130,13 @@ def _as_float(x, name: str) -> np.ndarray:
 
 
 def _check_prob(p, name: str, *, open_left: bool = True) -> float:
+    """A gate probability in (0, 1]; 1 is the infinite gate (γ = ∞, everything gated)."""
     try:
         p = float(p)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number in (0, 1), got {p!r}") from None
-    if not np.isfinite(p) or not (0.0 < p < 1.0 if open_left else 0.0 <= p < 1.0):
-        raise ValueError(f"{name} must lie strictly between 0 and 1, got {p}")
+        raise ValueError(f"{name} must be a number in (0, 1], got {p!r}") from None
+    if not np.isfinite(p) or not (0.0 < p <= 1.0 if open_left else 0.0 <= p <= 1.0):
+        raise ValueError(f"{name} must lie in (0, 1], got {p}")
     return p
 
 
@@ -289,7 +290,7 @@ def gate_measurements(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> Gati
         innovation covariances; each must be symmetric positive definite.
     z : (M, d) array
         measurements. An empty ``(0,)`` array means no measurements.
-    P_G : float in (0, 1)
+    P_G : float in (0, 1]; 1 is the infinite gate (γ = ∞: every measurement gated)
         gate probability.
     residual : callable, optional
         ``residual(z, z_pred)`` → innovation, broadcasting over leading axes;

@@ -87,6 +87,7 @@ here.
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import time
@@ -302,6 +303,7 @@ def _run(
     metrics_opts = dict(metrics_opts or {})
 
     clusters: list = []  # [n_tracks, n_measurements, seconds] of multi-track confirmed clusters
+    fallbacks: dict = {}  # reason → clusters solved by the approximation instead
     elapsed_before = 0.0
     start = 0
     writer = _TrackWriter(out_dir, src.dim, fmt, scan_times=src.times)
@@ -311,6 +313,7 @@ def _run(
         info = read_run(resume)
         _check_resume(resume, info, trk, src, identity, out_dir, fmt)
         clusters = list(info.get("clusters", []))
+        fallbacks.update(info.get("fallbacks", {}))
         elapsed_before = float(info.get("elapsed_seconds", 0.0))
         if trk.config != cfg:
             diff = sorted(k for k, v in cfg.to_dict().items() if trk.config.to_dict()[k] != v)
@@ -345,6 +348,7 @@ def _run(
             "parts": int(n_parts),
             "n_scans": int(trk.n_scans),
             "clusters": clusters,
+            "fallbacks": dict(fallbacks),
             "elapsed_seconds": seconds,
         }
 
@@ -357,7 +361,18 @@ def _run(
         TimeRemainingColumn,
     )
 
-    _warm_up(cfg)
+    if console.is_terminal or progress:
+        with console.status(
+            "loading the compiled kernels (the first run after install compiles them, about 20 s)…"
+        ):
+            _warm_up(cfg)
+    else:
+        _warm_up(cfg)
+    # one line per approximated cluster would flood the terminal: they are counted
+    # per reason in metrics.json and the summary instead
+    tracker_log = logging.getLogger("jointtrack.tracker")
+    saved_level = tracker_log.level
+    tracker_log.setLevel(logging.ERROR)
     loop0 = time.perf_counter()
     n_done = 0
     try:
@@ -381,6 +396,10 @@ def _run(
                 ):
                     if conf:
                         clusters.append([int(n_tr), int(n_me), float(sec)])
+                for reason in res.cluster_fallbacks:
+                    if reason:
+                        key = "refused" if reason.startswith("refused") else reason
+                        fallbacks[key] = fallbacks.get(key, 0) + 1
                 writer.write_scan(t, res)
                 fault("scan", k)
                 n_done += 1
@@ -402,6 +421,7 @@ def _run(
         raise
     finally:
         writer.close()
+        tracker_log.setLevel(saved_level)
 
     # ------------------------------------------------------------ metrics
     tracks = writer.table()
@@ -420,6 +440,13 @@ def _run(
         notes,
     )
 
+    metrics["association"] = {
+        "method": cfg.association,
+        "approximation": cfg.approximation,
+        "fallbacks": dict(sorted(fallbacks.items())),
+        "fallbacks_note": "clusters solved by the approximation instead of the configured "
+        "method, by reason (exact_max_tracks, or refused by the exact engine's budget)",
+    }
     files = {"tracks": str(writer.path), "metrics": str(out_dir / "metrics.json")}
     if plots:
         from jointtrack.experiments import plots as _plots
@@ -576,7 +603,7 @@ def run_detections(
     if cfg.dim != detections.dim:
         raise RunConfigError(f"tracker dim = {cfg.dim} but the detections are {detections.dim}-D")
     scans = detections.scans
-    sigma = math.sqrt(cfg.measurement_noise)
+    sigma = math.sqrt(float(np.max(np.diag(cfg.measurement_covariance()))))
     if kind == "range-bearing":
         scans = _cartesian(scans, cfg.sensor_position)
         sigma = math.sqrt(cfg.range_noise)

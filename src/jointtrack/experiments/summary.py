@@ -234,6 +234,18 @@ def summary_tables(metrics: Mapping) -> list:
 
 
 def print_summary(metrics: Mapping, console) -> None:
-    """Print :func:`summary_tables` to a rich console."""
+    """Print :func:`summary_tables` to a rich console, and the approximation fallbacks once."""
     for table in summary_tables(metrics):
         console.print(table)
+    assoc = metrics.get("association") or {}
+    fallbacks = assoc.get("fallbacks") or {}
+    if fallbacks:
+        parts = ", ".join(f"{n} ({reason})" for reason, n in fallbacks.items())
+        console.print(
+            f"{sum(fallbacks.values())} cluster(s) solved by {assoc.get('approximation')} "
+            f"instead of {assoc.get('method')}: {parts}",
+            style="yellow",
+            markup=False,
+            highlight=False,
+            soft_wrap=True,
+        )

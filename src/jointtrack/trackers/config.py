@@ -132,6 +132,11 @@ class TrackerConfig:
             f"r_delete must be < r_init, got r_delete = {self.r_delete} ≥ r_init = {self.r_init}",
         )
         need(
+            self.p_g < 1.0 or self.clutter_density is not None,
+            "p_g = 1 (an infinite gate) needs a known clutter_density: Bojilov's "
+            "heuristic (8) divides by the gate volumes, which are then infinite",
+        )
+        need(
             self.r_init <= self.r_confirm,
             f"r_init must be ≤ r_confirm (a new track must not start confirmed), got "
             f"r_init = {self.r_init} > r_confirm = {self.r_confirm}",
