@@ -204,7 +204,7 @@ def run_command(
                     highlight=False,
                     soft_wrap=True,
                 )
-            metrics = runmod.run_detections(dets, tracker_cfg, **common)
+            metrics = runmod.run_detections(dets, tracker_cfg, sensors=cfg.sensors, **common)
         else:
             sc_table = dict(cfg.scenario)
             name = scenario or sc_table.pop("name", "bojilov")
@@ -286,7 +286,10 @@ def _from_checkpoint(resume, detections, config, scenario, seed, out, fmt, check
     tracker = JPDATracker.load(resume).config.to_dict()  # exactly the checkpoint's settings
     tracker = {k: list(v) if isinstance(v, tuple) else v for k, v in tracker.items()}
     restored = runmod.RunConfig(
-        tracker=tracker, scenario=table, metrics=dict(info.get("metrics_opts") or {})
+        tracker=tracker,
+        scenario=table,
+        metrics=dict(info.get("metrics_opts") or {}),
+        sensors={int(k): v for k, v in (info.get("sensors") or {}).items()},
     )
     if config is not None:
         given = runmod.load_config(config)

@@ -5,6 +5,13 @@ the permanent by a known factor. Two uses:
 
 * :func:`sinkhorn` is the public factorisation ``B = diag(d1) A diag(d2)`` with B
   doubly stochastic, itself a cheap approximation of the assignment marginals.
+  It starts from the power-of-two dual scaling (any matrix in range), runs a
+  few log-space Sinkhorn sweeps and then Sinkhorn–Newton (Newton's method with
+  backtracking on the convex dual; Brauer, Clason, Lorenz & Wirth, "A
+  Sinkhorn–Newton method for entropic optimal transport", 2017), which needs a
+  handful of steps where plain Sinkhorn needs ~70 000 sweeps
+  (``[[1e8, 1], [1, 1]]``). Existence (total support) is decided up front by a
+  flow on the support.
 * :func:`balance_exponents` rounds a few sweeps' exponents to integers, so that
   applying them is *exact* in floating point; Glynn/Ryser run on the dual-scaled
   (:mod:`jointtrack.assignment.scaling`) and then balanced matrix, which keeps

@@ -58,9 +58,20 @@ class RunConfig:
     scenario: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)
     source: str | None = None
+    sensors: dict = field(default_factory=dict)  # sensor id → [sensors.NAME] table
 
 
-_TABLES = ("tracker", "scenario", "metrics")
+_TABLES = ("tracker", "scenario", "metrics", "sensors")
+_SENSOR_KEYS = (
+    "id",
+    "type",
+    "measurement_noise",
+    "range_noise",
+    "bearing_noise",
+    "sensor_position",
+    "p_d",
+    "clutter_density",
+)
 _METRIC_KEYS = {
     "c": "number > 0",
     "p": "number ≥ 1",
@@ -122,7 +133,66 @@ def load_config(path) -> RunConfig:
         raise RunConfigError(f"{path}: [scenario] key 'seed' must be an integer")
     if "start_from_truth" in scenario and not isinstance(scenario["start_from_truth"], bool):
         raise RunConfigError(f"{path}: [scenario] key 'start_from_truth' must be true or false")
-    return RunConfig(tracker=tracker, scenario=scenario, metrics=metrics, source=str(path))
+    sensors = _sensor_tables(data.get("sensors", {}), str(path))
+    return RunConfig(
+        tracker=tracker, scenario=scenario, metrics=metrics, source=str(path), sensors=sensors
+    )
+
+
+def _sensor_tables(tables: dict, source: str) -> dict:
+    """``[sensors.NAME]`` tables by sensor id (the ``id`` key, or NAME when it is a number)."""
+    out: dict = {}
+    for name, table in tables.items():
+        where = f"{source}: [sensors.{name}]"
+        if not isinstance(table, dict):
+            raise RunConfigError(f"{where} must be a table")
+        unknown = sorted(set(table) - set(_SENSOR_KEYS))
+        if unknown:
+            raise RunConfigError(
+                f"{where}: unknown key(s) {', '.join(unknown)} (known: {', '.join(_SENSOR_KEYS)})"
+            )
+        sid = table.get("id", name)
+        try:
+            sid = int(sid)
+        except (TypeError, ValueError):
+            raise RunConfigError(
+                f"{where}: the sensor id (key 'id', or the table name) must be an integer "
+                f"as in the detections' sensor column, got {sid!r}"
+            ) from None
+        if sid in out:
+            raise RunConfigError(f"{where}: sensor id {sid} is configured twice")
+        kind = table.get("type", None)
+        if kind is not None and kind not in ("position", "range-bearing"):
+            raise RunConfigError(f"{where}: 'type' must be 'position' or 'range-bearing'")
+        out[sid] = dict(table)
+    return out
+
+
+def make_sensors(tables: dict, cfg, state_dim: int) -> dict:
+    """``{id: Sensor}`` from ``[sensors.NAME]`` tables; unset values come from ``cfg``."""
+    from jointtrack.models import LinearPosition, RangeBearing
+    from jointtrack.trackers.sensors import Sensor
+
+    out = {}
+    for sid, t in tables.items():
+        kind = t.get("type", cfg.sensor)
+        try:
+            if kind == "position":
+                noise = t.get("measurement_noise", cfg.measurement_noise)
+                model = LinearPosition(cfg.dim, noise, state_dim=state_dim)
+            else:
+                model = RangeBearing(
+                    [
+                        t.get("range_noise", cfg.range_noise),
+                        t.get("bearing_noise", cfg.bearing_noise),
+                    ],
+                    sensor_position=tuple(t.get("sensor_position", cfg.sensor_position)),
+                    state_dim=state_dim,
+                )
+            out[int(sid)] = Sensor(model, t.get("p_d"), t.get("clutter_density"))
+        except (TypeError, ValueError) as exc:
+            raise RunConfigError(f"[sensors] sensor {sid}: {_one_line(exc)}") from None
+    return out
 
 
 def _one_line(exc) -> str:

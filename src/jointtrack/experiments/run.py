@@ -112,6 +112,7 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     check_sensor,
     load_config,
     make_scenario,
+    make_sensors,
     make_tracker_config,
     scenario_tracker_settings,
     start_truth_tracks,
@@ -172,6 +173,7 @@ class _Source:
     sigma: float = 10.0
     notes: list = field(default_factory=list)
     kind: str = "position"  # of the scans: "position" or "range-bearing" ([r, θ] rows)
+    sensor_ids: tuple | None = None  # per scan, the sensor id of each detection
 
 
 def _cartesian(scans, sensor_position) -> list:
@@ -192,6 +194,29 @@ def _file_sha256(path: Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+def _register_sensors(trk, src, tables: dict, warn) -> None:
+    """A tracker sensor per id of the detections' sensor column ([sensors] table or default)."""
+    if src.sensor_ids is None:
+        if tables:
+            warn("the [sensors] tables are ignored: the detections have no sensor column")
+        return
+    present = sorted({int(i) for ids in src.sensor_ids for i in ids})
+    made = make_sensors(tables, trk.config, trk.state_dim)
+    for sid in sorted(set(made) - set(present)):
+        warn(f"[sensors] sensor {sid} does not occur in the detections")
+    for sid in present:
+        trk.add_sensor(sid, made.get(sid, trk.default_sensor))
+
+
+def _step_scan(trk, t: float, src, k: int) -> list:
+    """The scan(s) at time index k: one per sensor in id order (sequential-update JPDA)."""
+    z = src.scans[k]
+    if src.sensor_ids is None or not len(src.sensor_ids[k]):
+        return [trk.step(t, z)]
+    ids = src.sensor_ids[k]
+    return [trk.step(t, z[ids == sid], sensor=int(sid)) for sid in np.unique(ids)]
 
 
 def _check_writable(path: Path, flag: str) -> None:
@@ -273,6 +298,7 @@ def _run(
     metrics_opts: Mapping | None = None,
     console=None,
     plots: bool = True,
+    sensors: Mapping | None = None,
 ) -> dict:
     from rich.console import Console
 
@@ -334,6 +360,8 @@ def _run(
             dt = float(np.median(np.diff(src.times))) if len(src.times) > 1 else 1.0
             start_truth_tracks(trk, src.x0, dt)
 
+    sensor_tables = {int(k): dict(v) for k, v in (sensors or {}).items()}
+    _register_sensors(trk, src, sensor_tables, warn)
     K = len(src.times)
     stop = K if max_scans is None else min(K, int(max_scans))
 
@@ -349,6 +377,7 @@ def _run(
             "n_scans": int(trk.n_scans),
             "clusters": clusters,
             "fallbacks": dict(fallbacks),
+            "sensors": {str(k): v for k, v in sensor_tables.items()},
             "elapsed_seconds": seconds,
         }
 
@@ -390,17 +419,17 @@ def _run(
             task = bar.add_task("tracking", total=stop, completed=start)
             for k in range(start, stop):
                 t = float(src.times[k])
-                res = trk.step(t, src.scans[k])
-                for (n_tr, n_me), sec, conf in zip(
-                    res.cluster_sizes, res.cluster_seconds, res.cluster_confirmed, strict=True
-                ):
-                    if conf:
-                        clusters.append([int(n_tr), int(n_me), float(sec)])
-                for reason in res.cluster_fallbacks:
-                    if reason:
-                        key = "refused" if reason.startswith("refused") else reason
-                        fallbacks[key] = fallbacks.get(key, 0) + 1
-                writer.write_scan(t, res)
+                for res in _step_scan(trk, t, src, k):
+                    for (n_tr, n_me), sec, conf in zip(
+                        res.cluster_sizes, res.cluster_seconds, res.cluster_confirmed, strict=True
+                    ):
+                        if conf:
+                            clusters.append([int(n_tr), int(n_me), float(sec)])
+                    for reason in res.cluster_fallbacks:
+                        if reason:
+                            key = "refused" if reason.startswith("refused") else reason
+                            fallbacks[key] = fallbacks.get(key, 0) + 1
+                writer.write_scan(t, res)  # the tracks after the time's last sensor
                 fault("scan", k)
                 n_done += 1
                 if checkpoint is not None and trk.n_scans % checkpoint_every == 0:
@@ -623,6 +652,7 @@ def run_detections(
         identity=identity,
         times=detections.times,
         scans=detections.scans,
+        sensor_ids=detections.sensors,
         dim=detections.dim,
         region=region,
         sigma=sigma,

@@ -89,12 +89,23 @@ entries (``P_x_x``, ``P_x_vx``, …) or an existence probability
 (``existence``). CSV floats are written with ``repr`` (shortest round-trip),
 so a CSV round trip is exact.
 
+Truth file format (:func:`read_truth`, :func:`write_truth`)
+-----------------------------------------------------------
+Columns ``time, id, x, y[, z]``: the true position of target ``id`` at
+``time``, one row per target per time, in time order; numbers or ISO-8601
+timestamps, of the same kind as the detections they go with (timestamps are
+measured from the detections' :attr:`Detections.time_origin`, so equal
+instants give equal times). Details in :mod:`~jointtrack.io.truth`; errors
+raise :class:`TruthFileError`. ``jointtrack run --detections FILE --truth
+FILE`` scores the tracks with it.
+
 Metrics (:func:`write_metrics`): a JSON object; numpy scalars and arrays,
 dataclasses, tuples and paths are converted; NaN and ±inf become ``null``
 (:func:`to_jsonable`, the package's one numpy-aware JSON conversion).
 
 Modules: :mod:`~jointtrack.io.detections` (:class:`Detections`, reading and
 writing detections), :mod:`~jointtrack.io.tracks` (track tables),
+:mod:`~jointtrack.io.truth` (truth tables),
 :mod:`~jointtrack.io.metrics` (metrics JSON), :mod:`~jointtrack.io.jsonify`
 (:func:`to_jsonable`), :mod:`~jointtrack.io.times` (ISO-8601 times),
 :mod:`~jointtrack.io.errors` (:class:`DataFileError` and subclasses). Every
@@ -102,10 +113,11 @@ public name is importable from :mod:`jointtrack.io`.
 """
 
 from jointtrack.io.detections import KINDS, Detections, read_detections, write_detections
-from jointtrack.io.errors import DataFileError, DetectionFileError, TrackFileError
+from jointtrack.io.errors import DataFileError, DetectionFileError, TrackFileError, TruthFileError
 from jointtrack.io.jsonify import to_jsonable
 from jointtrack.io.metrics import write_metrics
 from jointtrack.io.tracks import read_tracks, write_tracks
+from jointtrack.io.truth import read_truth, write_truth
 
 __all__ = [
     "DataFileError",
@@ -113,10 +125,13 @@ __all__ = [
     "Detections",
     "KINDS",
     "TrackFileError",
+    "TruthFileError",
     "read_detections",
     "read_tracks",
+    "read_truth",
     "to_jsonable",
     "write_detections",
     "write_metrics",
     "write_tracks",
+    "write_truth",
 ]

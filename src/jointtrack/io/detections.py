@@ -308,6 +308,29 @@ def _time_column(path, err, raw, lines) -> tuple[np.ndarray, str | None]:
     )
 
 
+def _check_time_order(path, err, t: np.ndarray, origin, lines) -> None:
+    """``err`` at the first row whose time is earlier than the row before it."""
+    if t.size < 2:
+        return
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        if origin is None:
+            now, before = repr(float(t[i])), repr(float(t[i - 1]))
+        else:
+            _, ns0, aware = parse_origin(origin)
+            now, before = (format_timestamp(ns0 + v, aware) for v in _offsets_ns(t[[i, i - 1]]))
+        raise row_error(
+            err,
+            path,
+            f"time {now} is earlier than the previous row's {before} "
+            "(rows must be in non-decreasing time order)",
+            i,
+            lines,
+            "time",
+        )
+
+
 def read_detections(path, *, allow_empty: bool = False) -> Detections:
     """Read a detections file (CSV or Parquet; format in :mod:`jointtrack.io`).
 
@@ -335,24 +358,7 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
         raise err(path, "has no detections: a header but no data rows")
     kind = "range-bearing" if "range" in cols else "position"
     t, origin = _time_column(path, err, cols["time"], lines)
-    if t.size > 1:
-        back = np.flatnonzero(np.diff(t) < 0)
-        if back.size:
-            i = int(back[0]) + 1
-            if origin is None:
-                now, before = repr(float(t[i])), repr(float(t[i - 1]))
-            else:
-                _, ns0, aware = parse_origin(origin)
-                now, before = (format_timestamp(ns0 + v, aware) for v in _offsets_ns(t[[i, i - 1]]))
-            raise row_error(
-                err,
-                path,
-                f"time {now} is earlier than the previous row's {before} "
-                "(rows must be in non-decreasing time order)",
-                i,
-                lines,
-                "time",
-            )
+    _check_time_order(path, err, t, origin, lines)
     if kind == "range-bearing":
         coords = list(RB_COLUMNS)
         neg = np.flatnonzero(cols["range"] < 0)

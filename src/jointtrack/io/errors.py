@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["DataFileError", "DetectionFileError", "TrackFileError"]
+__all__ = ["DataFileError", "DetectionFileError", "TrackFileError", "TruthFileError"]
 
 
 class DataFileError(ValueError):
@@ -45,3 +45,7 @@ class DetectionFileError(DataFileError):
 
 class TrackFileError(DataFileError):
     """Raised by :func:`jointtrack.io.read_tracks` for a bad tracks file."""
+
+
+class TruthFileError(DataFileError):
+    """Raised by :func:`jointtrack.io.read_truth` for a bad truth file."""

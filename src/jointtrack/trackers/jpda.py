@@ -52,6 +52,7 @@ from jointtrack.trackers.history import (
     scan_time_ns,
 )
 from jointtrack.trackers.initiation import pair_returns
+from jointtrack.trackers.sensors import Sensor, check_model
 from jointtrack.trackers.state_io import (
     StateFileError,
     read_state,
@@ -134,6 +135,7 @@ class JPDATracker:
         *,
         motion=None,
         sensor=None,
+        sensors=None,
         on_cluster=None,
         keep_history: bool = True,
     ):
@@ -147,7 +149,10 @@ class JPDATracker:
         ``h``, ``jacobian``, ``residual`` and ``R`` (EKF; default
         :class:`~jointtrack.models.RangeBearing` for ``config.sensor =
         "range-bearing"``); for initiation it must also provide
-        ``position_and_covariance(z)``. ``on_cluster(record)`` (optional) is
+        ``position_and_covariance(z)``. ``sensors`` (optional): ``{id: Sensor}``
+        (:class:`~jointtrack.trackers.sensors.Sensor`, or a bare model) for
+        multi-sensor runs, selected per scan by ``step(t, z, sensor=id)``.
+        ``on_cluster(record)`` (optional) is
         called with a :class:`ClusterRecord` for every multi-track cluster; it
         is not part of the saved state. ``keep_history``: record every confirmed
         estimate for :meth:`history` (turn off for memory-bound runs; it can be
@@ -181,13 +186,13 @@ class JPDATracker:
                     sensor_position=c.sensor_position,
                     state_dim=n,
                 )
-        self._linear = isinstance(getattr(sensor, "H", None), np.ndarray)
-        needed = ("H", "R") if self._linear else ("h", "jacobian", "residual", "R")
-        for attr in (*needed, "position_and_covariance"):
-            if not hasattr(sensor, attr):
-                raise ValueError(f"sensor model {sensor!r} has no {attr!r}")
-        self._sensor = sensor
-        self._mdim = int(np.asarray(sensor.R).shape[-1])
+        # id None: the configuration's sensor; further ids from ``sensors``
+        self._sensors = {None: Sensor(sensor)}
+        for sid, spec in (sensors or {}).items():
+            if not isinstance(spec, Sensor):
+                spec = Sensor(spec)
+            self._sensors[sid] = spec
+        self._activate(None)
         self.rng = np.random.default_rng(c.seed)
         self.time: float | None = None
         # ISO-8601 UTC instant of t = 0 when the scans are datetimes (set by the first one)
@@ -203,12 +208,58 @@ class JPDATracker:
         # unassociated returns of the previous scan (positions, covariances): two-point seeds
         self.seeds = np.zeros((0, c.dim))
         self.seed_covs = np.zeros((0, c.dim, c.dim))
+        self.seed_times = np.zeros(0)  # scan time of each seed
         self.next_id = 1
         self.n_scans = 0
 
+    def add_sensor(self, sensor_id, sensor) -> None:
+        """Register (or replace) a sensor for ``step(t, z, sensor=sensor_id)``.
+
+        ``sensor``: a :class:`~jointtrack.trackers.sensors.Sensor` or a bare
+        measurement model. Sensors are configuration, not state: after
+        :meth:`load`, register them again.
+        """
+        if sensor_id is None:
+            raise ValueError("sensor_id None is the configuration's own sensor")
+        self._sensors[sensor_id] = sensor if isinstance(sensor, Sensor) else Sensor(sensor)
+
+    @property
+    def state_dim(self) -> int:
+        """Length of a track state (from the motion model)."""
+        return int(self._motion.state_dim)
+
+    @property
+    def default_sensor(self) -> Sensor:
+        """The sensor built from the configuration (used when ``step`` names none)."""
+        return self._sensors[None]
+
+    def _activate(self, sensor_id) -> None:
+        """Make ``sensor_id``'s model, P_D and clutter density the ones this scan uses."""
+        try:
+            spec = self._sensors[sensor_id]
+        except (KeyError, TypeError):
+            known = ", ".join(str(k) for k in self._sensors if k is not None) or "none"
+            raise ValueError(
+                f"unknown sensor {sensor_id!r}; this tracker's sensors: {known}"
+            ) from None
+        c = self.config
+        self._sensor = spec.model
+        self._linear, self._mdim = check_model(spec.model)
+        self._p_d = c.p_d if spec.p_d is None else float(spec.p_d)
+        self._clutter = c.clutter_density if spec.clutter_density is None else spec.clutter_density
+
+    def _detection_in_gate(self) -> float:
+        """P_D·P_G or P_D (``miss_model``) of the active sensor."""
+        c = self.config
+        return self._p_d * c.p_g if c.miss_model == "1-pd*pg" else self._p_d
+
     # ------------------------------------------------------------------ scan
-    def step(self, t: float, z) -> ScanResult:
+    def step(self, t: float, z, sensor=None) -> ScanResult:
         """Process the measurements ``z`` (M, dim) taken at time ``t``.
+
+        ``sensor``: the id of the sensor that took the scan (see ``sensors`` in
+        the constructor); scans of different sensors may share a time, and are
+        then processed one after another without prediction between them.
 
         ``t``: a number (seconds), a ``datetime.datetime`` (naive = UTC, or
         timezone-aware) or a ``numpy.datetime64``. Datetimes are converted to
@@ -223,10 +274,14 @@ class JPDATracker:
         """
         saved = self.state_dict()
         try:
-            result = self._step(t, z)
+            self._activate(sensor)
+            result = self._step(t, z, sensor is not None)
         except BaseException:
             self._restore(saved)
             raise
+        if self._history_rows and self._history_rows[-1][0][:1].tolist() == [result.time]:
+            # another sensor's scan at the same time: its update supersedes the rows
+            self._history_rows.pop()
         if self.keep_history and len(result.ids):
             order = np.argsort(result.ids, kind="stable")
             self._history_rows.append(
@@ -266,7 +321,7 @@ class JPDATracker:
                 f"numpy.datetime64, got {type(t).__name__}"
             ) from None
 
-    def _step(self, t, z) -> ScanResult:
+    def _step(self, t, z, same_time_ok=False) -> ScanResult:
         c = self.config
         t = self._scan_time(t)
         if not math.isfinite(t):
@@ -279,11 +334,11 @@ class JPDATracker:
             raise ValueError(f"measurements must have shape (M, {mdim}), got {z.shape}")
         if not np.all(np.isfinite(z)):
             raise ValueError(f"scan at t={t} has a non-finite measurement")
-        if self.time is not None and not t > self.time:
+        if self.time is not None and not (t > self.time or (same_time_ok and t == self.time)):
             raise ValueError(f"scan times must increase: got t={t} after t={self.time}")
         dt = None if self.time is None else t - self.time
 
-        if dt is not None and len(self.ids):
+        if dt is not None and dt > 0 and len(self.ids):
             self.x, self.P = predict(
                 self.x, self.P, self._motion.transition(dt), self._motion.noise(dt)
             )
@@ -325,7 +380,7 @@ class JPDATracker:
                 model = {"model": self._sensor}
             self.x, self.P = pda_pairs_update(self.x, self.P, z, beta0, rows, cols, w, **model)
             self._track_logic(hit)
-        self._initiate(z[unassoc], dt)
+        self._initiate(z[unassoc], t)
         self.time = t
         self.n_scans += 1
         keep = self.confirmed
@@ -365,8 +420,8 @@ class JPDATracker:
             z_pred, S = ekf_predict_measurement(x, P, self._sensor)
             g = gate_pairs(z_pred, S, z, P_G=c.p_g, residual=self._sensor.residual)
         groups = clusters(g)
-        if c.clutter_density is not None:
-            lam = c.clutter_density
+        if self._clutter is not None:
+            lam = self._clutter
         else:
             # Bojilov (8): λ = Σ_i m_i / Σ_i V_i over each cluster's tracks
             dens = cluster_heuristic_densities(g.n_gated, g.gate_volume, groups.track_cluster)
@@ -374,8 +429,8 @@ class JPDATracker:
             gated = groups.measurement_cluster >= 0
             lam[gated] = dens[groups.measurement_cluster[gated]]
         r = self.existence[tracks] if c.existence else np.ones(n)
-        L_pairs, _ = likelihood_ratio_pairs(g, c.p_d * r, lam)
-        pdg = c.detection_in_gate()
+        L_pairs, _ = likelihood_ratio_pairs(g, self._p_d * r, lam)
+        pdg = self._detection_in_gate()
         miss = 1.0 - r * pdg
         rows, cols = g.rows, g.cols
         # single-track clusters (most of a scan): PDA, vectorised over all of them
@@ -497,28 +552,52 @@ class JPDATracker:
         for name in ("x", "P", "ids", "confirmed", "hit_history", "age", "misses", "existence"):
             setattr(self, name, getattr(self, name)[keep])
 
-    def _initiate(self, z_new, dt):
-        """Start tentative tracks from returns no track claimed (two- or one-point)."""
+    def _initiate(self, z_new, t):
+        """Start tentative tracks from returns no track claimed (two- or one-point).
+
+        Two-point pairs each return with a seed of the latest earlier scan time
+        (with several sensors, seeds of the same time are never paired); the
+        seeds of that time stay available until the time advances again.
+        """
         c = self.config
         n = self._motion.state_dim
         d = c.dim
         pos, cov = self._sensor.position_and_covariance(z_new)
+        earlier = self.seed_times < t
+        latest = self.seed_times[earlier].max() if earlier.any() else None
         if c.initiation == "one-point":
             vel = np.zeros_like(pos)
             cov_vv = np.broadcast_to(np.eye(d) * (c.max_speed / 2.0) ** 2, cov.shape).copy()
             cov_pv = np.zeros_like(cov)
-            self.seeds, self.seed_covs = np.zeros((0, d)), np.zeros((0, d, d))
-        elif dt is not None and len(self.seeds) and len(pos):
-            rows, cols = pair_returns(pos, cov, self.seeds, self.seed_covs, c.max_speed * dt)
+            self._set_seeds(np.zeros((0, d)), np.zeros((0, d, d)), np.zeros(0))
+        elif latest is not None and len(pos):
+            cand = np.flatnonzero(self.seed_times == latest)
+            dt = t - latest
+            rows, loc = pair_returns(
+                pos, cov, self.seeds[cand], self.seed_covs[cand], c.max_speed * dt
+            )
+            cols = cand[loc]
             unused = np.ones(len(pos), bool)
             unused[rows] = False
             vel = (pos[rows] - self.seeds[cols]) / dt
             cov_vv = (cov[rows] + self.seed_covs[cols]) / dt**2
             cov_pv = cov[rows] / dt
-            self.seeds, self.seed_covs = pos[unused], cov[unused]
+            # keep the seeds of times ≥ latest not used, plus this scan's leftovers
+            keep = self.seed_times >= latest
+            keep[cols] = False
+            self._set_seeds(
+                np.concatenate([self.seeds[keep], pos[unused]]),
+                np.concatenate([self.seed_covs[keep], cov[unused]]),
+                np.concatenate([self.seed_times[keep], np.full(int(unused.sum()), t)]),
+            )
             pos, cov = pos[rows], cov[rows]
         else:
-            self.seeds, self.seed_covs = pos, cov
+            keep = self.seed_times >= (latest if latest is not None else t)
+            self._set_seeds(
+                np.concatenate([self.seeds[keep], pos]),
+                np.concatenate([self.seed_covs[keep], cov]),
+                np.concatenate([self.seed_times[keep], np.full(len(pos), t)]),
+            )
             return
         k = len(pos)
         if k == 0:
@@ -535,6 +614,9 @@ class JPDATracker:
             a = np.arange(2 * d, 3 * d)
             P0[:, a, a] = (c.max_acceleration / 2.0) ** 2
         self._append(x0, P0, confirmed=False, existence=c.r_init)
+
+    def _set_seeds(self, seeds, covs, times) -> None:
+        self.seeds, self.seed_covs, self.seed_times = seeds, covs, np.asarray(times, float)
 
     def _append(self, x0, P0, *, confirmed, existence):
         k = len(x0)
@@ -617,6 +699,7 @@ class JPDATracker:
         "existence",
         "seeds",
         "seed_covs",
+        "seed_times",
     )
     _SCALARS = ("time", "next_id", "n_scans", "time_origin")
     # state key -> attribute (``history()`` is the track-history method)

@@ -190,6 +190,7 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
         "existence": ("f", 1),
         "seeds": ("f", 2),
         "seed_covs": ("f", 3),
+        "seed_times": ("f", 1),
     }
     for name, (kind, ndim) in spec.items():
         if name not in arrays:
@@ -210,8 +211,12 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
         if arrays[name].shape != (N,):
             raise bad(f"field {name!r} has shape {arrays[name].shape}, expected ({N},)")
     k = arrays["seeds"].shape[0]
-    if arrays["seeds"].shape != (k, dim) or arrays["seed_covs"].shape != (k, dim, dim):
-        raise bad("fields 'seeds'/'seed_covs' have inconsistent shapes")
+    if (
+        arrays["seeds"].shape != (k, dim)
+        or arrays["seed_covs"].shape != (k, dim, dim)
+        or arrays["seed_times"].shape != (k,)
+    ):
+        raise bad("fields 'seeds'/'seed_covs'/'seed_times' have inconsistent shapes")
     for name in ("P", "seed_covs"):
         cov = arrays[name]
         if len(cov):
