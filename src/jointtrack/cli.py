@@ -96,6 +96,15 @@ def run_command(
             'range, bearing[, sensor] with sensor = "range-bearing" in the config).',
         ),
     ] = None,
+    truth: Annotated[
+        Path | None,
+        typer.Option(
+            "--truth",
+            help="Ground truth for --detections (CSV or Parquet: time, id, x, y[, z]; times "
+            "as in the detections file): scores the tracks (GOSPA, OSPA, track statistics, "
+            "gospa.png). Truth rows at times with no scan are not scored (a note says so).",
+        ),
+    ] = None,
     config: Annotated[
         Path | None,
         typer.Option("--config", help="TOML file with tracker, scenario and metrics tables."),
@@ -154,6 +163,7 @@ def run_command(
                     resume, detections, config, scenario, seed, out, fmt, checkpoint_every
                 )
             )
+            truth = _truth_from_checkpoint(resume, truth)
         else:
             restored = None
         out = Path("jointtrack-out") if out is None else out
@@ -179,6 +189,10 @@ def run_command(
             metrics_opts=cfg.metrics,
             console=console,
         )
+        if truth is not None and detections is None:
+            raise runmod.RunConfigError(
+                "--truth needs --detections (a built-in scenario is scored with its own truth)"
+            )
         if detections is not None:
             if scenario is not None or seed is not None:
                 raise runmod.RunConfigError(
@@ -204,7 +218,9 @@ def run_command(
                     highlight=False,
                     soft_wrap=True,
                 )
-            metrics = runmod.run_detections(dets, tracker_cfg, sensors=cfg.sensors, **common)
+            metrics = runmod.run_detections(
+                dets, tracker_cfg, truth=truth, sensors=cfg.sensors, **common
+            )
         else:
             sc_table = dict(cfg.scenario)
             name = scenario or sc_table.pop("name", "bojilov")
@@ -309,6 +325,24 @@ def _from_checkpoint(resume, detections, config, scenario, seed, out, fmt, check
         checkpoint_every if checkpoint_every is not None else info.get("checkpoint_every"),
         restored,
     )
+
+
+def _truth_from_checkpoint(resume, truth):
+    """The truth file of the run a checkpoint continues (``--truth`` must agree)."""
+    from jointtrack.experiments import run as runmod
+    from jointtrack.trackers.state_io import read_run
+
+    info = read_run(resume)
+    inputs = info["inputs"]
+    saved = inputs.get("truth") if "detections" in inputs else None
+    if truth is not None and (saved is None or Path(truth).resolve() != Path(saved)):
+        raise runmod.RunConfigError(
+            f"--truth {truth} conflicts with the checkpoint {resume}, which continues "
+            f"{runmod._describe(inputs)} "
+            + (f"with the truth {saved}" if saved else "without a truth")
+            + f" into {info['out_dir']}; omit --truth"
+        )
+    return Path(saved) if saved is not None else None
 
 
 @reproduce_app.command("bojilov")

@@ -129,6 +129,13 @@ def _as_float(x, name: str) -> np.ndarray:
         raise ValueError(f"{name} must be a numeric array: {exc}") from None
 
 
+def _gate_volumes(d: int, gamma: float, half_logdet: np.ndarray):
+    """log V_i and V_i = c_d γ^{d/2} √|S_i| (V may overflow to inf; log V is kept)."""
+    log_vol = unit_ball_log_volume(d) + 0.5 * d * np.log(gamma) + half_logdet
+    with np.errstate(over="ignore"):
+        return log_vol, np.exp(log_vol)
+
+
 def _check_prob(p, name: str, *, open_left: bool = True) -> float:
     """A gate probability in (0, 1]; 1 is the infinite gate (γ = ∞, everything gated)."""
     try:
@@ -330,9 +337,7 @@ def gate_measurements(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> Gati
         d2 = np.zeros((n, m))
     log_g = -0.5 * d2 - 0.5 * d * _LOG_2PI - half_logdet[:, None]
     mask = d2 <= gamma
-    log_vol = unit_ball_log_volume(d) + 0.5 * d * np.log(gamma) + half_logdet
-    with np.errstate(over="ignore"):
-        vol = np.exp(log_vol)
+    log_vol, vol = _gate_volumes(d, gamma, half_logdet)
     return Gating(
         mask=mask,
         d2=d2,
@@ -647,9 +652,7 @@ def gate_pairs(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> PairGating:
     rows, cols, d2 = rows[keep], cols[keep], d2[keep]
     # same expression (and evaluation order) as gate_measurements
     log_g = -0.5 * d2 - 0.5 * d * _LOG_2PI - half_logdet[rows]
-    log_vol = unit_ball_log_volume(d) + 0.5 * d * np.log(gamma) + half_logdet
-    with np.errstate(over="ignore"):
-        vol = np.exp(log_vol)
+    log_vol, vol = _gate_volumes(d, gamma, half_logdet)
     return PairGating(
         rows=rows,
         cols=cols,

@@ -596,12 +596,128 @@ def run_scenario(
     )
 
 
+@dataclass
+class _FileSource(_Source):
+    """A :class:`_Source` of detections from a file, with their clock."""
+
+    time_origin: str | None = None  # ISO-8601 timestamp of t = 0, or None (numeric times)
+
+
+def _describe_time(t: float, time_origin: str | None) -> str:
+    """``t = 12.5`` or, with a time origin, ``2026-11-23T10:00:12.5Z (t = 12.5 s)``."""
+    if time_origin is None:
+        return f"t = {t:g}"
+    from jointtrack.io.times import format_timestamp, parse_origin
+
+    _, ns0, aware = parse_origin(time_origin)
+    return f"{format_timestamp(ns0 + round(t * 1e9), aware)} (t = {t:g} s)"
+
+
+def _load_truth(truth, detections: Detections) -> tuple[tuple, dict, str]:
+    """The truth of a detections run: ``(table, identity entries, name)``.
+
+    ``truth``: a truth file (read with the detections' time origin) or a table
+    ``(times, ids, positions)`` on the detections' clock.
+    """
+    from jointtrack.io import read_truth
+
+    if isinstance(truth, (str, os.PathLike)):
+        table = read_truth(truth, time_origin=detections.time_origin)
+        path = Path(truth).resolve()
+        # the file's content, so that a resume notices a changed file
+        return table, {"truth": str(path), "truth_sha256": _file_sha256(path)}, str(truth)
+    try:
+        tt, ti, tp = truth
+    except (TypeError, ValueError):
+        raise RunConfigError(
+            "truth must be a truth file or a (times, ids, positions) table"
+        ) from None
+    tt = np.asarray(tt, dtype=np.float64).reshape(-1)
+    ti = np.asarray(ti)
+    tp = np.asarray(tp, dtype=np.float64)
+    if tp.ndim != 2 or not (tt.size == ti.size == tp.shape[0]):
+        raise RunConfigError(
+            f"truth table: {tt.size} times, {ti.size} ids and positions of shape {tp.shape} "
+            "do not form (times (R,), ids (R,), positions (R, dim))"
+        )
+    if not (np.all(np.isfinite(tt)) and np.all(np.isfinite(tp))):
+        raise RunConfigError("truth table: times and positions must be finite")
+    return (tt, ti.astype(np.int64), tp), {"truth": "<memory>"}, "the truth"
+
+
+def _truth_at_scans(truth: tuple, times: np.ndarray, name: str, time_origin, dim: int):
+    """The truth rows at scan times (exact match), and a note about the others (or None).
+
+    Scoring compares tracks with the truth at equal times only, so rows at a
+    time with no scan can never be matched: they are left out and counted in
+    the note. No row at any scan time is an error (a different clock or unit).
+    """
+    tt, ti, tp = truth
+    if tp.shape[1] != dim:
+        raise RunConfigError(
+            f"{name} holds {tp.shape[1]}-D positions but the detections are {dim}-D"
+        )
+    at_scan = np.isin(tt, times)
+    if tt.size and not at_scan.any():
+        raise RunConfigError(
+            f"{name}: no truth row is at a scan time (truth from "
+            f"{_describe_time(float(tt.min()), time_origin)} to "
+            f"{_describe_time(float(tt.max()), time_origin)}, scans from "
+            f"{_describe_time(float(times[0]), time_origin)} to "
+            f"{_describe_time(float(times[-1]), time_origin)}); truth and tracks are matched "
+            "by exact time, so the truth needs the detections' times (same unit and clock)"
+        )
+    note = None
+    if not at_scan.all():
+        off = tt[~at_scan]
+        note = (
+            f"{name}: {off.size} truth row(s) at {np.unique(off).size} time(s) with no scan "
+            f"(first at {_describe_time(float(off[0]), time_origin)}) are not scored: truth "
+            "and tracks are compared at the scan times only (exact time match)"
+        )
+    return (tt[at_scan], ti[at_scan], tp[at_scan]), note
+
+
+def _check_resume_files(resume, identity: dict) -> None:
+    """A clear error when an input file changed since the checkpoint, or the truth
+    differs (checked before :func:`_check_resume`, whose message cannot tell)."""
+    try:
+        info = read_run(Path(resume))
+    except Exception:  # noqa: BLE001 - the run loop reports an unreadable checkpoint
+        return
+    inputs = info.get("inputs") if isinstance(info, dict) else None
+    if not isinstance(inputs, dict) or inputs.get("detections") != identity.get("detections"):
+        return
+    for key, sha in (("detections", "sha256"), ("truth", "truth_sha256")):
+        if (
+            inputs.get(key) == identity.get(key)
+            and sha in inputs
+            and sha in identity
+            and inputs[sha] != identity[sha]
+        ):
+            raise RunConfigError(
+                f"{resume}: the {key} file {identity[key]} changed since the checkpoint "
+                "(its SHA-256 differs); start a new run instead of resuming"
+            )
+    was, now = inputs.get("truth"), identity.get("truth")
+    if was != now:
+        raise RunConfigError(
+            f"{resume}: the checkpoint was made "
+            + (f"with the truth {was}" if was else "without a truth")
+            + ", this run has "
+            + (f"the truth {now}" if now else "none")
+            + " (--truth)"
+        )
+
+
 def run_detections(
     detections: Detections,
     config: TrackerConfig | Mapping | None = None,
     out_dir="jointtrack-out",
     fmt: str = "csv",
     progress: bool = False,
+    *,
+    truth=None,
     **options,
 ) -> dict:
     """Run the tracker on detections (e.g. from :func:`jointtrack.io.read_detections`).
@@ -611,10 +727,24 @@ def run_detections(
     (``detections.kind == "range-bearing"``) need ``sensor="range-bearing"``
     with ``sensor_position``, ``range_noise`` and ``bearing_noise``; position
     detections need the position sensor (else :class:`RunConfigError`); the
-    tracks are Cartesian states either way. No truth: the metrics hold track
-    counts and timing only. Other options as :func:`run_scenario`
-    (``checkpoint``, ``checkpoint_every``, ``resume``, ``max_scans``,
-    ``console``, ``plots``).
+    tracks are Cartesian states either way. Other options as
+    :func:`run_scenario` (``checkpoint``, ``checkpoint_every``, ``resume``,
+    ``max_scans``, ``metrics_opts``, ``console``, ``plots``).
+
+    ``truth``: ``None`` (the metrics hold track counts and timing only), a
+    truth file (:func:`jointtrack.io.read_truth`, read with the detections'
+    ``time_origin``) or a table ``(times, ids, positions)`` on the detections'
+    clock. With a truth the run is scored as a built-in scenario is — GOSPA,
+    OSPA, track statistics, ``gospa.png``, the truth in ``scene.png`` —
+    matching truth and tracks by exact time. Truth rows at a time with no scan
+    (e.g. a scan without detections, which a detections file cannot hold) are
+    not scored and are counted in a note of ``metrics.json`` and the summary;
+    a truth with no row at any scan time is an error. The truth file's path
+    and SHA-256 are part of the run's identity, so a checkpoint resumes only
+    with the same truth.
+
+    With ISO-8601 detection times (``detections.time_origin``), metrics.json
+    holds ``time_origin`` and all times (tracks file, plots) are seconds since it.
     """
     if detections.dim not in (2, 3):
         raise RunConfigError(f"the tracker handles 2-D or 3-D detections, got {detections.dim}-D")
@@ -648,8 +778,28 @@ def run_detections(
         path = Path(detections.source).resolve()
         # the file's content, so that a resume notices a changed file
         identity = {"detections": str(path), "sha256": _file_sha256(path)}
-    src = _Source(
+    table, truth_ids, notes = None, None, []
+    if truth is not None:
+        table, entries, name = _load_truth(truth, detections)
+        identity.update(entries)
+        table, note = _truth_at_scans(
+            table, detections.times, name, detections.time_origin, cfg.dim
+        )
+        if note:
+            notes.append(note)
+        truth_ids = tuple(table[1][table[0] == t] for t in detections.times)
+        if region is not None and len(table[0]):  # keep the truth in view
+            lo = np.minimum(region[:, 0], table[2].min(axis=0))
+            hi = np.maximum(region[:, 1], table[2].max(axis=0))
+            region = np.stack([lo, hi], axis=1)
+    if options.get("resume") is not None:
+        _check_resume_files(options["resume"], to_jsonable(identity, fallback="text"))
+    src = _FileSource(
         identity=identity,
+        truth=table,
+        truth_ids=truth_ids,  # truth_states stay None: a truth file has no velocities
+        notes=notes,
+        time_origin=detections.time_origin,
         times=detections.times,
         scans=detections.scans,
         sensor_ids=detections.sensors,

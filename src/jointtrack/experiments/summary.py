@@ -95,6 +95,10 @@ def _run_metrics(
         "start_from_truth": src.x0 is not None,
         "tracks_file": str(tracks_path),
     }
+    time_origin = getattr(src, "time_origin", None)  # detections with ISO-8601 times
+    if time_origin is not None:
+        metrics["time_origin"] = time_origin
+        metrics["time_unit"] = "seconds since time_origin (tracks file, plots, notes)"
     sigma = src.sigma
     mo = dict(metrics_opts or {})
     c = float(mo.get("c", 5.0 * sigma))
@@ -177,7 +181,11 @@ def summary_tables(metrics: Mapping) -> list:
     main = Table(title="jointtrack run", show_header=False, title_justify="left")
     main.add_column("what", style="bold")
     main.add_column("value")
-    main.add_row("source", _describe(metrics.get("source")))
+    source = metrics.get("source")
+    truth = source.get("truth") if isinstance(source, Mapping) else None
+    main.add_row("source", _describe(source) + (f"; truth {truth}" if truth else ""))
+    if metrics.get("time_origin"):
+        main.add_row("times", f"seconds since {metrics['time_origin']}")
     main.add_row("scans", f"{metrics['n_scans']} ({metrics['n_detections']} detections)")
     tr = metrics["tracks"]
     if "gospa" in metrics:
@@ -202,7 +210,8 @@ def summary_tables(metrics: Mapping) -> list:
         main.add_row(
             "tracks",
             f"{tr['n_tracks']} confirmed ids; {_fmt(tr['mean_confirmed_per_scan'])} per scan "
-            f"(max {tr['max_confirmed_per_scan']}); no truth, so no GOSPA",
+            f"(max {tr['max_confirmed_per_scan']}); no truth, so no GOSPA "
+            "(score with --truth FILE)",
         )
     tm = metrics["timing"]
     main.add_row(
