@@ -45,14 +45,14 @@ def bench_permanent(
     quick: bool = typer.Option(False, "--quick", help="Smaller sizes; finishes in seconds."),
     out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
 ) -> None:
-    """Permanent engine vs thewalrus on DESIGN.md's canonical workloads."""
+    """Permanent engine vs thewalrus: uniform, badly scaled, banded and identity workloads."""
     _run_bench("permanent", quick, out)
 
 
 @bench_app.command("tracker")
 def bench_tracker(
     quick: bool = typer.Option(
-        False, "--quick", help="Fewer scans and seeds; finishes in seconds."
+        False, "--quick", help="Fewer scans and seeds; finishes in about 20 s."
     ),
     out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
 ) -> None:

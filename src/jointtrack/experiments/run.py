@@ -2,23 +2,25 @@
 
 :func:`run_scenario` runs the JPDA tracker on a built-in scenario (which has a
 truth, so the tracks are scored); :func:`run_detections` runs it on detections
-read from a file (no truth: tracks and timing only). Both write into ``out_dir``:
+read from a file, scored when a truth file is given (``--truth``; otherwise
+tracks and timing only). Both write into ``out_dir``:
 
 * ``tracks.csv`` (or ``tracks.parquet``): one row per confirmed track per scan,
   columns ``time, track_id, x, y[, z], vx, vy[, vz], existence`` and the
   position covariance ``P_x_x, P_x_y, P_y_y`` (3-D: also ``P_x_z, P_y_z,
-  P_z_z``) — the format of :func:`jointtrack.io.read_tracks`. Written as the
-  run goes: CSV rows are appended and flushed every scan (a killed run keeps
-  every scan written so far); Parquet is written one row group per 50 scans
-  (:class:`pyarrow.parquet.ParquetWriter`; the file is readable once the run
-  finishes).
+  P_z_z``) — the format of :func:`jointtrack.io.read_tracks`. Written as
+  committed parts that survive a kill at any instant and are assembled into
+  the file at the end (see :mod:`~jointtrack.experiments.writers`); Parquet
+  row groups hold 50 scans each.
 * ``metrics.json``: GOSPA (α = 2, p = 2, mean per scan and its localisation /
   missed / false parts, identity switches), OSPA mean, the track statistics of
   :func:`jointtrack.metrics.track_statistics`, and timing: per cluster size
   (number of tracks in a multi-track cluster) the count, mean and maximum
-  association seconds, plus the run's wall time and scans per second. Without a
-  truth (``--detections``) there is no GOSPA/OSPA and the track counts are the
-  numbers of confirmed tracks.
+  association seconds, plus the run's wall time and scans per second; the
+  clusters the approximation solved instead of the configured method
+  (``association.fallbacks``) and, for ISO-8601 detection times, the
+  ``time_origin``. Without a truth there is no GOSPA/OSPA and the track counts
+  are the numbers of confirmed tracks.
 * ``scene.png``: truth trajectories, detections (grey; clutter lighter),
   confirmed tracks as coloured lines labelled with their ids. Range–bearing
   detections are drawn at their Cartesian positions ``s + r (cos θ, sin θ)``,
@@ -70,13 +72,15 @@ not match the detections (range–bearing detections without ``sensor =
 for either sensor. ``--scenario`` and ``--seed`` on the command line override
 ``name`` and ``seed``.
 
-Checkpoints: with ``checkpoint=FILE`` the tracker state is saved every
-``checkpoint_every`` scans and at the end (:meth:`JPDATracker.save`; the run's
-bookkeeping — what is being tracked, cluster timings — goes to ``FILE.run.json``
-beside it). ``resume=FILE`` loads the state and continues with the next scan;
-rows of an existing tracks file up to the checkpoint are kept and later rows
-dropped, so an interrupted-and-resumed run writes the same tracks file as an
-uninterrupted one.
+Checkpoints: with ``checkpoint=FILE`` the rows since the last checkpoint are
+committed as a part and then the tracker state is saved, every
+``checkpoint_every`` scans and at the end (:meth:`JPDATracker.save`, with the
+run's bookkeeping — inputs, output directory and format, committed parts,
+cluster timings — in the same checksummed file). ``resume=FILE`` checks that
+the checkpoint belongs to this run, drops whatever was written after it and
+continues with the next scan, so a run killed at any instant and resumed writes
+exactly the tracks and metrics of an uninterrupted one. ``jointtrack run
+--resume FILE`` needs no other flag: the inputs come from the checkpoint.
 
 The pieces: :mod:`~jointtrack.experiments.config` (config file, scenarios,
 tracker settings), :mod:`~jointtrack.experiments.writers` (tracks file,
