@@ -201,7 +201,17 @@ def _file_sha256(path: Path) -> str:
 
 
 def _register_sensors(trk, src, tables: dict, warn) -> None:
-    """A tracker sensor per id of the detections' sensor column ([sensors] table or default)."""
+    """A tracker sensor per id of the detections' sensor column ([sensors] table or default).
+
+    With a file's detections (``src.detections``, set by :func:`run_detections`)
+    each sensor's type must match the kind of its rows (position rows: a
+    position sensor; range–bearing rows: a range–bearing one), else a
+    :class:`RunConfigError` naming the sensor; the sensors are kept in
+    ``src.tracker_sensors`` (id → Sensor; ``None``: the configuration's) for
+    :func:`_step_scan` to move a moving sensor to each scan's position.
+    """
+    det = getattr(src, "detections", None)
+    src.tracker_sensors = {None: trk.default_sensor}
     if src.sensor_ids is None:
         if tables:
             warn("the [sensors] tables are ignored: the detections have no sensor column")
@@ -210,12 +220,47 @@ def _register_sensors(trk, src, tables: dict, warn) -> None:
     made = make_sensors(tables, trk.config, trk.state_dim)
     for sid in sorted(set(made) - set(present)):
         warn(f"[sensors] sensor {sid} does not occur in the detections")
+    kinds = det.sensor_kinds() if det is not None else {}
     for sid in present:
-        trk.add_sensor(sid, made.get(sid, trk.default_sensor))
+        sensor = made.get(sid, trk.default_sensor)
+        want = kinds.get(sid)
+        if want is not None and sensor.kind != want:
+            where = (
+                f"its [sensors] table has type = {sensor.kind!r}"
+                if sid in made
+                else f"it has no [sensors] table and the [tracker] sensor is {sensor.kind!r}"
+            )
+            raise RunConfigError(
+                f"sensor {sid}: the detections give it {want} rows but {where}; "
+                f'set type = "{want}" in its [sensors] table (id = {sid})'
+            )
+        trk.add_sensor(sid, sensor)
+        src.tracker_sensors[sid] = sensor
 
 
 def _step_scan(trk, t: float, src, k: int) -> list:
-    """The scan(s) at time index k: one per sensor in id order (sequential-update JPDA)."""
+    """The scan(s) at time index k: one per sensor in id order (sequential-update JPDA).
+
+    A file's detections (``src.detections``) are stepped as they are — each
+    (time, sensor) scan with its own kind of rows (mixed files), a moving
+    sensor's scan with its sensor placed at that scan's position (p_d and
+    clutter density kept); ``src.scans`` may then hold their plotting form.
+    """
+    det = getattr(src, "detections", None)
+    if det is not None:
+        out = []
+        for sid, _kind, z, pos in det.sensor_scans(k):
+            if pos is None:
+                out.append(trk.step(t, z) if sid is None else trk.step(t, z, sensor=sid))
+                continue
+            # id None is the configuration's own sensor, which cannot be replaced
+            key = "moving" if sid is None else sid
+            try:
+                trk.add_sensor(key, src.tracker_sensors[sid].at(pos))
+            except ValueError as exc:
+                raise RunConfigError(f"sensor {sid}: {_one_line(exc)}") from None
+            out.append(trk.step(t, z, sensor=key))
+        return out
     z = src.scans[k]
     if src.sensor_ids is None or not len(src.sensor_ids[k]):
         return [trk.step(t, z)]
@@ -762,21 +807,62 @@ def run_detections(
             )
         cfg = make_tracker_config({"dim": detections.dim}, over)
     kind = detections.kind
+    # "mixed" passes here: each sensor's type is checked against its rows (_register_sensors)
     check_sensor(cfg, kind, detections.source or "the detections")
     if cfg.dim != detections.dim:
         raise RunConfigError(f"tracker dim = {cfg.dim} but the detections are {detections.dim}-D")
     scans = detections.scans
     sigma = math.sqrt(float(np.max(np.diag(cfg.measurement_covariance()))))
-    if kind == "range-bearing":
+    # range-bearing sensors' fixed positions: their [sensors] tables, else [tracker]
+    tables = {int(i): dict(v) for i, v in (options.get("sensors") or {}).items()}
+    state_dim = (2 if cfg.motion == "cv" else 3) * cfg.dim
+    fixed = {None: tuple(cfg.sensor_position)}
+    for sid, sensor in make_sensors(tables, cfg, state_dim).items():
+        if sensor.kind == "range-bearing":
+            fixed[sid] = tuple(float(v) for v in sensor.model.sensor_position)
+    seen = set(detections.sensor_kinds()) if detections.sensors is not None else set()
+    stations = [p for sid, p in fixed.items() if sid is None or sid in seen]
+    # per-sensor positions (mixed files, moving or differently placed sensors): the
+    # scans are drawn from Cartesian positions, each row converted with its sensor's position
+    own = kind == "mixed" or detections.sensor_positions is not None
+    own = own or (kind == "range-bearing" and len(set(stations)) > 1)
+    has_rb = kind == "range-bearing" or any(
+        v == "range-bearing" for v in detections.sensor_kinds().values()
+    )
+    if has_rb:
+        sigma = (
+            max(sigma, math.sqrt(cfg.range_noise))
+            if kind == "mixed"
+            else math.sqrt(cfg.range_noise)
+        )
+    if own:
+        scans = detections.cartesian(fixed)
+        if detections.sensor_positions is not None:
+            moving = np.concatenate([p for p in detections.sensor_positions if len(p)] or [[]])
+            stations += [tuple(p) for p in moving.reshape(-1, 2) if np.isfinite(p).all()]
+    elif kind == "range-bearing":
         scans = _cartesian(scans, cfg.sensor_position)
-        sigma = math.sqrt(cfg.range_noise)
     pts = [z for z in scans if len(z)]
     region = None
     if pts:
         allz = np.concatenate(pts)
-        if kind == "range-bearing":  # keep the sensor in view
-            allz = np.vstack([allz, cfg.sensor_position])
+        if has_rb:  # keep the sensor(s) in view
+            allz = np.vstack([allz, *(np.reshape(p, (1, 2)) for p in stations)])
         region = np.stack([allz.min(axis=0), allz.max(axis=0)], axis=1)
+    plot_scans, plot_kind = detections.scans, kind
+    if own:
+        # _run draws src.scans, converting range-bearing ones with [tracker]
+        # sensor_position, and a resume checks src.kind against the tracker's sensor:
+        # give it the Cartesian positions, re-expressed as [r, θ] about that position
+        # when the tracker's sensor is range-bearing (the tracker steps detections)
+        plot_scans, plot_kind = scans, "position"
+        if cfg.sensor == "range-bearing":
+            plot_kind = "range-bearing"
+            s0 = np.asarray(cfg.sensor_position, dtype=float)
+            plot_scans = tuple(
+                np.column_stack([np.hypot(*(p - s0).T), np.arctan2(*(p - s0).T[::-1])])
+                for p in scans
+            )
     identity = {"detections": "<memory>"}
     if detections.source:
         path = Path(detections.source).resolve()
@@ -805,11 +891,12 @@ def run_detections(
         notes=notes,
         time_origin=detections.time_origin,
         times=detections.times,
-        scans=detections.scans,
+        scans=plot_scans,
         sensor_ids=detections.sensors,
         dim=detections.dim,
         region=region,
         sigma=sigma,
-        kind=kind,
+        kind=plot_kind,
     )
+    src.detections = detections  # stepped by _step_scan, sensors checked by _register_sensors
     return _run(src, cfg, out_dir, fmt=fmt, progress=progress, **options)

@@ -32,8 +32,18 @@ column       required  meaning
 ===========  ========  ========================================================
 
 The columns decide the kind (:attr:`Detections.kind`: ``"position"`` or
-``"range-bearing"``); a file with columns of both kinds (``x``/``y``/``z``
-and ``range``/``bearing``) or of neither is an error.
+``"range-bearing"``); a file with columns of neither kind is an error, and so
+is one with columns of both kinds unless it is a **mixed** file: 2-D sensors
+of both types in one file, columns ``time, sensor, x, y, range, bearing`` (no
+``z``), each row filling the set of its sensor's type and leaving the other
+empty (CSV: empty cells or ``nan``; Parquet: nulls or NaN). Each sensor id's
+rows are all of one kind. Its :attr:`Detections.kind` is ``"mixed"``: scans
+of ``[x, y]`` or ``[r, θ]`` rows as :attr:`Detections.row_kinds` says.
+
+A moving range–bearing sensor gives its position per row in ``sensor_x,
+sensor_y`` (range–bearing and mixed files; :attr:`Detections.sensor_positions`):
+on all of a sensor's range–bearing rows or on none, the same on all rows of
+one (time, sensor), empty on position rows.
 
 * CSV: comma-separated, the first non-blank line is the header; column names
   are matched case-insensitively, surrounding spaces ignored; blank lines are
@@ -63,7 +73,10 @@ and ``range``/``bearing``) or of neither is an error.
   timestamps mixed),
   a non-integer sensor id, a row with the wrong number of fields, a time
   earlier than the row before it, position and range–bearing columns together
-  (or neither), a negative range or a bearing outside [−2π, 2π].
+  (or neither) outside a mixed file, a negative range or a bearing outside
+  [−2π, 2π]; in a mixed file a row filling both sets or neither (or half a
+  set), a sensor whose rows change kind; a sensor position on some of a
+  sensor's rows only, or differing within one (time, sensor).
 
 Examples::
 
@@ -112,7 +125,13 @@ writing detections), :mod:`~jointtrack.io.tracks` (track tables),
 public name is importable from :mod:`jointtrack.io`.
 """
 
-from jointtrack.io.detections import KINDS, Detections, read_detections, write_detections
+from jointtrack.io.detections import (
+    DETECTION_KINDS,
+    KINDS,
+    Detections,
+    read_detections,
+    write_detections,
+)
 from jointtrack.io.errors import DataFileError, DetectionFileError, TrackFileError, TruthFileError
 from jointtrack.io.jsonify import to_jsonable
 from jointtrack.io.metrics import write_metrics
@@ -120,6 +139,7 @@ from jointtrack.io.tracks import read_tracks, write_tracks
 from jointtrack.io.truth import read_truth, write_truth
 
 __all__ = [
+    "DETECTION_KINDS",
     "DataFileError",
     "DetectionFileError",
     "Detections",

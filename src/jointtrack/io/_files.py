@@ -109,6 +109,20 @@ def strings_to_floats(path, err, cells: Sequence[str], lines, name: str) -> np.n
     return out  # pragma: no cover - numpy and float() agree
 
 
+def strings_to_floats_nullable(path, err, cells: Sequence[str], lines, name: str) -> np.ndarray:
+    """Like :func:`strings_to_floats`, but an empty cell (or ``None``) is NaN."""
+    out = np.empty(len(cells), dtype=np.float64)
+    for i, s in enumerate(cells):
+        if s is None or not str(s).strip():
+            out[i] = np.nan
+            continue
+        try:
+            out[i] = float(s)
+        except (ValueError, TypeError):
+            raise row_error(err, path, bad_cell(str(s)), i, lines, name) from None
+    return out
+
+
 def parquet_table(path: Path, err):
     try:
         import pyarrow.parquet as pq
@@ -161,6 +175,21 @@ def parquet_column(path, err, col, name: str) -> np.ndarray:
     raise err(path, f"has type {t}, expected a numeric column", column=name)
 
 
+def parquet_column_nullable(path, err, col, name: str) -> np.ndarray:
+    """A numeric (or numeric-text) pyarrow column with nulls (and empty text) as NaN."""
+    import pyarrow as pa
+
+    t = col.type
+    if parquet_is_numeric(t) or pa.types.is_null(t):
+        import pyarrow.compute as pc
+
+        filled = pc.fill_null(col.cast(pa.float64()), float("nan"))
+        return np.asarray(filled.to_numpy(zero_copy_only=False), dtype=np.float64)
+    if parquet_is_string(t):
+        return strings_to_floats_nullable(path, err, col.to_pylist(), None, name)
+    raise err(path, f"has type {t}, expected a numeric column", column=name)
+
+
 def load_columns(
     path,
     err,
@@ -174,9 +203,11 @@ def load_columns(
 
     Required and optional columns must be finite; other columns are ignored
     unless ``parse_extras`` (then they must be numeric, NaN allowed).
-    ``pick(path, names)``, if given, chooses ``(required, optional, hint)`` from
-    the file's column names instead (``hint`` is appended to a missing-column
-    message; it may raise ``err``). Columns named in ``raw`` are returned
+    ``pick(path, names)``, if given, chooses ``(required, optional, hint)`` —
+    or ``(required, optional, hint, nullable)`` — from the file's column names
+    instead (``hint`` is appended to a missing-column message; it may raise
+    ``err``); ``nullable`` columns may hold empty cells / nulls, read as NaN,
+    and are not checked for finiteness. Columns named in ``raw`` are returned
     unparsed: a list of cell strings (CSV) or the pyarrow column (Parquet).
     Returns ``(path, columns dict, extra column names in file order, lines or
     None, number of data rows)``.
@@ -190,7 +221,11 @@ def load_columns(
 
         def get(j, name):
             col = [r[j] for r in rows]
-            return col if name in raw else strings_to_floats(path, err, col, lines, name)
+            if name in raw:
+                return col
+            if name in nullable:
+                return strings_to_floats_nullable(path, err, col, lines, name)
+            return strings_to_floats(path, err, col, lines, name)
 
     else:
         names, table = parquet_table(path, err)
@@ -199,12 +234,20 @@ def load_columns(
 
         def get(j, name):
             col = table.column(j)
-            return col if name in raw else parquet_column(path, err, col, name)
+            if name in raw:
+                return col
+            if name in nullable:
+                return parquet_column_nullable(path, err, col, name)
+            return parquet_column(path, err, col, name)
 
     low = [n.lower() for n in names]
     hint = ""
+    nullable: Sequence[str] = ()
     if pick is not None:
-        required, optional, hint = pick(path, names)
+        picked = pick(path, names)
+        required, optional, hint = picked[:3]
+        if len(picked) > 3:
+            nullable = picked[3]
     missing = [c for c in required if c not in low]
     if missing:
         raise err(
@@ -219,7 +262,7 @@ def load_columns(
     todo = [(low.index(c), c) for c in wanted] + (extras if parse_extras else [])
     for j, name in todo:
         v = get(j, name)
-        if name in wanted and name not in raw:
+        if name in wanted and name not in raw and name not in nullable:
             bad = ~np.isfinite(v)
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])

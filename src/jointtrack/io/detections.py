@@ -6,6 +6,7 @@ times: :mod:`jointtrack.io.times`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,12 +25,16 @@ from jointtrack.io._files import (
 from jointtrack.io.errors import DetectionFileError
 from jointtrack.io.times import EXPECTED_TIMES, format_timestamp, parse_origin, parse_timestamp
 
-__all__ = ["KINDS", "Detections", "read_detections", "write_detections"]
+__all__ = ["DETECTION_KINDS", "KINDS", "Detections", "read_detections", "write_detections"]
 
-#: the kinds of :class:`Detections` (:attr:`Detections.kind`)
+#: the kinds of a measurement (a row of a scan)
 KINDS = ("position", "range-bearing")
+#: the kinds of :class:`Detections` (:attr:`Detections.kind`): a measurement kind,
+#: or ``"mixed"`` (each row its own kind, :attr:`Detections.row_kinds`)
+DETECTION_KINDS = (*KINDS, "mixed")
 POS_COLUMNS = ("x", "y", "z")
 RB_COLUMNS = ("range", "bearing")
+SENSOR_POSITION_COLUMNS = ("sensor_x", "sensor_y")
 
 _NS = 1_000_000_000
 _UNIT_NS = {"s": _NS, "ms": 1_000_000, "us": 1_000, "ns": 1}
@@ -51,8 +56,11 @@ class Detections:
     dim : columns of a detection: the spatial dimension for positions (2 or 3
         from files; any ≥ 1 when built directly), 2 for range–bearing.
     source : the file the detections were read from, if any.
-    kind : ``"position"`` (default) or ``"range-bearing"`` (ranges ≥ 0,
-        bearings within [−2π, 2π]).
+    kind : ``"position"`` (default), ``"range-bearing"`` (ranges ≥ 0,
+        bearings within [−2π, 2π]) or ``"mixed"``: 2-D scans whose rows are
+        ``[x, y]`` or ``[r, θ]`` as :attr:`row_kinds` says (several sensors of
+        different types in one file; needs ``sensors``, and each sensor id's
+        rows are all of one kind).
     time_origin : ``None`` when ``times`` are plain numbers (e.g. read from a
         numeric ``time`` column); else the ISO-8601 timestamp of t = 0 — for a
         file with timestamps, the first scan's — so that the absolute time of
@@ -60,6 +68,16 @@ class Detections:
         Written ``…Z`` (UTC) for timestamps with an offset, without a suffix
         for naive (wall-clock) timestamps; an origin given with an offset is
         converted to UTC. See :mod:`jointtrack.io.times`.
+    row_kinds : for ``kind == "mixed"``, a tuple of K string arrays ``(M_k,)``
+        holding ``"position"`` or ``"range-bearing"`` per detection (given as
+        strings, or as booleans = "is range-bearing"); ``None`` otherwise (every
+        row is of ``kind``; :meth:`scan_kinds` gives the array either way).
+    sensor_positions : ``None``, or (range-bearing and mixed detections) a
+        tuple of K float arrays ``(M_k, 2)``: the position of the sensor that
+        took each range–bearing detection (a moving sensor), NaN for rows
+        without one (position rows; sensors at a fixed, configured position).
+        The rows of one (scan, sensor) share one position, and a sensor id has
+        a position on all its rows or on none.
 
     ``len(d)`` is K; iterating yields ``(time, z)`` pairs; ``d[k]`` is
     ``(times[k], scans[k])``.
@@ -72,6 +90,8 @@ class Detections:
     source: str | None = None
     kind: str = "position"
     time_origin: str | None = None
+    row_kinds: tuple | None = None
+    sensor_positions: tuple | None = None
 
     def __post_init__(self):
         origin, _, _ = parse_origin(self.time_origin)
@@ -89,13 +109,14 @@ class Detections:
         if isinstance(self.dim, bool) or int(self.dim) != self.dim or self.dim < 1:
             raise ValueError(f"dim must be a positive integer, got {self.dim!r}")
         dim = int(self.dim)
-        if self.kind not in KINDS:
-            raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
-        if self.kind == "range-bearing" and dim != 2:
-            raise ValueError(f"range-bearing detections have dim 2 (range, bearing), got {dim}")
+        if self.kind not in DETECTION_KINDS:
+            raise ValueError(f"kind must be one of {', '.join(DETECTION_KINDS)}, got {self.kind!r}")
+        if self.kind != "position" and dim != 2:
+            raise ValueError(f"{self.kind} detections have dim 2 (range, bearing), got {dim}")
         scans = tuple(self.scans)
         if len(scans) != times.size:
             raise ValueError(f"{times.size} scan times but {len(scans)} scans")
+        row_kinds = _check_row_kinds(self.kind, self.row_kinds, scans)
         fixed = []
         for k, z in enumerate(scans):
             z = np.asarray(z, dtype=np.float64)
@@ -105,9 +126,16 @@ class Detections:
                 raise ValueError(f"scans[{k}] must have shape (M, {dim}), got {z.shape}")
             if not np.all(np.isfinite(z)):
                 raise ValueError(f"scans[{k}] has a non-finite coordinate")
-            if self.kind == "range-bearing" and np.any(z[:, 0] < 0):
+            if row_kinds is not None and row_kinds[k].shape != (z.shape[0],):
+                raise ValueError(
+                    f"row_kinds[{k}] must have shape ({z.shape[0]},), got {row_kinds[k].shape}"
+                )
+            rb = z if self.kind == "range-bearing" else z[:0]
+            if row_kinds is not None:
+                rb = z[row_kinds[k] == "range-bearing"]
+            if np.any(rb[:, 0] < 0):
                 raise ValueError(f"scans[{k}] has a negative range")
-            if self.kind == "range-bearing" and np.any(np.abs(z[:, 1]) > 2 * np.pi):
+            if np.any(np.abs(rb[:, 1]) > 2 * np.pi):
                 raise ValueError(f"scans[{k}] has a bearing outside [-2π, 2π] (radians expected)")
             fixed.append(z)
         sensors = self.sensors
@@ -126,11 +154,20 @@ class Detections:
                     raise ValueError(f"sensors[{k}] must hold integers, got dtype {s.dtype}")
                 fs.append(s.astype(np.int64))
             sensors = tuple(fs)
+        if self.kind == "mixed":
+            if sensors is None:
+                raise ValueError(
+                    "mixed detections need sensors: each sensor id's rows are of one kind"
+                )
+            _check_sensor_kinds(sensors, row_kinds)
+        positions = _check_sensor_positions(self, fixed, sensors, row_kinds)
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "scans", tuple(fixed))
         object.__setattr__(self, "sensors", sensors)
         object.__setattr__(self, "dim", dim)
         object.__setattr__(self, "time_origin", origin)
+        object.__setattr__(self, "row_kinds", row_kinds)
+        object.__setattr__(self, "sensor_positions", positions)
 
     def __len__(self) -> int:
         return int(self.times.size)
@@ -154,9 +191,84 @@ class Detections:
         _, ns0, aware = parse_origin(self.time_origin)
         return [format_timestamp(ns0 + v, aware) for v in _offsets_ns(self.times)]
 
+    def scan_kinds(self, k: int) -> np.ndarray:
+        """The measurement kind (``"position"`` / ``"range-bearing"``) of each row of scan k."""
+        if self.row_kinds is not None:
+            return self.row_kinds[k]
+        return np.full(self.scans[k].shape[0], self.kind, dtype=_KIND_DTYPE)
+
+    def sensor_kinds(self) -> dict[int, str]:
+        """``{sensor id: measurement kind of its rows}`` (empty without ``sensors``)."""
+        out: dict[int, str] = {}
+        for k, ids in enumerate(self.sensors or ()):
+            for sid, kind in zip(ids.tolist(), self.scan_kinds(k).tolist(), strict=True):
+                out.setdefault(int(sid), str(kind))
+        return dict(sorted(out.items()))
+
+    def sensor_scans(self, k: int) -> list[tuple]:
+        """The (time, sensor) scans of scan k, in sensor-id order.
+
+        A list of ``(sensor_id, kind, z, sensor_position)``: ``sensor_id`` is
+        ``None`` without ``sensors`` (one entry, also for an empty scan);
+        ``kind`` the measurement kind of the rows ``z``; ``sensor_position`` the
+        (2,) position of a moving sensor (:attr:`sensor_positions`) or ``None``.
+        """
+        z = self.scans[k]
+        kinds = self.scan_kinds(k)
+        pos = None if self.sensor_positions is None else self.sensor_positions[k]
+
+        def entry(sid, rows):
+            kind = str(kinds[rows][0]) if len(kinds[rows]) else self.kind
+            p = None
+            if pos is not None and len(pos[rows]) and np.isfinite(pos[rows][0, 0]):
+                p = pos[rows][0].copy()
+            return sid, kind, z[rows], p
+
+        if self.sensors is None or not len(self.sensors[k]):
+            return [entry(None, np.arange(z.shape[0]))]
+        ids = self.sensors[k]
+        return [entry(int(sid), np.flatnonzero(ids == sid)) for sid in np.unique(ids)]
+
+    def cartesian(self, sensor_position=(0.0, 0.0)) -> tuple:
+        """The scans as Cartesian positions ``(M_k, dim)``: position rows as they
+        are, range–bearing rows ``[r, θ]`` as ``s + r (cos θ, sin θ)``.
+
+        ``s``: the row's :attr:`sensor_positions` entry when it has one, else
+        ``sensor_position`` — a (2,) position, or a mapping ``{sensor id:
+        (2,) position}`` (ids missing from it: its ``None`` entry, if any).
+        """
+        out = []
+        for k, z in enumerate(self.scans):
+            rb = self.scan_kinds(k) == "range-bearing"
+            if not rb.any():
+                out.append(z.copy())
+                continue
+            s = np.zeros((z.shape[0], 2))
+            if isinstance(sensor_position, Mapping):
+                ids = self.sensors[k] if self.sensors is not None else [None] * z.shape[0]
+                for i, sid in enumerate(ids):
+                    key = None if sid is None else int(sid)
+                    if not rb[i]:
+                        continue
+                    if key not in sensor_position and None not in sensor_position:
+                        raise ValueError(f"no position for range-bearing sensor {key}")
+                    s[i] = sensor_position.get(key, sensor_position.get(None))
+            else:
+                s[:] = np.asarray(sensor_position, dtype=np.float64)
+            if self.sensor_positions is not None:
+                own = np.isfinite(self.sensor_positions[k][:, 0])
+                s[own] = self.sensor_positions[k][own]
+            p = z.copy()
+            r, th = z[rb, 0], z[rb, 1]
+            p[rb] = s[rb] + np.column_stack([r * np.cos(th), r * np.sin(th)])
+            out.append(p)
+        return tuple(out)
+
     def to_table(self) -> dict[str, np.ndarray]:
         """Flat columns ``time, x, y[, z][, sensor]`` or ``time, range, bearing[, sensor]``
-        (the file layout)."""
+        (the file layout); mixed detections: ``time, x, y, range, bearing, sensor``
+        with NaN in the set a row does not fill; with :attr:`sensor_positions`
+        also ``sensor_x, sensor_y`` (NaN for rows without)."""
         n = [z.shape[0] for z in self.scans]
         Z = (
             np.concatenate(self.scans, axis=0)
@@ -164,12 +276,110 @@ class Detections:
             else np.zeros((0, self.dim), dtype=np.float64)
         )
         out = {"time": np.repeat(self.times, n)}
-        names = list(RB_COLUMNS) if self.kind == "range-bearing" else _coord_names(self.dim)
-        for a in range(self.dim):
-            out[names[a]] = Z[:, a].copy()
+        if self.kind == "mixed":
+            rb = np.concatenate([self.scan_kinds(k) for k in range(len(self))] or [[]])
+            rb = rb == "range-bearing"
+            for a, name in enumerate(("x", "y")):
+                out[name] = np.where(rb, np.nan, Z[:, a])
+            for a, name in enumerate(RB_COLUMNS):
+                out[name] = np.where(rb, Z[:, a], np.nan)
+        else:
+            names = list(RB_COLUMNS) if self.kind == "range-bearing" else _coord_names(self.dim)
+            for a in range(self.dim):
+                out[names[a]] = Z[:, a].copy()
         if self.sensors is not None:
             out["sensor"] = np.concatenate(self.sensors) if self.sensors else np.zeros(0, np.int64)
+        if self.sensor_positions is not None:
+            S = np.concatenate(self.sensor_positions, axis=0) if self.scans else np.zeros((0, 2))
+            out["sensor_x"], out["sensor_y"] = S[:, 0].copy(), S[:, 1].copy()
         return out
+
+
+_KIND_DTYPE = "<U13"
+
+
+def _check_row_kinds(kind: str, row_kinds, scans) -> tuple | None:
+    """``row_kinds`` as string arrays (mixed detections only)."""
+    if kind != "mixed":
+        if row_kinds is not None:
+            raise ValueError(f"row_kinds are for mixed detections, not {kind} ones")
+        return None
+    if row_kinds is None:
+        raise ValueError("mixed detections need row_kinds (the kind of each row)")
+    row_kinds = tuple(row_kinds)
+    if len(row_kinds) != len(scans):
+        raise ValueError(f"{len(scans)} scans but {len(row_kinds)} row_kinds arrays")
+    out = []
+    for k, a in enumerate(row_kinds):
+        a = np.asarray(a)
+        if a.dtype == np.bool_:
+            a = np.where(a, "range-bearing", "position")
+        a = a.astype(_KIND_DTYPE).reshape(-1) if a.size else np.zeros(0, _KIND_DTYPE)
+        bad = ~np.isin(a, KINDS)
+        if bad.any():
+            raise ValueError(
+                f"row_kinds[{k}] holds {str(a[bad][0])!r}; expected {' or '.join(KINDS)}"
+            )
+        out.append(a)
+    return tuple(out)
+
+
+def _check_sensor_kinds(sensors, row_kinds) -> None:
+    """Every sensor id's rows are of one kind."""
+    first: dict[int, tuple[str, int]] = {}
+    for k, (ids, kinds) in enumerate(zip(sensors, row_kinds, strict=True)):
+        for sid, kind in zip(ids.tolist(), kinds.tolist(), strict=True):
+            was = first.setdefault(sid, (kind, k))
+            if was[0] != kind:
+                raise ValueError(
+                    f"sensor {sid} has {was[0]} rows (scans[{was[1]}]) and {kind} rows "
+                    f"(scans[{k}]); a sensor's rows are of one kind"
+                )
+
+
+def _check_sensor_positions(d: Detections, scans, sensors, row_kinds) -> tuple | None:
+    """:attr:`Detections.sensor_positions` as float arrays, checked."""
+    if d.sensor_positions is None:
+        return None
+    if d.kind == "position":
+        raise ValueError("sensor_positions are for range-bearing (or mixed) detections")
+    positions = tuple(d.sensor_positions)
+    if len(positions) != len(scans):
+        raise ValueError(f"{len(scans)} scans but {len(positions)} sensor_positions arrays")
+    out = []
+    has: dict = {}  # sensor id → (has a position, scan index)
+    for k, (p, z) in enumerate(zip(positions, scans, strict=True)):
+        p = np.asarray(p, dtype=np.float64)
+        if p.size == 0:
+            p = p.reshape(0, 2)
+        if p.shape != (z.shape[0], 2):
+            raise ValueError(
+                f"sensor_positions[{k}] must have shape ({z.shape[0]}, 2), got {p.shape}"
+            )
+        nan = np.isnan(p)
+        if np.any(nan[:, 0] != nan[:, 1]) or np.any(np.isinf(p)):
+            raise ValueError(f"sensor_positions[{k}]: a row has one coordinate only, or inf")
+        given = ~nan[:, 0]
+        if row_kinds is not None and np.any(given & (row_kinds[k] != "range-bearing")):
+            raise ValueError(f"sensor_positions[{k}]: a position row has a sensor position")
+        ids = sensors[k].tolist() if sensors is not None else [None] * z.shape[0]
+        seen: dict = {}
+        for i, sid in enumerate(ids):
+            if row_kinds is not None and row_kinds[k][i] != "range-bearing":
+                continue
+            was = has.setdefault(sid, (bool(given[i]), k))
+            if was[0] != bool(given[i]):
+                raise ValueError(
+                    f"sensor {sid} has rows with and without a sensor position "
+                    f"(scans[{was[1]}], scans[{k}]); give it on all of a sensor's rows or none"
+                )
+            if given[i] and not np.array_equal(seen.setdefault(sid, p[i]), p[i]):
+                raise ValueError(
+                    f"sensor_positions[{k}]: sensor {sid} has two positions in one scan "
+                    f"({seen[sid].tolist()} and {p[i].tolist()})"
+                )
+        out.append(p)
+    return tuple(out)
 
 
 def _coord_names(dim: int) -> list[str]:
@@ -188,18 +398,25 @@ def _offsets_ns(times: np.ndarray) -> list[int]:
 
 def _pick_detection_columns(path, names):
     """Required/optional columns of a detections file from its header: position
-    (``x, y[, z]``) or range–bearing (``range, bearing``), never both."""
+    (``x, y[, z]``), range–bearing (``range, bearing``), or both sets with a
+    ``sensor`` column and no ``z`` (mixed: each row fills one set)."""
+    low = [n.lower() for n in names]
     pos = [n for n in names if n.lower() in POS_COLUMNS]
     rb = [n for n in names if n.lower() in RB_COLUMNS]
+    where = tuple(c for c in SENSOR_POSITION_COLUMNS if c in low)
     if pos and rb:
+        if "sensor" in low and "z" not in low:
+            required = ("time", "x", "y", *RB_COLUMNS, "sensor")
+            return required, where, "", ("x", "y", *RB_COLUMNS, *where)
         raise DetectionFileError(
             path,
             f"has both position column(s) ({', '.join(pos)}) and range-bearing column(s) "
             f"({', '.join(rb)}); a detections file holds one kind: time, x, y[, z] or "
-            "time, range, bearing",
+            "time, range, bearing — or, mixing 2-D sensors of both kinds, time, sensor, "
+            "x, y, range, bearing (each row fills one set)",
         )
     if rb:
-        return ("time", *RB_COLUMNS), ("sensor",), ""
+        return ("time", *RB_COLUMNS), ("sensor", *where), "", where
     hint = "" if pos else f"; or, for range-bearing detections: {', '.join(RB_COLUMNS)}"
     return ("time", "x", "y"), ("z", "sensor"), hint
 
@@ -337,7 +554,10 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
     Returns a :class:`Detections`: rows grouped into scans by equal
     consecutive ``time`` values; ``kind`` is ``"range-bearing"`` when the file
     has ``range, bearing`` columns (``scans`` rows are then ``[r, θ]``), else
-    ``"position"``; ``dim`` is 3 when a ``z`` column is present, else 2;
+    ``"position"``, or ``"mixed"`` for a file with both sets and a ``sensor``
+    column (rows' kinds in ``row_kinds``); ``sensor_positions`` is set when
+    ``sensor_x, sensor_y`` columns are present (range-bearing and mixed
+    files); ``dim`` is 3 when a ``z`` column is present, else 2;
     ``sensors`` is set when a ``sensor`` column is present. With ISO-8601
     timestamps in the ``time`` column, ``times`` are seconds since the first
     row's timestamp and ``time_origin`` is that timestamp (else ``None``).
@@ -356,20 +576,29 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
     )
     if n_rows == 0 and not allow_empty:
         raise err(path, "has no detections: a header but no data rows")
-    kind = "range-bearing" if "range" in cols else "position"
+    if "range" in cols:
+        kind = "mixed" if "x" in cols else "range-bearing"
+    else:
+        kind = "position"
     t, origin = _time_column(path, err, cols["time"], lines)
     _check_time_order(path, err, t, origin, lines)
-    if kind == "range-bearing":
-        coords = list(RB_COLUMNS)
-        neg = np.flatnonzero(cols["range"] < 0)
+    sensor = None
+    row_rb = None
+    if kind == "mixed":
+        sensor = check_integer(path, err, cols["sensor"], "sensor", lines)
+        row_rb = _mixed_rows(path, err, cols, sensor, lines)
+    if kind != "position":
+        rb = slice(None) if row_rb is None else row_rb
+        idx = np.arange(t.size)[rb]
+        neg = np.flatnonzero(cols["range"][rb] < 0)
         if neg.size:
-            i = int(neg[0])
+            i = int(idx[neg[0]])
             raise row_error(
                 err, path, f"negative range {float(cols['range'][i])!r}", i, lines, "range"
             )
-        big = np.flatnonzero(np.abs(cols["bearing"]) > 2 * np.pi)
+        big = np.flatnonzero(np.abs(cols["bearing"][rb]) > 2 * np.pi)
         if big.size:
-            i = int(big[0])
+            i = int(idx[big[0]])
             raise row_error(
                 err,
                 path,
@@ -379,27 +608,162 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
                 lines,
                 "bearing",
             )
+    if sensor is None and "sensor" in cols:
+        sensor = check_integer(path, err, cols["sensor"], "sensor", lines)
+    if kind == "range-bearing":
+        Z = np.column_stack([cols[c] for c in RB_COLUMNS]) if t.size else np.zeros((0, 2))
+    elif kind == "mixed":
+        Z = np.zeros((t.size, 2))
+        Z[~row_rb] = np.column_stack([cols["x"], cols["y"]])[~row_rb]
+        Z[row_rb] = np.column_stack([cols[c] for c in RB_COLUMNS])[row_rb]
     else:
         coords = ["x", "y"] + (["z"] if "z" in cols else [])
-    Z = np.column_stack([cols[c] for c in coords]) if t.size else np.zeros((0, len(coords)))
-    sensor = None
-    if "sensor" in cols:
-        sensor = check_integer(path, err, cols["sensor"], "sensor", lines)
+        Z = np.column_stack([cols[c] for c in coords]) if t.size else np.zeros((0, len(coords)))
+    where = None
+    if "sensor_x" in cols or "sensor_y" in cols:
+        where = _sensor_position_rows(path, err, cols, t, sensor, row_rb, lines)
     starts = np.flatnonzero(np.r_[True, np.diff(t) != 0]) if t.size else np.zeros(0, int)
     ends = np.r_[starts[1:], t.size].astype(int) if t.size else np.zeros(0, int)
-    scans = tuple(Z[s:e] for s, e in zip(starts, ends, strict=True))
+    bounds = list(zip(starts, ends, strict=True))
+    scans = tuple(Z[s:e] for s, e in bounds)
     sensors = None
     if sensor is not None:
-        sensors = tuple(sensor[s:e] for s, e in zip(starts, ends, strict=True))
+        sensors = tuple(sensor[s:e] for s, e in bounds)
     return Detections(
         times=t[starts],
         scans=scans,
         sensors=sensors,
-        dim=len(coords),
+        dim=Z.shape[1],
         source=str(path),
         kind=kind,
         time_origin=origin,
+        row_kinds=None if row_rb is None else tuple(row_rb[s:e] for s, e in bounds),
+        sensor_positions=None if where is None else tuple(where[s:e] for s, e in bounds),
     )
+
+
+def _filled(path, err, cols, names, lines, what: str) -> np.ndarray:
+    """Which rows fill the column set ``names`` (all cells, or none: else ``err``)."""
+    vals = [cols[c] for c in names]
+    given = [~np.isnan(v) for v in vals]
+    for c, v in zip(names, vals, strict=True):
+        inf = np.flatnonzero(np.isinf(v))
+        if inf.size:
+            i = int(inf[0])
+            raise row_error(err, path, f"non-finite value {v[i]}", i, lines, c)
+    some = np.logical_or.reduce(given)
+    all_ = np.logical_and.reduce(given)
+    half = np.flatnonzero(some & ~all_)
+    if half.size:
+        i = int(half[0])
+        empty = next(c for c, g in zip(names, given, strict=True) if not g[i])
+        raise row_error(
+            err, path, f"empty value; {what} fills all of {', '.join(names)}", i, lines, empty
+        )
+    return all_
+
+
+def _mixed_rows(path, err, cols, sensor, lines) -> np.ndarray:
+    """Whether each row of a mixed file is range–bearing (else position), checked:
+    one set filled per row, and each sensor's rows of one kind."""
+    pos = _filled(path, err, cols, ("x", "y"), lines, "a position row")
+    rb = _filled(path, err, cols, RB_COLUMNS, lines, "a range-bearing row")
+    both = np.flatnonzero(pos & rb)
+    if both.size:
+        raise row_error(
+            err,
+            path,
+            "the row fills both x, y and range, bearing; in a file mixing sensors each "
+            "row fills the set of its sensor's type and leaves the other empty",
+            int(both[0]),
+            lines,
+            "range",
+        )
+    neither = np.flatnonzero(~pos & ~rb)
+    if neither.size:
+        raise row_error(
+            err,
+            path,
+            "empty value; the row fills neither x, y nor range, bearing (one set is needed)",
+            int(neither[0]),
+            lines,
+            "x",
+        )
+    first: dict[int, int] = {}
+    for i, sid in enumerate(sensor.tolist()):
+        j = first.setdefault(sid, i)
+        if rb[j] != rb[i]:
+            kinds = ("position", "range-bearing")
+            at = f"line {int(lines[j])}" if lines is not None else f"data row {j + 1}"
+            raise row_error(
+                err,
+                path,
+                f"sensor {sid} gives a {kinds[int(rb[i])]} row here but {kinds[int(rb[j])]} rows "
+                f"before ({at}); a sensor's rows are all of one kind",
+                i,
+                lines,
+                "range" if rb[i] else "x",
+            )
+    return rb
+
+
+def _sensor_position_rows(path, err, cols, t, sensor, row_rb, lines) -> np.ndarray:
+    """``(N, 2)`` per-row sensor positions (NaN where not given), checked."""
+    for c in SENSOR_POSITION_COLUMNS:
+        if c not in cols:
+            other = next(o for o in SENSOR_POSITION_COLUMNS if o in cols)
+            raise err(path, f"has column {other} but not {c}; a sensor position needs both")
+    given = _filled(path, err, cols, SENSOR_POSITION_COLUMNS, lines, "a sensor position")
+    P = np.column_stack([cols[c] for c in SENSOR_POSITION_COLUMNS]) if t.size else np.zeros((0, 2))
+    rb = np.ones(t.size, bool) if row_rb is None else row_rb
+    bad = np.flatnonzero(given & ~rb)
+    if bad.size:
+        raise row_error(
+            err,
+            path,
+            "a position row has a sensor position; sensor_x, sensor_y are for "
+            "range-bearing rows (leave them empty)",
+            int(bad[0]),
+            lines,
+            "sensor_x",
+        )
+    ids = sensor.tolist() if sensor is not None else [None] * t.size
+
+    def at(r: int) -> str:
+        return f"line {int(lines[r])}" if lines is not None else f"data row {r + 1}"
+
+    first: dict = {}  # sensor id → first range-bearing row
+    scan: dict = {}  # (time, sensor id) → first row
+    for i, sid in enumerate(ids):
+        if not rb[i]:
+            continue
+        name = "the sensor" if sid is None else f"sensor {sid}"
+        j = first.setdefault(sid, i)
+        if given[j] != given[i]:
+            raise row_error(
+                err,
+                path,
+                f"{name} has a position (sensor_x, sensor_y) on some rows but not on others "
+                f"({at(j)}); give it on all of the sensor's rows or none",
+                i,
+                lines,
+                "sensor_x",
+            )
+        if not given[i]:
+            continue
+        j = scan.setdefault((float(t[i]), sid), i)
+        for a, c in enumerate(SENSOR_POSITION_COLUMNS):
+            if P[i, a] != P[j, a]:
+                raise row_error(
+                    err,
+                    path,
+                    f"{name} is at {c} = {float(P[j, a])!r} on {at(j)} but {float(P[i, a])!r} "
+                    "here, at the same time; the rows of one (time, sensor) share its position",
+                    i,
+                    lines,
+                    c,
+                )
+    return P
 
 
 # ----------------------------------------------------------------------------- writing
@@ -409,7 +773,9 @@ def write_detections(detections: Detections, path) -> Path:
     """Write :class:`Detections` in the file format of :func:`read_detections`.
 
     Positions as ``time, x, y[, z][, sensor]``, range–bearing detections as
-    ``time, range, bearing[, sensor]``. Empty scans are lost (a scan exists in
+    ``time, range, bearing[, sensor][, sensor_x, sensor_y]``, mixed ones as
+    ``time, x, y, range, bearing, sensor[, sensor_x, sensor_y]`` (the set a
+    row does not fill: empty CSV cells, Parquet nulls). Empty scans are lost (a scan exists in
     the file only through its rows). With a ``time_origin`` the ``time``
     column holds ISO-8601 timestamps (CSV text; a Parquet ``timestamp[ns]``
     column, UTC unless the origin is naive), so reading the file back gives
@@ -432,5 +798,14 @@ def write_detections(detections: Detections, path) -> Path:
             np.asarray(ns, dtype=np.int64), pa.timestamp("ns", tz="UTC" if aware else None)
         )
         text_cols["time"] = (text, arr)
+    if detections.kind == "mixed" or detections.sensor_positions is not None:
+        import pyarrow as pa
+
+        # a set a row does not fill: an empty CSV cell, a Parquet null
+        for name in ("x", "y", *RB_COLUMNS, *SENSOR_POSITION_COLUMNS):
+            if name in table and np.isnan(table[name]).any():
+                v = table[name]
+                text = ["" if np.isnan(a) else repr(float(a)) for a in v.tolist()]
+                text_cols[name] = (text, pa.array(v, pa.float64(), mask=np.isnan(v)))
     write_columns(path, kind, table, int_cols={"sensor"}, text_cols=text_cols)
     return path

@@ -4,10 +4,13 @@ Scans from several sensors are processed one after another (sequential-update
 JPDA): ``JPDATracker.step(t, z, sensor=id)`` gates, associates and updates with
 that sensor's model, detection probability and clutter density; scans of
 different sensors may share a time stamp (no prediction between them).
+A moving sensor (e.g. a range–bearing sensor on a platform) is the same
+:class:`Sensor` placed anew for each of its scans: :meth:`Sensor.at`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -48,3 +51,21 @@ class Sensor:
             lam = float(self.clutter_density)
             if not (math.isfinite(lam) and lam > 0):
                 raise ValueError(f"Sensor clutter_density must be positive, got {lam}")
+
+    @property
+    def kind(self) -> str:
+        """``"position"`` for a linear model (an ``H`` matrix), else ``"range-bearing"``
+        (the nonlinear models the run reads: :class:`~jointtrack.models.RangeBearing`)."""
+        return "position" if check_model(self.model)[0] else "range-bearing"
+
+    def at(self, position) -> Sensor:
+        """This sensor with its model moved to ``position`` (same noise, P_D, clutter).
+
+        The model must be a dataclass with a ``sensor_position`` field (e.g.
+        :class:`~jointtrack.models.RangeBearing`); ValueError otherwise.
+        """
+        model = self.model
+        if not (dataclasses.is_dataclass(model) and hasattr(model, "sensor_position")):
+            raise ValueError(f"sensor model {model!r} has no sensor_position to move")
+        pos = tuple(float(v) for v in np.asarray(position, dtype=np.float64).reshape(-1))
+        return dataclasses.replace(self, model=dataclasses.replace(model, sensor_position=pos))
