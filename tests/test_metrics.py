@@ -801,3 +801,13 @@ def test_stonesoup_switching_matches_stone_soup_random():
         # Stone Soup's distance folds the switching in: distance² = gospa² + switching²
         dist = np.array([v["distance"] for v in theirs])
         assert ours.gospa**2 + 4.0 * ours.switches == pytest.approx(dist**2, rel=1e-12)
+
+
+def test_p_inf_scale_equivariance_is_exact_across_the_rescaling_threshold():
+    # found by hypothesis: 2^-85 moves Σ(x − y)² below the range where the plain
+    # formula is used; the rescaled formula must round identically
+    X = np.zeros((2, 2))
+    Y = np.array([[0.0, 0.0], [-1e-119, -1e-120]])
+    o = ospa(X, Y, 1.0, np.inf)
+    for e in (-85, -300, 200):
+        assert ospa(np.ldexp(X, e), np.ldexp(Y, e), math.ldexp(1.0, e), np.inf) == math.ldexp(o, e)

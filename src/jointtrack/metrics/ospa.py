@@ -194,7 +194,8 @@ def _distances(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
 
     ``√Σ (x − y)²`` where that sum is finite and ≥ 2^-960 (no square overflowed,
     and any square that underflowed is negligible); elsewhere
-    ``M · ‖(x − y)/M‖`` with ``M`` the largest absolute coordinate difference.
+    ``M · ‖(x − y)/M‖`` with ``M`` the power of two just above the largest
+    absolute coordinate difference (exact scaling: the same rounding as in range).
     A difference beyond the float range gives ``inf`` (a distance beyond every
     finite cut-off).
     """
@@ -208,7 +209,11 @@ def _distances(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
         redo = ~(D2 >= 2.0**-960) | ~np.isfinite(D2)
         if redo.any():
             A = np.abs(diff[redo])
-            M = A.max(axis=1)
+            # a power of two: dividing by it is exact, so the result rounds exactly
+            # as √Σ(x − y)² would in range, and scaling the input by 2^k scales it exactly
+            M = np.ldexp(1.0, np.frexp(A.max(axis=1))[1])
+            M = np.where(np.isfinite(A.max(axis=1)), M, np.inf)
+            M[A.max(axis=1) == 0] = 0.0
             ok = (M > 0) & np.isfinite(M)
             R = A / np.where(ok, M, 1.0)[:, None]
             Dr = M * np.sqrt(np.einsum("ij,ij->i", R, R))
