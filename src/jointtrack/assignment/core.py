@@ -283,6 +283,8 @@ def _glynn_wins(W) -> bool:
     if n < GLYNN_MIN or n > GLYNN_MAX:
         return False
     G = W > 0.0
+    if G.all():  # dense: the frontier is n wide whichever way (and no plan is loaded)
+        return True
     K = min(frontier_plan(G)[1], frontier_plan(np.ascontiguousarray(G.T))[1])
     degree = G.sum() / n
     return n * 2.0 ** (n - 1) < n * degree * 2.0**K

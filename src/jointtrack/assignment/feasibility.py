@@ -10,8 +10,6 @@ on the support, with groups of identical rows/columns expanded.
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import csr_array
-from scipy.sparse.csgraph import maximum_bipartite_matching
 
 __all__ = ["is_feasible"]
 
@@ -21,6 +19,10 @@ def is_feasible(W, null=None, row_counts=None, col_counts=None) -> bool:
 
     ``null[r] > 0`` lets row r stay unassigned; group counts expand rows/columns.
     """
+    # scipy.sparse.csgraph costs ~0.3 s to import: only when a test is asked for
+    from scipy.sparse import csr_array
+    from scipy.sparse.csgraph import maximum_bipartite_matching
+
     support = np.asarray(W) > 0
     must = np.ones(support.shape[0], bool) if null is None else ~(np.asarray(null) > 0)
     if row_counts is not None or col_counts is not None:

@@ -24,7 +24,6 @@ Approximations
 (Schaub eq. 38).
 """
 
-from jointtrack.assignment.sinkhorn import sinkhorn
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent.exact import log_permanent, permanent
 from jointtrack.permanent.marginals import assignment_marginals
@@ -36,6 +35,7 @@ _LAZY = {
     "bethe_permanent": "bethe",
     "SampledPermanent": "sampling",
     "sample_permanent": "sampling",
+    "sinkhorn": "sinkhorn",
 }
 
 
@@ -43,7 +43,12 @@ def __getattr__(name):
     if name in _LAZY:
         import importlib
 
-        return getattr(importlib.import_module(f"jointtrack.permanent.{_LAZY[name]}"), name)
+        module = (
+            "jointtrack.assignment.sinkhorn"
+            if name == "sinkhorn"
+            else (f"jointtrack.permanent.{_LAZY[name]}")
+        )
+        return getattr(importlib.import_module(module), name)
     raise AttributeError(f"module 'jointtrack.permanent' has no attribute {name!r}")
 
 
