@@ -78,7 +78,12 @@ from jointtrack.assignment._fold import _finish, _prepare
 from jointtrack.assignment._frontier import frontier_dp, frontier_value
 from jointtrack.assignment._groups import group_dp, state_count
 from jointtrack.assignment._plan import frontier_plan
-from jointtrack.assignment.scaling import group_exponents, scaled_block, scatter_block
+from jointtrack.assignment.scaling import (
+    group_exponents,
+    scale_problem,
+    scaled_block,
+    scatter_block,
+)
 from jointtrack.errors import ExactLimitError, InfeasibleAssignmentError
 
 __all__ = ["METHODS", "AssignmentResult", "assignment_sum"]
@@ -249,14 +254,13 @@ def _glynn_value(W, kind, warn) -> AssignmentResult | None:
     """Glynn's or Ryser's formula on the scaled, balanced matrix; None if not accurate enough."""
     from jointtrack.assignment.sinkhorn import balance_exponents
 
-    er, ec, ok = group_exponents(W, np.zeros(W.shape[0]), _ONES(W.shape[0]), _ONES(W.shape[1]))
+    n = W.shape[0]
+    B, _, _, log_shift, ok = scale_problem(W, np.zeros(n))
     if not ok:
         return AssignmentResult(-math.inf, None, None, kind, True, {})
-    B = np.ldexp(W, er[:, None] + ec[None, :])
     fr, fc = balance_exponents(B)
     B = np.ldexp(B, fr[:, None] + fc[None, :])
-    shift = int(er.sum() + ec.sum() + fr.sum() + fc.sum())
-    n = W.shape[0]
+    log_shift += int(fr.sum() + fc.sum()) * _LN2
     kernel = _ie.glynn_kernel if kind == "glynn" else _ie.ryser_kernel
     value, _, l2 = kernel(B, 12)
     estimate = 4.0 * math.sqrt(n) * _U * l2 / value if value > 0.0 else math.inf
@@ -270,11 +274,7 @@ def _glynn_value(W, kind, warn) -> AssignmentResult | None:
                 stacklevel=4,
             )
         return None
-    return AssignmentResult(math.log(value) - shift * _LN2, None, None, kind, True, info)
-
-
-def _ONES(n):
-    return np.ones(n, np.int64)
+    return AssignmentResult(math.log(value) - log_shift, None, None, kind, True, info)
 
 
 def _glynn_wins(W) -> bool:
@@ -282,12 +282,9 @@ def _glynn_wins(W) -> bool:
     n = W.shape[0]
     if n < GLYNN_MIN or n > GLYNN_MAX:
         return False
-    G = W > 0.0
-    if G.all():  # dense: the frontier is n wide whichever way (and no plan is loaded)
+    if (W > 0.0).all():  # dense: the frontier is n wide whichever way (and no plan is loaded)
         return True
-    K = min(frontier_plan(G)[1], frontier_plan(np.ascontiguousarray(G.T))[1])
-    degree = G.sum() / n
-    return n * 2.0 ** (n - 1) < n * degree * 2.0**K
+    return n * 2.0 ** (n - 1) < _frontier_cost(W)
 
 
 # --------------------------------------------------------------------------- repeated rows/columns
@@ -533,6 +530,7 @@ def solve_checked(W, null, rows, cols, marginals, method, max_bits, max_memory, 
 
 
 def _frontier_cost(W) -> float:
+    """Operations of the frontier DP in its cheaper orientation: layers · 2^width · degree."""
     G = W > 0.0
     R, C = G.shape
     ka = frontier_plan(G)[1]

@@ -21,7 +21,14 @@ from __future__ import annotations
 
 import math
 
-from jointtrack.assignment.core import GLYNN_TOLERANCE, assignment_sum
+import numpy as np
+
+from jointtrack.assignment.core import (
+    DEFAULT_MAX_BITS,
+    DEFAULT_MAX_MEMORY,
+    GLYNN_TOLERANCE,
+    solve_checked,
+)
 from jointtrack.permanent._validate import check_problem
 
 __all__ = ["GLYNN_TOLERANCE", "METHODS", "log_permanent", "permanent"]
@@ -81,12 +88,25 @@ def log_permanent(A, method: str = "auto", *, row_counts=None, col_counts=None) 
     """
     _check_method(method)
     A, rows, cols = check_problem(A, row_counts, col_counts)
+    return _log_permanent(A, rows, cols, method)
+
+
+def _log_permanent(A, rows, cols, method: str) -> float:
+    """:func:`log_permanent` on input :func:`check_problem` has already validated."""
     if method == "reference":
         from jointtrack.permanent.reference import reference_log_permanent
 
         return reference_log_permanent(A, row_counts=rows, col_counts=cols)
-    result = assignment_sum(
-        A, None, row_counts=rows, col_counts=cols, marginals=False, method=_CORE_METHOD[method]
+    result = solve_checked(
+        A,
+        np.zeros(A.shape[0]),
+        rows,
+        cols,
+        False,
+        _CORE_METHOD[method],
+        DEFAULT_MAX_BITS,
+        DEFAULT_MAX_MEMORY,
+        False,
     )
     return result.log_normalizer
 
@@ -115,11 +135,11 @@ def permanent(A, method: str = "auto", *, row_counts=None, col_counts=None) -> f
 
         value = reference_permanent(A, row_counts=rows, col_counts=cols)
         if value == 0.0 or value == math.inf:
-            log_value = log_permanent(A, "reference", row_counts=rows, col_counts=cols)
+            log_value = _log_permanent(A, rows, cols, "reference")
             if log_value != -math.inf:
                 _exp_or_raise(log_value)  # raises: the exact value is outside float64
         return value
-    log_value = log_permanent(A, method, row_counts=row_counts, col_counts=col_counts)
+    log_value = _log_permanent(A, rows, cols, method)
     if abs(log_value - _LOG_FLOAT_MAX) <= 1e-12 * _LOG_FLOAT_MAX and int(rows.sum()) <= 10:
         # within rounding of the float64 limit: let the exact rational value decide
         return permanent(A, "reference", row_counts=rows, col_counts=cols)

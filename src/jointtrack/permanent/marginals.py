@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointtrack.assignment.core import assignment_sum
+from jointtrack.assignment.core import DEFAULT_MAX_BITS, DEFAULT_MAX_MEMORY, solve_checked
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent._validate import check_problem
 
@@ -54,7 +54,17 @@ def assignment_marginals(A, row_counts=None, col_counts=None) -> np.ndarray:
     """
     A, rows, cols = check_problem(A, row_counts, col_counts)
     try:
-        result = assignment_sum(A, None, row_counts=rows, col_counts=cols, marginals=True)
+        result = solve_checked(
+            A,
+            np.zeros(A.shape[0]),
+            rows,
+            cols,
+            True,
+            "auto",
+            DEFAULT_MAX_BITS,
+            DEFAULT_MAX_MEMORY,
+            False,
+        )
     except InfeasibleAssignmentError:
         raise InfeasibleAssignmentError(
             "no feasible assignment exists: every way of giving each row its own column "

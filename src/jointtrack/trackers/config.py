@@ -166,9 +166,13 @@ class TrackerConfig:
     def to_dict(self) -> dict:
         return asdict(self)
 
-    def detection_in_gate(self) -> float:
-        """The P_D·P_G or P_D that the miss weight subtracts (see ``miss_model``)."""
-        return self.p_d * self.p_g if self.miss_model == "1-pd*pg" else self.p_d
+    def detection_in_gate(self, p_d: float | None = None) -> float:
+        """The P_D·P_G or P_D that the miss weight subtracts (see ``miss_model``).
+
+        ``p_d``: a sensor's own detection probability (default: this config's).
+        """
+        p_d = self.p_d if p_d is None else p_d
+        return p_d * self.p_g if self.miss_model == "1-pd*pg" else p_d
 
 
 # ----------------------------------------------------------------------------- field checks

@@ -52,7 +52,7 @@ from jointtrack.trackers.history import (
     scan_time_ns,
 )
 from jointtrack.trackers.initiation import pair_returns
-from jointtrack.trackers.sensors import Sensor, check_model
+from jointtrack.trackers.sensors import Sensor
 from jointtrack.trackers.state_io import (
     StateFileError,
     read_state,
@@ -244,14 +244,9 @@ class JPDATracker:
             ) from None
         c = self.config
         self._sensor = spec.model
-        self._linear, self._mdim = check_model(spec.model)
+        self._linear, self._mdim = spec.linear, spec.measurement_dim
         self._p_d = c.p_d if spec.p_d is None else float(spec.p_d)
         self._clutter = c.clutter_density if spec.clutter_density is None else spec.clutter_density
-
-    def _detection_in_gate(self) -> float:
-        """P_D·P_G or P_D (``miss_model``) of the active sensor."""
-        c = self.config
-        return self._p_d * c.p_g if c.miss_model == "1-pd*pg" else self._p_d
 
     # ------------------------------------------------------------------ scan
     def step(self, t: float, z, sensor=None) -> ScanResult:
@@ -430,7 +425,7 @@ class JPDATracker:
             lam[gated] = dens[groups.measurement_cluster[gated]]
         r = self.existence[tracks] if c.existence else np.ones(n)
         L_pairs, _ = likelihood_ratio_pairs(g, self._p_d * r, lam)
-        pdg = self._detection_in_gate()
+        pdg = c.detection_in_gate(self._p_d)
         miss = 1.0 - r * pdg
         rows, cols = g.rows, g.cols
         # single-track clusters (most of a scan): PDA, vectorised over all of them

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -42,9 +42,14 @@ class Sensor:
     model: object
     p_d: float | None = None
     clutter_density: float | None = None
+    # from the model, checked once: linear (an H matrix) and the measurement length
+    linear: bool = field(init=False, repr=False, compare=False)
+    measurement_dim: int = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        check_model(self.model)
+        linear, mdim = check_model(self.model)
+        object.__setattr__(self, "linear", linear)
+        object.__setattr__(self, "measurement_dim", mdim)
         if self.p_d is not None and not (0.0 < float(self.p_d) <= 1.0):
             raise ValueError(f"Sensor p_d must lie in (0, 1], got {self.p_d}")
         if self.clutter_density is not None:
@@ -56,7 +61,7 @@ class Sensor:
     def kind(self) -> str:
         """``"position"`` for a linear model (an ``H`` matrix), else ``"range-bearing"``
         (the nonlinear models the run reads: :class:`~jointtrack.models.RangeBearing`)."""
-        return "position" if check_model(self.model)[0] else "range-bearing"
+        return "position" if self.linear else "range-bearing"
 
     def at(self, position) -> Sensor:
         """This sensor with its model moved to ``position`` (same noise, P_D, clutter).
