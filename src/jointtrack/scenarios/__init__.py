@@ -2,6 +2,7 @@
 
 * :func:`bojilov` — Bojilov et al.'s five targets on parallel, closely spaced
   trajectories drifting into 4–5-target clusters, Poisson clutter β per gate.
+* :func:`abreast` — targets abreast on parallel lanes at one speed (issue 11).
 * :func:`crossing` — two targets crossing in an X.
 * :func:`many_targets` — ≥ 100 NCV targets with births and deaths in clutter.
 * :class:`Scenario` — the result; :func:`simulate_scenario` builds one from
@@ -9,7 +10,7 @@
   clutter unit.
 """
 
-from jointtrack.scenarios.generators import bojilov, crossing, many_targets, nominal_gate
+from jointtrack.scenarios.generators import abreast, bojilov, crossing, many_targets, nominal_gate
 from jointtrack.scenarios.simulate import (
     Scenario,
     ncv_matrices,
@@ -19,6 +20,7 @@ from jointtrack.scenarios.simulate import (
 
 __all__ = [
     "Scenario",
+    "abreast",
     "bojilov",
     "crossing",
     "many_targets",
