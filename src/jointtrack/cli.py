@@ -153,6 +153,17 @@ def run_command(
         bool | None,
         typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
     ] = None,
+    start_from: Annotated[
+        str | None,
+        typer.Option(
+            "--start-from",
+            metavar="[truth|nothing]",
+            help="truth: start confirmed tracks at the true states of the first scan (the "
+            "default for bojilov, the paper's experiment); nothing: the tracker initiates "
+            "every track from the detections (the default for the other scenarios and "
+            "--detections). Overrides start_from in [scenario].",
+        ),
+    ] = None,
 ) -> None:
     """Track: detections in, tracks out (default: Bojilov's five targets, beta = 1, seed 0).
 
@@ -167,10 +178,22 @@ def run_command(
     try:
         from jointtrack.experiments import run as runmod
 
+        if start_from is not None and start_from not in runmod.STARTS:
+            raise runmod.RunConfigError(
+                f"--start-from must be truth or nothing, got {start_from!r}"
+            )
         if resume is not None:
             detections, config, scenario, seed, out, fmt, checkpoint_every, restored = (
                 _from_checkpoint(
-                    resume, detections, config, scenario, seed, out, fmt, checkpoint_every
+                    resume,
+                    detections,
+                    config,
+                    scenario,
+                    seed,
+                    out,
+                    fmt,
+                    checkpoint_every,
+                    start_from,
                 )
             )
             truth = _truth_from_checkpoint(resume, truth)
@@ -208,6 +231,13 @@ def run_command(
                 raise runmod.RunConfigError(
                     "--detections cannot be combined with --scenario or --seed"
                 )
+            if start_from == "truth":
+                # a truth file holds positions only: no velocities to start a track at
+                raise runmod.RunConfigError(
+                    "--start-from truth needs a built-in scenario's true states; "
+                    f"--detections {detections} has none (a --truth file holds positions "
+                    "only): use --start-from nothing, which is what a detections run does"
+                )
             from jointtrack.io import read_detections
 
             dets = read_detections(detections)
@@ -237,7 +267,12 @@ def run_command(
             sc_table.pop("name", None)
             sd = seed if seed is not None else sc_table.pop("seed", 0)
             sc_table.pop("seed", None)
-            from_truth = sc_table.pop("start_from_truth", None)
+            where = f"{cfg.source}: [scenario]" if cfg.source else "[scenario]"
+            table_start = runmod.start_setting(
+                sc_table.pop("start_from", None), sc_table.pop("start_from_truth", None), where
+            )
+            # like --scenario and --seed, the flag wins over the config's table
+            start = start_from if start_from is not None else table_start
             sc = runmod.make_scenario(name, sd, sc_table, source=cfg.source)
             tracker_cfg = runmod.make_tracker_config(
                 runmod.scenario_tracker_settings(sc), cfg.tracker, source=cfg.source
@@ -249,7 +284,7 @@ def run_command(
                 )
             runmod.check_sensor(tracker_cfg, "position", f"scenario {name}", cfg.source)
             metrics = runmod.run_scenario(
-                sc, tracker_cfg, scenario_kwargs=sc_table, start_from_truth=from_truth, **common
+                sc, tracker_cfg, scenario_kwargs=sc_table, start_from=start, **common
             )
     except KeyboardInterrupt:
         _fail(
@@ -263,7 +298,9 @@ def run_command(
     console.print(f"outputs in {out}/", markup=False, highlight=False)
 
 
-def _from_checkpoint(resume, detections, config, scenario, seed, out, fmt, checkpoint_every):
+def _from_checkpoint(
+    resume, detections, config, scenario, seed, out, fmt, checkpoint_every, start_from=None
+):
     """Fill the run's inputs from a checkpoint; a flag that disagrees is an error naming it."""
     from jointtrack.experiments import run as runmod
     from jointtrack.trackers.state_io import read_run
@@ -303,6 +340,20 @@ def _from_checkpoint(resume, detections, config, scenario, seed, out, fmt, check
         if seed is not None and seed != inputs.get("seed"):
             raise conflict("--seed", seed)
         scenario, seed = inputs.get("scenario"), inputs.get("seed")
+    # a detections run always starts from nothing; a scenario run records its start
+    if "detections" in inputs:
+        saved_start = "nothing"
+    elif "start_from_truth" in inputs:
+        saved_start = "truth" if inputs["start_from_truth"] else "nothing"
+    else:
+        saved_start = runmod.default_start(str(inputs.get("scenario")))
+    saved_words = "the truth" if saved_start == "truth" else "nothing"
+    if start_from is not None and start_from != saved_start:
+        raise runmod.RunConfigError(
+            f"--start-from {start_from} conflicts with the checkpoint {resume}, whose "
+            f"tracks started from {saved_words} ({what} into {info['out_dir']}); omit "
+            "--start-from"
+        )
     # the tracker settings are in the checkpoint; the scenario and metrics tables here
     table = {} if "detections" in inputs else dict(inputs.get("kwargs") or {})
     if "start_from_truth" in inputs:
@@ -319,12 +370,27 @@ def _from_checkpoint(resume, detections, config, scenario, seed, out, fmt, check
     )
     if config is not None:
         given = runmod.load_config(config)
+        own = ("name", "seed", "start_from", "start_from_truth")  # compared on their own
         if given.metrics != restored.metrics or (
             "detections" not in inputs
-            and {k: v for k, v in given.scenario.items() if k not in ("name", "seed")}
-            != {k: v for k, v in restored.scenario.items() if k != "start_from_truth"}
+            and {k: v for k, v in given.scenario.items() if k not in own}
+            != {k: v for k, v in restored.scenario.items() if k not in own}
         ):
             raise conflict("--config", config)
+        given_start = runmod.start_setting(
+            given.scenario.get("start_from"), given.scenario.get("start_from_truth")
+        )
+        # --start-from (already checked) overrides the config's start, as in a fresh run
+        if (
+            "detections" not in inputs
+            and start_from is None
+            and given_start not in (None, saved_start)
+        ):
+            raise runmod.RunConfigError(
+                f'--config {config} sets [scenario] start_from = "{given_start}" but the '
+                f"checkpoint {resume} continues a run whose tracks started from "
+                f"{saved_words}; omit --config"
+            )
     return (
         detections,
         None,

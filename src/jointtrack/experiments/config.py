@@ -5,8 +5,10 @@
 scenario and :func:`make_tracker_config` the tracker configuration;
 :func:`scenario_tracker_settings` derives tracker settings from a scenario and
 :func:`start_truth_tracks` starts tracks at the true states with the
-steady-state covariance (:func:`steady_state_covariance`). Bad settings raise
-:class:`RunConfigError` with a one-line message.
+steady-state covariance (:func:`steady_state_covariance`); :func:`start_setting`
+and :func:`default_start` say how a run's tracks start (``"truth"`` or
+``"nothing"``). Bad settings raise :class:`RunConfigError` with a one-line
+message.
 """
 
 from __future__ import annotations
@@ -26,20 +28,26 @@ from jointtrack.trackers.config import check_field
 
 __all__ = [
     "SCENARIOS",
+    "STARTS",
     "TRUTH_START_NOTE",
     "RunConfig",
     "RunConfigError",
     "check_sensor",
+    "default_start",
     "load_config",
     "make_scenario",
     "make_tracker_config",
     "scenario_tracker_settings",
+    "start_setting",
     "start_truth_tracks",
     "steady_state_covariance",
 ]
 
 SCENARIOS = ("bojilov", "crossing", "many")
 _GENERATOR_NAMES = {"bojilov": "bojilov", "crossing": "crossing", "many": "many_targets"}
+# How a run's tracks start: confirmed at the true states of the first scan, or
+# initiated from the detections by the tracker's own logic.
+STARTS = ("truth", "nothing")
 TRUTH_START_NOTE = (
     "tracks started from the truth at the first scan: Bojilov's experiment studies "
     "track maintenance and association, not initiation"
@@ -131,8 +139,9 @@ def load_config(path) -> RunConfig:
         )
     if "seed" in scenario and not _is_int(scenario["seed"]):
         raise RunConfigError(f"{path}: [scenario] key 'seed' must be an integer")
-    if "start_from_truth" in scenario and not isinstance(scenario["start_from_truth"], bool):
-        raise RunConfigError(f"{path}: [scenario] key 'start_from_truth' must be true or false")
+    start_setting(
+        scenario.get("start_from"), scenario.get("start_from_truth"), f"{path}: [scenario]"
+    )
     sensors = _sensor_tables(data.get("sensors", {}), str(path))
     return RunConfig(
         tracker=tracker, scenario=scenario, metrics=metrics, source=str(path), sensors=sensors
@@ -302,12 +311,59 @@ def make_scenario(
         if key not in params:
             raise RunConfigError(
                 f"{where} unknown key '{key}' for scenario {name} (known: name, seed, "
-                f"start_from_truth, {', '.join(params)})"
+                f"start_from, {', '.join(params)})"
             )
     try:
         return fn(seed=seed, **kwargs)
     except (ValueError, TypeError) as exc:
         raise RunConfigError(f"{where} scenario {name}: {_one_line(exc)}") from None
+
+
+def default_start(scenario_name: str) -> str:
+    """How a built-in scenario's tracks start unless told otherwise.
+
+    ``"truth"`` for ``bojilov``: Bojilov et al.'s experiment starts the five
+    tracks at the true states (it studies maintenance and association, not
+    initiation), and the default run is that experiment. ``"nothing"`` for the
+    others, which have births and so need initiation anyway.
+    """
+    return "truth" if scenario_name == "bojilov" else "nothing"
+
+
+def start_setting(
+    start_from=None, start_from_truth=None, where: str = "[scenario]", *, noun: str = "key"
+) -> str | None:
+    """The start (``"truth"`` or ``"nothing"``) set by ``start_from`` or its alias.
+
+    ``start_from = "truth" | "nothing"`` is the setting; ``start_from_truth =
+    true | false`` is its older spelling, still read so that existing config
+    files and checkpoints keep working. Either may be given, or both when they
+    agree; ``None`` when neither is (the scenario's :func:`default_start`
+    applies). A bad value or a disagreement raises :class:`RunConfigError`
+    naming ``where`` (e.g. ``"run.toml: [scenario]"``) and the setting, called
+    a ``noun`` (``"key"`` in a TOML table, ``"argument"`` of a function).
+    """
+    start = None
+    if start_from is not None:
+        if start_from not in STARTS:
+            raise RunConfigError(
+                f'{where} {noun} \'start_from\' must be "truth" or "nothing", got {start_from!r}'
+            )
+        start = start_from
+    if start_from_truth is not None:
+        if not isinstance(start_from_truth, bool):
+            raise RunConfigError(
+                f"{where} {noun} 'start_from_truth' must be true or false, got {start_from_truth!r}"
+            )
+        alias = "truth" if start_from_truth else "nothing"
+        if start is not None and start != alias:
+            raise RunConfigError(
+                f"{where} 'start_from' = \"{start}\" and 'start_from_truth' = "
+                f"{str(start_from_truth).lower()} disagree; keep 'start_from' "
+                "('start_from_truth' is its older spelling)"
+            )
+        start = alias
+    return start
 
 
 def scenario_tracker_settings(scenario) -> dict:

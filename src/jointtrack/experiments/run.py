@@ -34,7 +34,13 @@ Tracker settings for a built-in scenario are derived from the scenario
 the true states at the first scan with the steady-state covariance of the NCV
 Kalman filter (:func:`steady_state_covariance`), as in Bojilov et al.'s
 experiment, which studies track maintenance and association, not initiation;
-the other scenarios start with no tracks.
+the other scenarios start with no tracks. ``start_from = "nothing"`` (``jointtrack
+run --start-from nothing``) starts Bojilov's scenario with no tracks too, so
+the tracker's own initiation (two-point or one-point, then JIPDA existence or
+M-of-N confirmation) must find the targets; ``"truth"`` starts any scenario from
+its truth. A detections file has no true states, so it always starts from
+nothing. ``metrics.json`` says which start was used: ``start`` (``"truth"`` or
+``"nothing"``; ``start_from_truth`` is the same as a boolean).
 
 Config file (``--config FILE``, TOML)
 -------------------------------------
@@ -56,7 +62,9 @@ Config file (``--config FILE``, TOML)
     [scenario]             # built-in scenario (ignored with --detections)
     name = "crossing"      # bojilov | crossing | many
     seed = 3
-    start_from_truth = false
+    start_from = "nothing" # or "truth" (default: truth for bojilov, nothing for the
+                           # others); start_from_truth = true|false is the older
+                           # spelling, still read (both: they must agree)
     n_scans = 20           # any keyword of the scenario function, e.g.
     clutter_per_scan = 5   # bojilov: clutter_density (β), n_scans, speeds, …
 
@@ -69,8 +77,8 @@ Unknown tables or keys, wrong types and bad values raise :class:`RunConfigError`
 with a one-line message naming the file and the key; so does a sensor that does
 not match the detections (range–bearing detections without ``sensor =
 "range-bearing"``, or positions with it). ``tracks.csv`` holds Cartesian states
-for either sensor. ``--scenario`` and ``--seed`` on the command line override
-``name`` and ``seed``.
+for either sensor. ``--scenario``, ``--seed`` and ``--start-from`` on the command
+line override ``name``, ``seed`` and ``start_from``.
 
 Checkpoints: with ``checkpoint=FILE`` the rows since the last checkpoint are
 committed as a part and then the tracker state is saved, every
@@ -106,6 +114,7 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     _METRIC_KEYS,
     _TABLES,
     SCENARIOS,
+    STARTS,
     TRUTH_START_NOTE,
     RunConfig,
     RunConfigError,
@@ -114,11 +123,13 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     _is_int,
     _one_line,
     check_sensor,
+    default_start,
     load_config,
     make_scenario,
     make_sensors,
     make_tracker_config,
     scenario_tracker_settings,
+    start_setting,
     start_truth_tracks,
     steady_state_covariance,
 )
@@ -129,6 +140,7 @@ from jointtrack.experiments.summary import (  # noqa: F401 - re-exported
     _run_metrics,
     _version,
     print_summary,
+    start_description,
     summary_tables,
 )
 from jointtrack.experiments.writers import (  # noqa: F401 - re-exported
@@ -565,6 +577,7 @@ def run_scenario(
     *,
     seed: int = 0,
     scenario_kwargs: Mapping | None = None,
+    start_from: str | None = None,
     start_from_truth: bool | None = None,
     checkpoint=None,
     checkpoint_every: int = 10,
@@ -586,8 +599,12 @@ def run_scenario(
     out_dir : output directory (created).
     fmt : ``"csv"`` or ``"parquet"`` (tracks file).
     progress : show a rich progress bar over scans.
-    start_from_truth : start the tracks from the true states at the first scan
-        (default: True for ``bojilov``, False otherwise).
+    start_from : ``"truth"`` (start confirmed tracks at the true states of the
+        first scan) or ``"nothing"`` (the tracker initiates every track from the
+        detections); default :func:`default_start` — truth for ``bojilov``
+        (Bojilov et al.'s experiment), nothing otherwise.
+    start_from_truth : the older spelling of ``start_from`` (True = ``"truth"``);
+        when both are given they must agree.
     checkpoint, checkpoint_every, resume : see the module docstring.
     max_scans : process only the first ``max_scans`` scans (counted from the
         first scan of the scenario, also when resuming).
@@ -603,8 +620,10 @@ def run_scenario(
         identity = {"scenario": name, "seed": seed, "kwargs": kwargs}
     else:
         identity = {"scenario": scenario.name, "seed": scenario.seed, "kwargs": kwargs}
-    if start_from_truth is None:
-        start_from_truth = scenario.name == "bojilov"
+    start = start_setting(start_from, start_from_truth, "run_scenario:", noun="argument")
+    if start is None:
+        start = default_start(scenario.name)
+    start_from_truth = start == "truth"
     if isinstance(config, TrackerConfig):
         cfg = config
     else:
@@ -614,7 +633,8 @@ def run_scenario(
             f"[tracker] dim = {cfg.dim} but scenario {scenario.name} is {scenario.dim}-D"
         )
     check_sensor(cfg, "position", f"scenario {scenario.name}")
-    identity["start_from_truth"] = bool(start_from_truth)
+    # the identity keeps the boolean spelling so that older checkpoints still resume
+    identity["start_from_truth"] = start_from_truth
     sigma = float(math.sqrt(np.mean(np.diag(scenario.R))))
     src = _Source(
         identity=identity,

@@ -45,9 +45,13 @@ class TrackerConfig:
     exact_max_tracks : clusters with more tracks than this use ``approximation``
         (logged as a warning with the cluster size).
     approximation : ``"lbp"``, ``"mcmc"``, ``"kbest"`` or ``"pda"``.
-    initiation : ``"two-point"`` (velocity from two unassociated returns of
-        consecutive scans no further apart than ``max_speed·dt``) or
-        ``"one-point"`` (zero velocity, σ_v = max_speed/2).
+    initiation : ``"one-point"`` (default: a track on one return, zero mean
+        velocity with per-axis σ_v = max_speed/2; with ``existence`` every
+        return starts one, with existence r_init·(1 − P(return from a track)),
+        see :mod:`jointtrack.trackers.existence`) or ``"two-point"`` (velocity
+        from two unassociated returns of consecutive scans no further apart
+        than ``max_speed·dt``; its velocity spread √2·σ/dt is wide when the
+        measurement noise σ exceeds speed·dt).
     max_speed : largest target speed, m/s.
     max_acceleration : largest target acceleration, m/s² (initial acceleration
         uncertainty σ_a = max_acceleration/2 of constant-acceleration tracks).
@@ -63,6 +67,12 @@ class TrackerConfig:
     p_survive : probability that a target survives one scan (JIPDA).
     r_init, r_confirm, r_delete : initial, confirmation and deletion thresholds
         of the existence probability (JIPDA); 0 < r_delete < r_init ≤ r_confirm ≤ 1.
+        logit(r_confirm) − logit(r_init) is the sequential test's threshold:
+        larger confirms later and falsely less often.
+    r_report : a confirmed JIPDA track is reported (in ``ScanResult`` and the
+        history) while its existence is ≥ r_report; r_delete < r_report ≤ 1.
+    merge_threshold : two tracks whose state distance (x₁ − x₂)ᵀ(P₁ + P₂)⁻¹(x₁ − x₂)
+        is below this are duplicates of one target and merged (0: never).
     seed : seed of the random generator used by randomised approximations
         (an integer ≥ 0, or None).
 
@@ -92,7 +102,7 @@ class TrackerConfig:
     association: str = "exact"
     exact_max_tracks: int = 16
     approximation: str = "lbp"
-    initiation: str = "two-point"
+    initiation: str = "one-point"
     max_speed: float = 50.0
     max_acceleration: float = 10.0
     confirm_m: int = 2
@@ -101,9 +111,11 @@ class TrackerConfig:
     max_position_std: float = math.inf
     existence: bool = True
     p_survive: float = 0.99
-    r_init: float = 0.05
+    r_init: float = 0.02
     r_confirm: float = 0.9
-    r_delete: float = 0.01
+    r_delete: float = 0.005
+    r_report: float = 0.3
+    merge_threshold: float = 1.0
     seed: int | None = 0
     miss_model: str = "1-pd*pg"
 
@@ -135,6 +147,11 @@ class TrackerConfig:
             self.p_g < 1.0 or self.clutter_density is not None,
             "p_g = 1 (an infinite gate) needs a known clutter_density: Bojilov's "
             "heuristic (8) divides by the gate volumes, which are then infinite",
+        )
+        need(
+            self.r_delete < self.r_report,
+            f"r_report must be > r_delete, got r_report = {self.r_report} ≤ "
+            f"r_delete = {self.r_delete}",
         )
         need(
             self.r_init <= self.r_confirm,
@@ -202,6 +219,14 @@ def _positive(name, v):
     want = "a positive finite number"
     v = _real(name, v, want)
     if not (math.isfinite(v) and v > 0):
+        raise _fail(name, want, v)
+    return v
+
+
+def _non_negative(name, v):
+    want = "a finite number ≥ 0"
+    v = _real(name, v, want)
+    if not (math.isfinite(v) and v >= 0):
         raise _fail(name, want, v)
     return v
 
@@ -378,6 +403,8 @@ _CHECKS = {
     "r_init": _open_probability,
     "r_confirm": _probability,
     "r_delete": _open_probability,
+    "r_report": _probability,
+    "merge_threshold": _non_negative,
     "seed": _seed,
     "miss_model": _choice(MISS_MODELS),
 }

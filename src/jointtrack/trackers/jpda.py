@@ -44,6 +44,7 @@ from jointtrack.models import (
     RangeBearing,
 )
 from jointtrack.trackers.config import TrackerConfig
+from jointtrack.trackers.existence import existence_update, merge_duplicates
 from jointtrack.trackers.history import (
     TrackHistory,
     is_datetime,
@@ -348,22 +349,40 @@ class JPDATracker:
         hit = np.zeros(N, bool)
         free = np.arange(M)
         sizes, seconds, methods, fallbacks, kinds = [], [], [], [], []
+        # Confirmed tracks first, then tentative ones. With JIPDA the tentative
+        # tracks see every return, each weighted by the probability that no
+        # confirmed track took it (jointtrack.trackers.existence, point 1); with
+        # M-of-N logic (no existence to weigh a clutter-born track's claim) they
+        # see only the returns no confirmed track gated, so they cannot glue true
+        # targets' clusters together (cf. a separate initiator, Blackman & Popoli §6).
+        available = np.ones(M)  # JIPDA: P(return not taken by an earlier pass)
+        gated = np.zeros(M, bool)
         for group, loud in (
             (np.flatnonzero(self.confirmed), True),
             (np.flatnonzero(~self.confirmed), False),
         ):
             if len(group) == 0:
                 continue
-            b0, (pr, pc, pw), h, free_local, info = self._associate(group, z[free], loud)
+            if c.existence:
+                b0, (pr, pc, pw), h, free_local, info, used = self._associate(
+                    group, z, loud, available=available
+                )
+                available = np.clip(available - np.bincount(pc, used, minlength=M), 0.0, 1.0)
+                gated[~np.isin(np.arange(M), free_local)] = True
+            else:
+                b0, (pr, pc, pw), h, free_local, info, _ = self._associate(group, z[free], loud)
+                pc = free[pc]
+                free = free[free_local]
             beta0[group] = b0
             pair_rows.append(group[pr])
-            pair_cols.append(free[pc])
+            pair_cols.append(pc)
             pair_w.append(pw)
             hit[group] = h
             for part, extra in zip((sizes, seconds, methods, fallbacks), info, strict=True):
                 part.extend(extra)
             kinds.extend([loud] * len(info[0]))
-            free = free[free_local]
+        if c.existence:
+            free = np.flatnonzero(~gated)
         unassoc = free
         if N:
             rows = np.concatenate(pair_rows) if pair_rows else np.zeros(0, np.int64)
@@ -375,10 +394,21 @@ class JPDATracker:
                 model = {"model": self._sensor}
             self.x, self.P = pda_pairs_update(self.x, self.P, z, beta0, rows, cols, w, **model)
             self._track_logic(hit)
-        self._initiate(z[unassoc], t)
+            keep, self.existence = merge_duplicates(
+                self.x, self.P, self.ids, self.existence, self.confirmed, c.dim, c.merge_threshold
+            )
+            self._keep(keep)
+        if c.existence and c.initiation == "one-point":
+            # adaptive birth: every return, weighted by how unexplained it is
+            # (jointtrack.trackers.existence, point 2)
+            birth_r = c.r_init * available
+            born = birth_r > c.r_delete
+            self._initiate(z[born], t, birth_r[born])
+        else:
+            self._initiate(z[unassoc], t)
         self.time = t
         self.n_scans += 1
-        keep = self.confirmed
+        keep = self.confirmed & (self.existence >= c.r_report) if c.existence else self.confirmed
         return ScanResult(
             time=t,
             ids=self.ids[keep].copy(),
@@ -395,7 +425,7 @@ class JPDATracker:
             cluster_fallbacks=fallbacks,
         )
 
-    def _associate(self, tracks, z, loud):
+    def _associate(self, tracks, z, loud, available=None):
         """Association probabilities of the given tracks against ``z``, cluster by cluster.
 
         Gating on a KD-tree (:func:`~jointtrack.association.gate_pairs`), clusters
@@ -403,7 +433,12 @@ class JPDATracker:
         likelihood ratios of the gated pairs, then per cluster: single tracks by
         PDA (exact for one track, all at once), the others by the configured
         method. Returns ``(beta0, (rows, cols, weights), hit, unassociated,
-        (sizes, seconds, methods))`` with rows/cols local to ``tracks``/``z``.
+        (sizes, seconds, methods, fallbacks), used)`` with rows/cols local to
+        ``tracks``/``z``; with JIPDA it updates the tracks' existence, the β are
+        conditioned on existence and ``used`` holds the unconditional pair
+        probabilities (what the returns' availability and birth existence need),
+        else None. ``available`` (M,): the probability that each return was not
+        taken by an earlier pass; it scales the likelihood ratios.
         """
         c = self.config
         n, M = len(tracks), len(z)
@@ -425,6 +460,8 @@ class JPDATracker:
             lam[gated] = dens[groups.measurement_cluster[gated]]
         r = self.existence[tracks] if c.existence else np.ones(n)
         L_pairs, _ = likelihood_ratio_pairs(g, self._p_d * r, lam)
+        if available is not None:  # a return taken by an earlier pass is less likely ours
+            L_pairs = L_pairs * available[g.cols]
         pdg = c.detection_in_gate(self._p_d)
         miss = 1.0 - r * pdg
         rows, cols = g.rows, g.cols
@@ -466,14 +503,17 @@ class JPDATracker:
                     self.on_cluster(
                         ClusterRecord(self.ids[tracks[tr]], Lc, miss[tr], bc, dt_s, method, loud)
                     )
+        used = None
         if c.existence:
-            beta0, weights = self._existence_update(tracks, beta0, rows, weights, r, pdg)
+            used = weights.copy()  # unconditional: how much each pair explains its return
+            self.existence[tracks], beta0, weights = existence_update(r, beta0, weights, rows, pdg)
         return (
             beta0,
             (rows, cols, weights),
             g.n_gated > 0,
             groups.unassociated,
             (sizes, seconds, methods, fallbacks),
+            used,
         )
 
     def _cluster_marginals(self, Lc, mc, loud):
@@ -515,15 +555,6 @@ class JPDATracker:
     def _method_options(self, method):
         return {"rng": self.rng} if method == "mcmc" else {}
 
-    def _existence_update(self, tracks, beta0, rows, weights, r, pdg):
-        """JIPDA: posterior existence and β conditioned on existence (Mušicki & Evans 2004)."""
-        exists_missed = beta0 * r * (1.0 - pdg) / (1.0 - r * pdg)
-        detected = 1.0 - beta0
-        r_post = np.clip(exists_missed + detected, 1e-12, 1.0)
-        self.existence[tracks] = r_post
-        total = exists_missed + detected
-        return exists_missed / total, weights / total[rows]
-
     def _track_logic(self, hit):
         c = self.config
         self.age += 1
@@ -547,8 +578,10 @@ class JPDATracker:
         for name in ("x", "P", "ids", "confirmed", "hit_history", "age", "misses", "existence"):
             setattr(self, name, getattr(self, name)[keep])
 
-    def _initiate(self, z_new, t):
-        """Start tentative tracks from returns no track claimed (two- or one-point).
+    def _initiate(self, z_new, t, r0=None):
+        """Start tentative tracks on the returns ``z_new`` (two- or one-point).
+
+        ``r0``: the existence of each new track (default ``r_init``).
 
         Two-point pairs each return with a seed of the latest earlier scan time
         (with several sensors, seeds of the same time are never paired); the
@@ -608,7 +641,7 @@ class JPDATracker:
         if n > 2 * d:  # constant acceleration: acceleration unknown
             a = np.arange(2 * d, 3 * d)
             P0[:, a, a] = (c.max_acceleration / 2.0) ** 2
-        self._append(x0, P0, confirmed=False, existence=c.r_init)
+        self._append(x0, P0, confirmed=False, existence=c.r_init if r0 is None else r0)
 
     def _set_seeds(self, seeds, covs, times) -> None:
         self.seeds, self.seed_covs, self.seed_times = seeds, covs, np.asarray(times, float)
@@ -624,7 +657,9 @@ class JPDATracker:
         self.hit_history = np.concatenate([self.hit_history, np.ones(k, np.int64)])
         self.age = np.concatenate([self.age, np.zeros(k, np.int64)])
         self.misses = np.concatenate([self.misses, np.zeros(k, np.int64)])
-        self.existence = np.concatenate([self.existence, np.full(k, float(existence))])
+        self.existence = np.concatenate(
+            [self.existence, np.broadcast_to(np.asarray(existence, float), (k,))]
+        )
         return ids
 
     def start_tracks(self, x0, P0, *, confirmed: bool = True, existence: float = 0.99):
