@@ -32,7 +32,7 @@ resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
 import numpy as np
 from jointtrack.trackers import JPDATracker, TrackerConfig
 rng = np.random.default_rng(0)
-trk = JPDATracker(TrackerConfig(clutter_density=1e-6))
+trk = JPDATracker(TrackerConfig(clutter_density=1e-6, initiation="two-point"))
 tracks = []
 for k in range(3):  # consecutive scans: two-point initiation pairs some returns
     trk.step(float(k), rng.uniform(0.0, 1e5, (20_000, 2)))
@@ -63,6 +63,7 @@ def _constant_density_counts(n, n_scans=12, skip=5):
         p_d=sc.p_d,
         clutter_density=sc.clutter_density,
         max_speed=1.5 * max(speeds),
+        initiation="two-point",  # the candidate pairing measured below
     )
     gate_log, init_log = [], []
     scan = [0]

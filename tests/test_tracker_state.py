@@ -65,6 +65,8 @@ STAGES = [
     "pda_pair_marginals",
     "marginals",
     "pda_pairs_update",
+    "existence_update",
+    "merge_duplicates",
     "pair_returns",
 ]
 
@@ -74,12 +76,14 @@ class Injected(RuntimeError):
 
 
 @pytest.mark.parametrize(
-    "stage", STAGES + ["_track_logic", "_initiate", "_existence_update", "_cluster_marginals"]
+    "stage", STAGES + ["_track_logic", "_initiate", "_cluster_marginals"]
 )
 def test_failing_stage_leaves_state_unchanged_and_retry_matches(stage, monkeypatch):
     k = 25  # a scan whose confirmed tracks form a two-track cluster (every stage runs)
-    trk, sc = _warm_tracker(k)
-    reference, _ = _warm_tracker(k)
+    # pair_returns is two-point initiation's stage; the default is one-point
+    kw = {"initiation": "two-point"} if stage == "pair_returns" else {}
+    trk, sc = _warm_tracker(k, **kw)
+    reference, _ = _warm_tracker(k, **kw)
     snapshot = trk.state_dict()
 
     def boom(*args, **kwargs):
