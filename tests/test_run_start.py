@@ -73,7 +73,7 @@ def test_start_from_nothing_initiates_the_tracks(tmp_path):
     assert m["start"] == "nothing" and m["start_from_truth"] is False
     assert m["source"]["start_from_truth"] is False
     assert not any("not initiation" in n for n in m["notes"])
-    assert "tracks started from nothing (two-point initiation" in r.output
+    assert "tracks started from nothing (one-point initiation" in " ".join(r.output.split())
     assert "the paper's experiment starts from the truth" in start_description(m)
     # a track initiated from the detections cannot be confirmed at the first scan
     tr = read_tracks(out / "tracks.csv")
