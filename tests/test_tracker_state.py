@@ -75,9 +75,7 @@ class Injected(RuntimeError):
     pass
 
 
-@pytest.mark.parametrize(
-    "stage", STAGES + ["_track_logic", "_initiate", "_cluster_marginals"]
-)
+@pytest.mark.parametrize("stage", STAGES + ["_track_logic", "_initiate", "_cluster_marginals"])
 def test_failing_stage_leaves_state_unchanged_and_retry_matches(stage, monkeypatch):
     k = 25  # a scan whose confirmed tracks form a two-track cluster (every stage runs)
     # pair_returns is two-point initiation's stage; the default is one-point
