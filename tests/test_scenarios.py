@@ -282,3 +282,17 @@ def test_simulate_scenario_from_a_given_truth():
             "x", times, ids, states, region=[[0, 1], [0, 1]], p_d=1, clutter_rate=0,
             R=-np.eye(2), process_noise=0, rng=0,
         )  # fmt: skip
+
+
+def test_abreast_is_issue_11s_scene():
+    from jointtrack.scenarios import abreast
+
+    sc = abreast(3)
+    assert sc.n_scans == 80 and sc.n_targets == 5 and sc.p_d == 0.9
+    assert sc.clutter_density == pytest.approx(60 / (900 * 200))
+    x0 = sc.truth_states[0]
+    np.testing.assert_allclose(np.diff(x0[:, 1]), 20.0)  # lanes 20 apart
+    np.testing.assert_allclose(x0[:, 2], 1.0)  # 1 unit/s in +x
+    assert np.allclose(sc.R, 25.0 * np.eye(2))
+    with pytest.raises(ValueError, match="lane_spacing"):
+        abreast(0, lane_spacing=-1.0)
