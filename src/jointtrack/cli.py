@@ -69,6 +69,16 @@ def bench_association(
     _run_bench("association", quick, out)
 
 
+@bench_app.command("quality")
+def bench_quality(
+    quick: bool = typer.Option(False, "--quick", help="Fewer seeds and scans; about a minute."),
+    out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
+) -> None:
+    """Tracking quality from nothing: time to confirm, targets held, false tracks, GOSPA —
+    beside Stone Soup's tutorial JPDA tracker on the same detections."""
+    _run_bench("quality", quick, out)
+
+
 reproduce_app = typer.Typer(
     help="Reproduce a paper's tables beside the paper's own numbers.", no_args_is_help=True
 )

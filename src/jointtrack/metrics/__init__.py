@@ -8,17 +8,23 @@
   ``"stonesoup"``: half a switch for assigned ↔ unassigned).
 * :func:`track_statistics` — true/false tracks, breaks, fragmentations,
   identity switches and RMSE (:mod:`jointtrack.metrics.tracks`).
+* :func:`tracking_quality` — time to confirm, targets held after
+  confirmation, false confirmed tracks per scan, breaks, switches and GOSPA
+  with its parts, built on both (:mod:`jointtrack.metrics.quality`).
 """
 
 from jointtrack.metrics.ospa import GOSPA, GOSPASeries, gospa, gospa_series, ospa
+from jointtrack.metrics.quality import TrackingQuality, tracking_quality
 from jointtrack.metrics.tracks import TrackStatistics, track_statistics
 
 __all__ = [
     "GOSPA",
     "GOSPASeries",
     "TrackStatistics",
+    "TrackingQuality",
     "gospa",
     "gospa_series",
     "ospa",
     "track_statistics",
+    "tracking_quality",
 ]
