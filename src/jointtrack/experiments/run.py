@@ -486,9 +486,14 @@ def _run(
                     ):
                         if conf:
                             clusters.append([int(n_tr), int(n_me), float(sec)])
-                    for reason in res.cluster_fallbacks:
+                    for reason, conf in zip(
+                        res.cluster_fallbacks, res.cluster_confirmed, strict=True
+                    ):
                         if reason:
                             key = "refused" if reason.startswith("refused") else reason
+                            # tentative-track clusters (clutter-born, in heavy clutter)
+                            # apart from the confirmed ones the experiment is about
+                            key += "" if conf else ", tentative tracks"
                             fallbacks[key] = fallbacks.get(key, 0) + 1
                 writer.write_scan(t, res)  # the tracks after the time's last sensor
                 fault("scan", k)
@@ -535,7 +540,8 @@ def _run(
         "approximation": cfg.approximation,
         "fallbacks": dict(sorted(fallbacks.items())),
         "fallbacks_note": "clusters solved by the approximation instead of the configured "
-        "method, by reason (exact_max_tracks, or refused by the exact engine's budget)",
+        "method, by reason (exact_max_tracks, or refused by the exact engine's budget); "
+        "', tentative tracks' marks clusters of tentative tracks",
     }
     files = {"tracks": str(writer.path), "metrics": str(out_dir / "metrics.json")}
     if plots:
