@@ -113,14 +113,10 @@ true and false tracks over time (mean over seeds) and GOSPA per scan.
 
 from __future__ import annotations
 
-import datetime
 import json
 import logging
-import signal
-import threading
 import time
 from collections.abc import Callable
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -128,10 +124,19 @@ import numpy as np
 from rich.table import Table
 
 from jointtrack._console import make_console
+from jointtrack.bench.quality_plot import plot_quality
+from jointtrack.bench.stonesoup_tracker import run_stonesoup, stonesoup_available
+from jointtrack.bench.tracking_runs import (
+    TrackRun,
+    clutter_per_gate,
+    first_detections,
+    physical_config,
+    run_jointtrack,
+    tracker_gate_area,
+)
 from jointtrack.io import to_jsonable
 from jointtrack.metrics import TrackingQuality, tracking_quality
-from jointtrack.scenarios import abreast, bojilov, crossing, many_targets, nominal_gate
-from jointtrack.trackers import JPDATracker, TrackerConfig
+from jointtrack.scenarios import abreast, bojilov, crossing, many_targets
 
 #: (name, TrackerConfig overrides on top of :func:`physical_config`); the first is the
 #: configuration the targets are checked for.
@@ -144,8 +149,6 @@ STONESOUP = "Stone Soup tutorial JPDA (EHM2)"
 SEEDS_FULL = (0, 1, 2)
 SEEDS_QUICK = (0,)
 STONESOUP_BUDGET = {False: 40.0, True: 15.0}  # seconds per Stone Soup run (full, quick)
-MIN_TRACKER_Q = 0.01
-P_G = 0.99
 CROSSING_BETA = 0.3  # false returns per steady-state 99 % gate
 BIRTHS_BETA = 0.1
 BIRTHS_SIDE = 2000.0
@@ -159,59 +162,6 @@ BIRTHS_RATE = 0.2
 TARGET_CONFIRM = 10  # scans from first detection
 TARGET_HELD = 0.95
 TARGET_FALSE = 0.5  # false confirmed tracks per scan
-
-
-# ------------------------------------------------------------------ physical settings
-
-
-def tracker_q(sc) -> float:
-    """The tracker's process noise for a scene: max(truth q, ``MIN_TRACKER_Q``)."""
-    return max(float(sc.process_noise), MIN_TRACKER_Q)
-
-
-def max_true_speed(sc) -> float:
-    """The fastest true speed over the whole scene."""
-    speeds = [float(np.hypot(*s[:, 2:4].T).max()) for s in sc.truth_states if len(s)]
-    return max(speeds) if speeds else 0.0
-
-
-def physical_config(sc, **overrides) -> TrackerConfig:
-    """jointtrack's settings from the scene's physics only (module docstring), plus overrides.
-
-    measurement_noise = σ² (R = σ² I), p_d = P_D, clutter_density = λ,
-    process_noise = max(truth q, 0.01), max_speed = 1.5 × fastest true speed,
-    p_g = 0.99; every other field is ``TrackerConfig``'s default.
-    """
-    settings = dict(
-        measurement_noise=float(sc.R[0, 0]),
-        p_d=float(sc.p_d),
-        clutter_density=float(sc.clutter_density),
-        process_noise=tracker_q(sc),
-        max_speed=1.5 * max_true_speed(sc) or 1.0,
-        p_g=P_G,
-    )
-    settings.update(overrides)
-    return TrackerConfig(**settings)
-
-
-def tracker_gate_area(sc) -> float:
-    """V_G: the steady-state 99 % gate area of an NCV filter with the tracker's q and σ."""
-    sigma = float(np.sqrt(sc.R[0, 0]))
-    return float(nominal_gate(sc.dt, tracker_q(sc), sigma, P_G, sc.dim)["volume"])
-
-
-def clutter_per_gate(sc) -> float:
-    """λ·V_G: false returns per steady-state 99 % gate of the tracker's q and σ."""
-    return float(sc.clutter_density * tracker_gate_area(sc))
-
-
-def first_detections(sc) -> dict:
-    """{target id: time of its first detection}, from the detections' origins."""
-    first: dict = {}
-    for t, o in zip(sc.times, sc.origins, strict=True):
-        for tid in np.unique(o[o >= 0]).tolist():
-            first.setdefault(int(tid), float(t))
-    return first
 
 
 # ------------------------------------------------------------------ scenes
@@ -285,182 +235,6 @@ SCENES: tuple[Scene, ...] = (
 
 
 # ------------------------------------------------------------------ running trackers
-
-
-@dataclass(frozen=True)
-class TrackRun:
-    """Confirmed tracks a tracker reported, as flat tables, and its step time.
-
-    ``n_scans`` scans were run (the first ``n_scans`` of the scene; fewer than
-    the scene's when a time budget stopped it, ``completed`` False).
-    """
-
-    times: np.ndarray
-    ids: np.ndarray
-    positions: np.ndarray
-    seconds: float
-    n_scans: int
-    completed: bool = True
-
-    @property
-    def scans_per_second(self) -> float:
-        return self.n_scans / self.seconds if self.seconds > 0 else float("nan")
-
-
-def _rows_to_run(rows, seconds, n_scans, completed=True) -> TrackRun:
-    a = np.array(rows, dtype=np.float64).reshape(-1, 4)
-    return TrackRun(a[:, 0], a[:, 1].astype(np.int64), a[:, 2:4], seconds, n_scans, completed)
-
-
-def run_jointtrack(sc, cfg: TrackerConfig) -> TrackRun:
-    """Run ``JPDATracker(cfg)`` over the scene from nothing; time ``step`` only."""
-    trk = JPDATracker(cfg)
-    rows = []
-    seconds = 0.0
-    for t, z in zip(sc.times, sc.detections, strict=True):
-        t0 = time.perf_counter()
-        r = trk.step(t, z)
-        seconds += time.perf_counter() - t0
-        rows += [(t, i, x[0], x[1]) for i, x in zip(r.ids.tolist(), r.x, strict=True)]
-    return _rows_to_run(rows, seconds, sc.n_scans)
-
-
-def stonesoup_available() -> bool:
-    try:
-        import stonesoup  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def stonesoup_tracker(sc):
-    """Stone Soup's tutorial JPDA tracker with the scene's physical settings (module docstring).
-
-    Returns ``(tracker, measurement_model)``.
-    """
-    from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
-    from stonesoup.dataassociator.probability import JPDAwithEHM2
-    from stonesoup.deleter.time import UpdateTimeStepsDeleter
-    from stonesoup.hypothesiser.probability import PDAHypothesiser
-    from stonesoup.initiator.simple import MultiMeasurementInitiator
-    from stonesoup.models.measurement.linear import LinearGaussian
-    from stonesoup.models.transition.linear import (
-        CombinedLinearGaussianTransitionModel,
-        ConstantVelocity,
-    )
-    from stonesoup.predictor.kalman import KalmanPredictor
-    from stonesoup.tracker.simple import MultiTargetMixtureTracker
-    from stonesoup.types.state import GaussianState
-    from stonesoup.updater.kalman import KalmanUpdater
-
-    q = tracker_q(sc)
-    transition = CombinedLinearGaussianTransitionModel([ConstantVelocity(q), ConstantVelocity(q)])
-    measurement = LinearGaussian(ndim_state=4, mapping=(0, 2), noise_covar=np.asarray(sc.R))
-    predictor = KalmanPredictor(transition)
-    updater = KalmanUpdater(measurement)
-
-    def hypothesiser():
-        return PDAHypothesiser(
-            predictor=predictor,
-            updater=updater,
-            clutter_spatial_density=float(sc.clutter_density),
-            prob_detect=float(sc.p_d),
-        )
-
-    deleter = UpdateTimeStepsDeleter(3)
-    sv2 = (1.5 * max_true_speed(sc) / 2) ** 2 or 1.0
-    initiator = MultiMeasurementInitiator(
-        prior_state=GaussianState(np.zeros((4, 1)), np.diag([0.0, sv2, 0.0, sv2])),
-        measurement_model=measurement,
-        deleter=deleter,
-        data_associator=GNNWith2DAssignment(hypothesiser()),
-        updater=updater,
-        min_points=2,
-    )
-    tracker = MultiTargetMixtureTracker(
-        initiator=initiator,
-        deleter=deleter,
-        detector=None,
-        data_associator=JPDAwithEHM2(hypothesiser()),
-        updater=updater,
-    )
-    return tracker, measurement
-
-
-class _OutOfTime(BaseException):
-    """Raised by the budget alarm; a BaseException so no ``except Exception`` swallows it."""
-
-
-@contextmanager
-def _time_limit(seconds: float | None):
-    """Raise :class:`_OutOfTime` after ``seconds`` (SIGALRM; main thread on POSIX only,
-    elsewhere no limit)."""
-    if (
-        seconds is None
-        or not hasattr(signal, "setitimer")
-        or threading.current_thread() is not threading.main_thread()
-    ):
-        yield
-        return
-
-    def alarm(signum, frame):
-        raise _OutOfTime
-
-    old = signal.signal(signal.SIGALRM, alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
-
-
-EPOCH = datetime.datetime(2000, 1, 1)
-
-
-def run_stonesoup(sc, budget: float | None = None) -> TrackRun:
-    """Run Stone Soup's tutorial JPDA tracker over the scene from nothing.
-
-    Times ``update_tracker`` only (the Stone Soup ``Detection`` objects are built
-    first). With ``budget`` seconds, the run stops at the budget and reports the
-    scans it completed.
-    """
-    from stonesoup.types.detection import Detection
-
-    tracker, mm = stonesoup_tracker(sc)
-    stamps = [EPOCH + datetime.timedelta(seconds=float(t)) for t in sc.times]
-    scans = [
-        {Detection(z.reshape(-1, 1), timestamp=ts, measurement_model=mm) for z in Z}
-        for ts, Z in zip(stamps, sc.detections, strict=True)
-    ]
-    labels: dict = {}  # Stone Soup track → integer id
-    rows: list = []
-    done = 0
-    seconds = 0.0
-    t0 = time.perf_counter()
-    try:
-        with _time_limit(budget):
-            for k, (ts, dets) in enumerate(zip(stamps, scans, strict=True)):
-                t0 = time.perf_counter()
-                _, tracks = tracker.update_tracker(ts, dets)
-                seconds += time.perf_counter() - t0
-                t = float(sc.times[k])
-                rows.extend(
-                    (
-                        t,
-                        labels.setdefault(trk.id, len(labels)),
-                        trk.state_vector[0, 0],
-                        trk.state_vector[2, 0],
-                    )
-                    for trk in tracks
-                )
-                done = k + 1
-    except _OutOfTime:
-        seconds += time.perf_counter() - t0  # the scan the budget interrupted took this long
-    completed = done == sc.n_scans
-    # rows of a scan interrupted between its update and its count are dropped
-    rows = [r for r in rows if r[0] <= sc.times[done - 1]] if done else []
-    return _rows_to_run(rows, seconds, done, completed)
 
 
 def evaluate(sc, run: TrackRun, gate: float) -> TrackingQuality:
@@ -655,70 +429,6 @@ def _targets(console, scene: Scene, res: dict) -> dict:
     return checks
 
 
-def plot_quality(results: dict, path) -> Path:
-    """Per scene: targets, confirmed true / false tracks over time (default vs Stone Soup)
-    and GOSPA per scan (every tracker), means over seeds (matplotlib, Agg)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    scenes = results["scenes"]
-    n = len(scenes)
-    fig, axes = plt.subplots(2, n, figsize=(4.6 * n, 7.5), squeeze=False, constrained_layout=True)
-    default = CONFIGURATIONS[0][0]
-    for j, (name, res) in enumerate(scenes.items()):
-        top, bottom = axes[0, j], axes[1, j]
-        # arrays (NaN where no seed reached a scan; None after a JSON round trip)
-        series = {
-            tr: {key: np.asarray(v, dtype=np.float64) for key, v in ser.items()}
-            for tr, ser in res["series"].items()
-        }
-        first = next(iter(series.values()))
-        k = np.arange(len(first["truths"]))
-        top.plot(k, first["truths"], color="k", lw=2, label="targets")
-        for tracker, color in ((default, "C0"), (STONESOUP, "C3")):
-            if tracker not in series:
-                continue
-            s = series[tracker]
-            top.plot(k, s["true_tracks"], color=color, label=f"{tracker}: true tracks")
-            top.plot(k, s["false_tracks"], color=color, ls="--", label=f"{tracker}: false tracks")
-        top.set_title(name)
-        top.set_xlabel("scan")
-        top.set_ylabel("tracks (mean over seeds)")
-        # linear up to the number of targets, logarithmic above (Stone Soup's false tracks)
-        linthresh = max(10.0, float(np.nanmax(first["truths"])))
-        top.set_yscale("symlog", linthresh=linthresh)
-        ymax = max(
-            float(np.nanmax(ser[key]))
-            for ser in series.values()
-            for key in ("truths", "true_tracks", "false_tracks")
-        )
-        ticks = (
-            (0, 1, 2, 5, 10, 20, 50, 100, 200, 500)
-            if linthresh <= 10
-            else (0, 5, 10, 20, 50, 100, 200, 500)
-        )
-        top.set_yticks([v for v in ticks if v <= 1.5 * ymax])
-        top.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
-        top.grid(True, alpha=0.3)
-        for i, (tracker, s) in enumerate(series.items()):
-            color = "C3" if tracker == STONESOUP else f"C{i if i < 3 else i + 1}"
-            bottom.plot(k, s["gospa"], color=color, label=tracker)
-        bottom.set_xlabel("scan")
-        bottom.set_ylabel(f"GOSPA (c = {res['gate']:g}, p = 2)")
-        bottom.set_yscale("log")
-        bottom.grid(True, which="both", alpha=0.3)
-        if j == 0:
-            top.legend(fontsize=7)
-            bottom.legend(fontsize=7)
-    fig.suptitle("Tracking quality from nothing: jointtrack vs Stone Soup's tutorial JPDA tracker")
-    path = Path(path)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
-
-
 # ------------------------------------------------------------------ the benchmark
 
 
@@ -846,7 +556,7 @@ def run(quick: bool = False, out: str | None = None) -> dict:
     if out:
         png = Path(out).with_name(Path(out).stem + "_quality.png")
         try:
-            results["plot"] = str(plot_quality(results, png))
+            results["plot"] = str(plot_quality(results, png, CONFIGURATIONS[0][0], STONESOUP))
             console.print(f"quality plot: {png}")
         except ImportError as exc:  # matplotlib is a dependency, but say so rather than fail
             console.print(f"quality plot not written: {exc}")
