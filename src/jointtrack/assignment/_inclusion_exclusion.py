@@ -89,15 +89,8 @@ def _flipped_bit(k):
 
 @nb.njit(cache=True)
 def _combine(res, comp, absr, sq):
-    s = 0.0
-    cs = 0.0
-    a = 0.0
-    q = 0.0
-    for c in range(res.shape[0]):
-        s, e = _two_sum(s, res[c])
-        cs += e + comp[c]
-        a += absr[c]
-        q += sq[c]
+    """(compensated Σ res, Σ absr, √Σ sq) of per-chunk partial sums."""
+    s, cs, a, q = _combine_parts(res, comp, absr, sq)
     return s + cs, a, np.sqrt(q)
 
 
