@@ -116,6 +116,17 @@ def _speeds(speeds, n_min: int = 1) -> np.ndarray:
     return v
 
 
+def _lanes(speeds, lane_spacing, t_meet, n_scans, dt, q, rng):
+    """Targets on lanes y = i·lane_spacing moving in +x at ``speeds``, all at x = 0
+    at ``t_meet``: the start states (n, 4) and the NCV trajectories."""
+    n = speeds.size
+    x0 = np.zeros((n, 4))
+    x0[:, 0] = -speeds * t_meet
+    x0[:, 1] = lane_spacing * np.arange(n)
+    x0[:, 2] = speeds
+    return x0, propagate_ncv(x0, n_scans, dt, q, rng)
+
+
 def bojilov(
     clutter_density: float = 1.0,
     seed=None,
@@ -159,11 +170,7 @@ def bojilov(
     gate = nominal_gate(dt, q, sigma, p_g, 2)
 
     n = v.size
-    x0 = np.zeros((n, 4))
-    x0[:, 0] = -v * t_meet
-    x0[:, 1] = lane_spacing * np.arange(n)
-    x0[:, 2] = v
-    traj = propagate_ncv(x0, n_scans, dt, q, rng)
+    x0, traj = _lanes(v, lane_spacing, t_meet, n_scans, dt, q, rng)
     times = dt * np.arange(n_scans)
     # region from the noise-free trajectories, so it does not depend on the seed
     xs = np.concatenate([x0[:, 0], x0[:, 0] + v * t_end])
@@ -238,12 +245,7 @@ def abreast(
     lane_spacing = _pos_float(lane_spacing, "lane_spacing")
     sigma = _pos_float(sigma, "sigma")
     q = _pos_float(process_noise, "process_noise", allow_zero=True)
-    t_mid = (n_scans - 1) * dt / 2
-    x0 = np.zeros((n, 4))
-    x0[:, 0] = -speed * t_mid
-    x0[:, 1] = lane_spacing * np.arange(n)
-    x0[:, 2] = speed
-    traj = propagate_ncv(x0, n_scans, dt, q, rng)
+    _, traj = _lanes(np.full(n, speed), lane_spacing, (n_scans - 1) * dt / 2, n_scans, dt, q, rng)
     ids = np.arange(n, dtype=np.int64)
     return simulate_scenario(
         "abreast",
