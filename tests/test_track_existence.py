@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from jointtrack.metrics import track_statistics
+from jointtrack.bench.tracking_runs import first_detections
+from jointtrack.metrics import tracking_quality
 from jointtrack.scenarios import abreast
 from jointtrack.trackers import JPDATracker, TrackerConfig
 from jointtrack.trackers.existence import existence_update, merge_duplicates
@@ -38,28 +39,6 @@ def _track(sc, cfg, scans=None):
     return np.array(rows).reshape(-1, 4)
 
 
-def _per_target(sc, rows):
-    """(scans from first detection to confirmation, fraction held after it) per target."""
-    stats = track_statistics(
-        *sc.truth_table(), rows[:, 0], rows[:, 1].astype(int), rows[:, 2:4], gate=GATE
-    )
-    scan = {t: k for k, t in enumerate(sc.times)}
-    held = {}
-    for t, i in zip(stats.assoc_times, stats.assoc_truth_ids, strict=True):
-        held.setdefault(int(i), set()).add(scan[t])
-    out = {}
-    for i in sc.target_ids:
-        first = min(k for k, o in enumerate(sc.origins) if np.any(o == i))
-        ks = held.get(int(i), set())
-        if not ks:
-            out[int(i)] = (math.inf, 0.0)
-            continue
-        c = min(ks)
-        after = [k for k in range(c + 1, sc.n_scans)]
-        out[int(i)] = (c - first, sum(k in ks for k in after) / max(len(after), 1))
-    return out, stats
-
-
 def _small_scene(seed):
     return abreast(
         seed,
@@ -80,10 +59,18 @@ def test_small_scene_from_nothing_confirms_fast_and_holds():
     for seed in range(8):
         sc = _small_scene(seed)
         rows = _track(sc, _config(sc))
-        per, stats = _per_target(sc, rows)
-        ttc += [a for a, _ in per.values()]
-        held += [b for _, b in per.values()]
-        false.append((len(rows) - len(stats.assoc_times)) / sc.n_scans)  # confirmed, unassociated
+        q = tracking_quality(
+            *sc.truth_table(),
+            rows[:, 0],
+            rows[:, 1].astype(int),
+            rows[:, 2:4],
+            gate=GATE,
+            first_detection=first_detections(sc),
+            scan_times=sc.times,
+        )
+        ttc += q.time_to_confirm.tolist()
+        held += q.held_per_truth.tolist()
+        false.append(q.false_per_scan)  # confirmed tracks no truth explains
     assert max(ttc) < math.inf  # every target found
     assert np.median(ttc) <= 6
     assert np.mean(np.array(ttc) <= 10) >= 0.9

@@ -107,8 +107,8 @@ def merge_duplicates(x, P, ids, existence, confirmed, dim, threshold):
     if not close.any():
         return keep, existence
     existence = existence.copy()
-    i, j, d2 = i[close], j[close], d2[close]
-    for a, b in zip(i[np.argsort(d2)], j[np.argsort(d2)], strict=True):
+    order = np.argsort(d2[close])  # closest pairs first
+    for a, b in zip(i[close][order], j[close][order], strict=True):
         if not (keep[a] and keep[b]):
             continue
         rank_a = (confirmed[a], existence[a], -ids[a])

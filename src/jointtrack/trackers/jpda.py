@@ -356,7 +356,7 @@ class JPDATracker:
         # see only the returns no confirmed track gated, so they cannot glue true
         # targets' clusters together (cf. a separate initiator, Blackman & Popoli §6).
         available = np.ones(M)  # JIPDA: P(return not taken by an earlier pass)
-        gated = np.zeros(M, bool)
+        ungated = np.ones(M, bool)  # JIPDA: returns no pass gated (two-point seeds)
         for group, loud in (
             (np.flatnonzero(self.confirmed), True),
             (np.flatnonzero(~self.confirmed), False),
@@ -368,7 +368,9 @@ class JPDATracker:
                     group, z, loud, available=available
                 )
                 available = np.clip(available - np.bincount(pc, used, minlength=M), 0.0, 1.0)
-                gated[~np.isin(np.arange(M), free_local)] = True
+                in_no_gate = np.zeros(M, bool)
+                in_no_gate[free_local] = True
+                ungated &= in_no_gate
             else:
                 b0, (pr, pc, pw), h, free_local, info, _ = self._associate(group, z[free], loud)
                 pc = free[pc]
@@ -382,7 +384,7 @@ class JPDATracker:
                 part.extend(extra)
             kinds.extend([loud] * len(info[0]))
         if c.existence:
-            free = np.flatnonzero(~gated)
+            free = np.flatnonzero(ungated)
         unassoc = free
         if N:
             rows = np.concatenate(pair_rows) if pair_rows else np.zeros(0, np.int64)
