@@ -15,6 +15,7 @@ import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
+from cli_checks import one_line_error
 from jointtrack import __version__
 from jointtrack.cli import app
 from jointtrack.io import Detections, read_tracks, write_detections
@@ -46,17 +47,6 @@ c = 40.0
 
 def _run(*args):
     return runner.invoke(app, ["run", "--no-progress", *map(str, args)])
-
-
-def _one_line_error(result, *needles):
-    assert result.exit_code == 2, result.output
-    assert "Traceback" not in result.output
-    lines = [ln for ln in result.output.splitlines() if ln.strip()]
-    errors = [ln for ln in lines if ln.startswith("error:")]
-    assert len(errors) == 1, result.output
-    for n in needles:
-        assert n in errors[0], errors[0]
-    return errors[0]
 
 
 def _png(path):
@@ -168,9 +158,9 @@ def test_run_seed_and_scenario_options(tmp_path):
     m = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert m["source"]["seed"] == 7
     r = _run("--scenario", "nope", "--out", tmp_path / "x")
-    _one_line_error(r, "--scenario", "nope")
+    one_line_error(r, "--scenario", "nope")
     r = _run("--config", cfg, "--format", "xml", "--out", tmp_path / "x")
-    _one_line_error(r, "xml")
+    one_line_error(r, "xml")
 
 
 # ----------------------------------------------------------------------------- detections
@@ -200,19 +190,19 @@ def test_bad_detections_file_one_line_exit_2(tmp_path):
     bad = tmp_path / "bad.csv"
     bad.write_text("time,x,y\n0,1,2\n1,abc,3\n")
     r = _run("--detections", bad, "--out", tmp_path / "o")
-    line = _one_line_error(r, "bad.csv", "abc")
+    line = one_line_error(r, "bad.csv", "abc")
     assert "row 2" in line
     r = _run("--detections", tmp_path / "missing.csv", "--out", tmp_path / "o")
-    _one_line_error(r, "missing.csv")
+    one_line_error(r, "missing.csv")
     nocol = tmp_path / "nocol.csv"
     nocol.write_text("time,x\n0,1\n")
-    _one_line_error(_run("--detections", nocol, "--out", tmp_path / "o"), "nocol.csv", "y")
+    one_line_error(_run("--detections", nocol, "--out", tmp_path / "o"), "nocol.csv", "y")
 
 
 def test_detections_with_scenario_is_an_error(tmp_path):
     sc = crossing(seed=1, n_scans=3)
     det = write_detections(sc.as_detections(), tmp_path / "det.csv")
-    _one_line_error(_run("--detections", det, "--scenario", "crossing"), "--detections")
+    one_line_error(_run("--detections", det, "--scenario", "crossing"), "--detections")
 
 
 # ----------------------------------------------------------------------------- range–bearing
@@ -309,33 +299,33 @@ def test_bad_range_bearing_files_one_line_exit_2(tmp_path):
     mixed = tmp_path / "mixed.csv"
     mixed.write_text("time,x,y,range,bearing\n0,1,2,3,0.1\n")
     r = _run("--detections", mixed, "--config", cfg, "--out", tmp_path / "o")
-    _one_line_error(r, "mixed.csv", "x, y", "range, bearing", "one kind")
+    one_line_error(r, "mixed.csv", "x, y", "range, bearing", "one kind")
     neither = tmp_path / "neither.csv"
     neither.write_text("time,lat,lon\n0,1,2\n")
     r = _run("--detections", neither, "--config", cfg, "--out", tmp_path / "o")
-    _one_line_error(r, "neither.csv", "x, y", "range, bearing", "lat, lon")
+    one_line_error(r, "neither.csv", "x, y", "range, bearing", "lat, lon")
     neg = tmp_path / "neg.csv"
     neg.write_text("time,range,bearing\n0,10,0.1\n1,-3,0.1\n")
     r = _run("--detections", neg, "--config", cfg, "--out", tmp_path / "o")
-    _one_line_error(r, "neg.csv", "row 2", "'range'", "negative range")
+    one_line_error(r, "neg.csv", "row 2", "'range'", "negative range")
 
 
 def test_sensor_must_match_the_detections(tmp_path):
     rb, _, _ = _range_bearing_file(tmp_path, n_scans=4)
     # range–bearing file, position sensor: say what to set
     r = _run("--detections", rb, "--out", tmp_path / "o")
-    _one_line_error(r, "rb.csv", 'sensor = "range-bearing"', "sensor_position", "--config")
+    one_line_error(r, "rb.csv", 'sensor = "range-bearing"', "sensor_position", "--config")
     cfg = _config(tmp_path, "[tracker]\nclutter_density = 0.008\n", "pos.toml")
     r = _run("--detections", rb, "--config", cfg, "--out", tmp_path / "o")
-    _one_line_error(r, "rb.csv", "pos.toml", 'sensor = "range-bearing"', "range_noise")
+    one_line_error(r, "rb.csv", "pos.toml", 'sensor = "range-bearing"', "range_noise")
     # position file or scenario, range–bearing sensor
     sc = crossing(seed=1, n_scans=3)
     pos = write_detections(sc.as_detections(), tmp_path / "pos.csv")
     cfg = _config(tmp_path, RB_TRACKER, "rb.toml")
     r = _run("--detections", pos, "--config", cfg, "--out", tmp_path / "o")
-    _one_line_error(r, "rb.toml", "pos.csv", "position detections", 'sensor = "position"')
+    one_line_error(r, "rb.toml", "pos.csv", "position detections", 'sensor = "position"')
     r = _run("--config", cfg, "--scenario", "crossing", "--out", tmp_path / "o")
-    _one_line_error(r, "rb.toml", "scenario crossing", 'sensor = "position"')
+    one_line_error(r, "rb.toml", "scenario crossing", 'sensor = "position"')
     # range–bearing settings are checked like the others
     for text, needle in (
         ("[tracker]\nsensor_position = 3\n", "'sensor_position'"),
@@ -346,7 +336,7 @@ def test_sensor_must_match_the_detections(tmp_path):
     ):
         cfg = _config(tmp_path, text, "bad.toml")
         r = _run("--detections", rb, "--config", cfg, "--out", tmp_path / "o")
-        _one_line_error(r, "bad.toml", needle)
+        one_line_error(r, "bad.toml", needle)
     assert not (tmp_path / "o").exists()
 
 
@@ -372,11 +362,11 @@ def test_sensor_must_match_the_detections(tmp_path):
 )
 def test_bad_config_one_line_exit_2(tmp_path, text, needles):
     cfg = _config(tmp_path, text, "bad.toml")
-    _one_line_error(_run("--config", cfg, "--out", tmp_path / "o"), *needles)
+    one_line_error(_run("--config", cfg, "--out", tmp_path / "o"), *needles)
 
 
 def test_missing_config_file(tmp_path):
-    _one_line_error(_run("--config", tmp_path / "none.toml"), "none.toml")
+    one_line_error(_run("--config", tmp_path / "none.toml"), "none.toml")
 
 
 # ----------------------------------------------------------------------------- checkpoints
@@ -414,7 +404,7 @@ def test_checkpoint_resume_gives_the_same_tracks(tmp_path):
     ]
     # a checkpoint belongs to its run
     r = _run("--config", cfg, "--seed", 5, "--out", part, "--resume", ck)
-    _one_line_error(r, "checkpoint", "seed 2")
+    one_line_error(r, "checkpoint", "seed 2")
 
 
 def test_killed_run_resumes_to_the_same_tracks(tmp_path, monkeypatch):
@@ -447,7 +437,7 @@ def test_resume_bad_checkpoint_file(tmp_path):
     junk = tmp_path / "junk.npz"
     junk.write_bytes(b"not a pickle")
     cfg = _config(tmp_path, SMALL)
-    _one_line_error(_run("--config", cfg, "--resume", junk, "--out", tmp_path / "o"), "junk.npz")
+    one_line_error(_run("--config", cfg, "--resume", junk, "--out", tmp_path / "o"), "junk.npz")
 
 
 # ----------------------------------------------------------------------------- reproduce

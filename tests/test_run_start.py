@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from cli_checks import one_line_error
 from jointtrack.cli import app
 from jointtrack.experiments.config import RunConfigError, load_config, start_setting
 from jointtrack.experiments.run import run_scenario
@@ -38,16 +39,6 @@ def _run(*args):
 
 def _metrics(out) -> dict:
     return json.loads((out / "metrics.json").read_text(encoding="utf-8"))
-
-
-def _one_line_error(result, *needles) -> str:
-    assert result.exit_code == 2, result.output
-    assert "Traceback" not in result.output
-    errors = [ln for ln in result.output.splitlines() if ln.startswith("error:")]
-    assert len(errors) == 1, result.output
-    for n in needles:
-        assert n in errors[0], errors[0]
-    return errors[0]
 
 
 # ----------------------------------------------------------------------------- runs
@@ -101,7 +92,7 @@ def test_detections_run_starts_from_nothing(tmp_path):
     assert "tracks started from nothing" in r.output
     assert "paper's experiment" not in r.output
     r = _run("--detections", dets, "--out", tmp_path / "t", "--start-from", "truth")
-    _one_line_error(r, "--start-from truth", "--detections", "--start-from nothing")
+    one_line_error(r, "--start-from truth", "--detections", "--start-from nothing")
     assert not (tmp_path / "t").exists()
 
 
@@ -111,7 +102,7 @@ def test_detections_run_starts_from_nothing(tmp_path):
 @pytest.mark.parametrize("value", ["Truth", "none", ""])
 def test_bad_start_from_value(tmp_path, value):
     r = _run("--config", _config(tmp_path), "--out", tmp_path / "o", "--start-from", value)
-    _one_line_error(r, "--start-from", "truth or nothing", repr(value))
+    one_line_error(r, "--start-from", "truth or nothing", repr(value))
     assert not (tmp_path / "o").exists()
 
 
@@ -183,11 +174,11 @@ def test_resume_keeps_the_start_and_refuses_another(tmp_path):
     )
     assert r.exit_code == 0, r.output
     # the checkpoint's tracks started from nothing: truth is a conflict naming the flag
-    msg = _one_line_error(_run("--resume", ck, "--start-from", "truth"), "--start-from truth")
+    msg = one_line_error(_run("--resume", ck, "--start-from", "truth"), "--start-from truth")
     assert "started from nothing" in msg and "omit --start-from" in msg
     # so is a config that starts from the truth
     truth_cfg = _config(tmp_path, '[scenario]\nn_scans = 8\nstart_from = "truth"\n', "t.toml")
-    _one_line_error(_run("--resume", ck, "--config", truth_cfg), "--config", "truth")
+    one_line_error(_run("--resume", ck, "--config", truth_cfg), "--config", "truth")
     # the same start (or none: the checkpoint's) continues to the uninterrupted tracks
     r = _run("--resume", ck, "--start-from", "nothing")
     assert r.exit_code == 0, r.output

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from cli_checks import one_line_error
 from jointtrack.cli import app
 from jointtrack.experiments.config import scenario_tracker_settings
 from jointtrack.experiments.run import run_detections
@@ -36,16 +37,6 @@ ORIGIN = "2026-11-23T10:00:00Z"
 
 def _run(*args):
     return runner.invoke(app, ["run", "--no-progress", *map(str, args)])
-
-
-def _one_line_error(result, *needles):
-    assert result.exit_code == 2, result.output
-    assert "Traceback" not in result.output
-    errors = [ln for ln in result.output.splitlines() if ln.startswith("error:")]
-    assert len(errors) == 1, result.output
-    for n in needles:
-        assert n in errors[0], errors[0]
-    return errors[0]
 
 
 def _toml_value(v):
@@ -197,14 +188,14 @@ def test_truth_on_another_clock_is_an_error(tmp_path, scenario_run):
     tt, ti, tp = sc.truth_table()
     shifted = write_truth((tt + 0.5, ti, tp), tmp_path / "shifted.csv")
     r = _run("--detections", det, "--truth", shifted, "--out", tmp_path / "o")
-    _one_line_error(r, "shifted.csv", "no truth row is at a scan time", "t = 0.5")
+    one_line_error(r, "shifted.csv", "no truth row is at a scan time", "t = 0.5")
 
 
 def test_truth_kind_of_time_must_match_the_detections(tmp_path, scenario_run):
     sc, _ref_out, _ref, _tracker, det, _truth = scenario_run
     iso = write_truth(sc.truth_table(), tmp_path / "iso.csv", time_origin=ORIGIN)
     r = _run("--detections", det, "--truth", iso, "--out", tmp_path / "o")
-    _one_line_error(r, "iso.csv", "column 'time'", "timestamps", "numbers")
+    one_line_error(r, "iso.csv", "column 'time'", "timestamps", "numbers")
 
 
 def test_truth_dimension_must_match(tmp_path, scenario_run):
@@ -212,15 +203,15 @@ def test_truth_dimension_must_match(tmp_path, scenario_run):
     t3 = tmp_path / "t3.csv"
     t3.write_text("time,id,x,y,z\n0,1,0,0,0\n")
     r = _run("--detections", det, "--truth", t3, "--out", tmp_path / "o")
-    _one_line_error(r, "t3.csv", "3-D", "2-D")
+    one_line_error(r, "t3.csv", "3-D", "2-D")
 
 
 def test_truth_without_detections_is_an_error(tmp_path, scenario_run):
     _sc, _ref_out, _ref, _tracker, _det, truth = scenario_run
     r = _run("--scenario", "crossing", "--truth", truth, "--out", tmp_path / "o")
-    _one_line_error(r, "--truth", "--detections")
+    one_line_error(r, "--truth", "--detections")
     r = _run("--truth", truth, "--out", tmp_path / "o")
-    _one_line_error(r, "--truth", "--detections")
+    one_line_error(r, "--truth", "--detections")
 
 
 # ----------------------------------------------------------------------------- resume
@@ -240,7 +231,7 @@ def test_resume_rereads_the_truth(tmp_path, scenario_run):
     # --truth that disagrees with the checkpoint
     other = tmp_path / "other.csv"
     other.write_bytes(truth.read_bytes())
-    _one_line_error(_run("--resume", ck, "--truth", other), "--truth", "other.csv", "truth.csv")
+    one_line_error(_run("--resume", ck, "--truth", other), "--truth", "other.csv", "truth.csv")
 
     r = _run("--resume", ck)  # the truth comes back from the checkpoint
     assert r.exit_code == 0, r.output
@@ -253,7 +244,7 @@ def test_resume_rereads_the_truth(tmp_path, scenario_run):
     lines = truth.read_text().splitlines()
     lines[1] = lines[1].rsplit(",", 1)[0] + ",123.0"
     truth.write_text("\n".join(lines) + "\n")
-    _one_line_error(_run("--resume", ck), "truth file", "changed since the checkpoint")
+    one_line_error(_run("--resume", ck), "truth file", "changed since the checkpoint")
 
 
 def test_resume_of_a_run_without_truth_refuses_truth(tmp_path, scenario_run):
@@ -262,7 +253,7 @@ def test_resume_of_a_run_without_truth_refuses_truth(tmp_path, scenario_run):
     r = _run("--detections", det, "--config", tracker, "--out", out, "--checkpoint", ck,
              "--max-scans", 5)  # fmt: skip
     assert r.exit_code == 0, r.output
-    _one_line_error(_run("--resume", ck, "--truth", truth), "--truth", "without a truth")
+    one_line_error(_run("--resume", ck, "--truth", truth), "--truth", "without a truth")
     r = _run("--resume", ck)
     assert r.exit_code == 0, r.output
     assert "gospa" not in json.loads((out / "metrics.json").read_text())
@@ -332,13 +323,13 @@ def test_bad_truth_file_on_the_command_line(tmp_path, scenario_run):
     _sc, _ref_out, _ref, _tracker, det, _truth = scenario_run
     bad = tmp_path / "bad.csv"
     bad.write_text("time,id,x,y\n0,1,1,2\n1,x,1,2\n")
-    _one_line_error(
+    one_line_error(
         _run("--detections", det, "--truth", bad, "--out", tmp_path / "o"),
         "bad.csv",
         "column 'id'",
         "'x'",
     )
-    _one_line_error(
+    one_line_error(
         _run("--detections", det, "--truth", tmp_path / "none.csv", "--out", tmp_path / "o"),
         "none.csv",
         "not found",
