@@ -18,6 +18,7 @@ import numpy as np
 
 __all__ = [
     "as_counts",
+    "as_log_weights",
     "as_float",
     "as_int",
     "as_null_weights",
@@ -99,6 +100,20 @@ def as_weights(A, name: str = "A") -> np.ndarray:
             raise ValueError(f"{name} has a non-finite entry ({arr[bad]}) at {bad}")
         bad = _first_bad(arr < 0)
         raise ValueError(f"{name} has a negative entry ({arr[bad]}) at {bad}; weights are ≥ 0")
+    return np.ascontiguousarray(arr)
+
+
+def as_log_weights(L, name: str = "log_W", ndim: int = 2) -> np.ndarray:
+    """Logarithms of non-negative weights: real, finite or −inf (log 0); no NaN, no +inf."""
+    arr = _as_real_array(L, name)
+    if arr.ndim != ndim:
+        raise ValueError(f"{name} must be {ndim}-D, got an array with {arr.ndim} dimension(s)")
+    bad = np.isnan(arr) | (arr == np.inf)
+    if bad.any():
+        i = _first_bad(bad)
+        raise ValueError(
+            f"{name} has an entry {arr[i]} at {i}; a log weight is a real number or -inf (weight 0)"
+        )
     return np.ascontiguousarray(arr)
 
 
@@ -184,7 +199,12 @@ def as_float(
     """A finite real number within the bounds (open or closed at each end)."""
     if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
         raise ValueError(f"{name} must be a real number, got {value!r}")
-    out = float(value)
+    try:
+        out = float(value)
+    except OverflowError:  # a Python int beyond the float range
+        raise ValueError(
+            f"{name} is an integer too large for a float64 ({len(str(abs(int(value))))} digits)"
+        ) from None
     if not math.isfinite(out):
         raise ValueError(f"{name} must be finite, got {out}")
     if minimum is not None and (out < minimum or (open_min and out == minimum)):

@@ -432,7 +432,7 @@ def assignment_sum(
     >>> import numpy as np
     >>> from jointtrack.assignment import assignment_sum
     >>> r = assignment_sum([[1.0, 2.0], [3.0, 4.0]])          # permanent 1·4 + 2·3
-    >>> float(np.exp(r.log_normalizer)), r.P.round(2).tolist()
+    >>> round(float(np.exp(r.log_normalizer)), 9), r.P.round(2).tolist()
     (10.0, [[0.4, 0.6], [0.6, 0.4]])
     >>> r = assignment_sum([[2.0]], null=[1.0])                # JPDA: miss 1, L = 2
     >>> r.beta.round(3).tolist()

@@ -138,13 +138,14 @@ def scatter_block(rows, cols, bu, bv, be, pu, pv, pe):
         pv[cols[b]] = bv[b]
 
 
-def group_exponents(W, null, row_counts, col_counts):
-    """Integer power-of-two exponents (er per row group, ec per column group, ok).
+def group_log_scales(lw, lu, row_counts, col_counts):
+    """Natural-log scales (α per row group, γ per column group, ok) from log weights.
 
-    Scaled weights ``W[p, q]·2^(er_p + ec_q)``, null ``null[p]·2^er_p`` and unused
-    column weight ``2^ec_q`` are all ≤ ~1 with the best assignment ≈ 1. Computed
-    on the expanded problem and averaged over each group (see the module
-    docstring). ``ok`` is False when no assignment has positive weight.
+    ``lw`` (R, C) and ``lu`` (R,) are the logs of the compressed weights and
+    null weights (−inf for 0). ``W·e^(α_p + γ_q)`` and ``null·e^(α_p)`` are
+    then ≤ ~1, the column-unused weight e^(γ_q) too, and the best assignment
+    ≈ 1. Computed on the expanded problem and averaged over each group (see the
+    module docstring). ``ok`` is False when no assignment has positive weight.
     """
     R, C = int(row_counts.sum()), int(col_counts.sum())
     if R + C > GROUP_SCALING_MAX:
@@ -152,18 +153,54 @@ def group_exponents(W, null, row_counts, col_counts):
             f"the expanded problem has {R} rows and {C} columns; its scaling needs an "
             f"assignment solve of size {R + C} > {GROUP_SCALING_MAX}"
         )
-    ri = np.repeat(np.arange(W.shape[0]), row_counts)
-    ci = np.repeat(np.arange(W.shape[1]), col_counts)
+    ri = np.repeat(np.arange(lw.shape[0]), row_counts)
+    ci = np.repeat(np.arange(lw.shape[1]), col_counts)
+    alpha, gamma, _, ok = _dual_scale(
+        np.ascontiguousarray(lw[np.ix_(ri, ci)]), np.ascontiguousarray(lu[ri]), np.zeros(C)
+    )
+    if not ok:
+        return np.zeros(lw.shape[0]), np.zeros(lw.shape[1]), False
+    a = np.bincount(ri, weights=alpha, minlength=lw.shape[0]) / row_counts
+    g = np.bincount(ci, weights=gamma, minlength=lw.shape[1]) / col_counts
+    return a, g, True
+
+
+def group_exponents(W, null, row_counts, col_counts):
+    """Integer power-of-two exponents (er per row group, ec per column group, ok).
+
+    Scaled weights ``W[p, q]·2^(er_p + ec_q)``, null ``null[p]·2^er_p`` and unused
+    column weight ``2^ec_q`` are all ≤ ~1 with the best assignment ≈ 1
+    (:func:`group_log_scales` rounded to powers of two, so applying them is
+    exact). ``ok`` is False when no assignment has positive weight.
+    """
     with np.errstate(divide="ignore"):
-        lw = np.log(W)[np.ix_(ri, ci)]
-        lu = np.log(null)[ri]
-    lv = np.zeros(C)
-    alpha, gamma, _, ok = _dual_scale(np.ascontiguousarray(lw), lu, lv)
+        lw = np.log(W)
+        lu = np.log(null)
+    a, g, ok = group_log_scales(lw, lu, row_counts, col_counts)
     if not ok:
         return np.zeros(W.shape[0], np.int64), np.zeros(W.shape[1], np.int64), False
-    a = np.bincount(ri, weights=alpha) / row_counts
-    g = np.bincount(ci, weights=gamma) / col_counts
     return np.rint(a / _LN2).astype(np.int64), np.rint(g / _LN2).astype(np.int64), True
+
+
+def from_log_weights(lw, lu, row_counts, col_counts):
+    """Weights in float range from their logarithms: ``(W, null, log_shift, ok)``.
+
+    For weights outside the float64 range (Schaub's a[t,i]: running products of
+    hundreds of likelihoods). ``W = exp(lw + α + γ)``, ``null = exp(lu + α)``
+    with the scales of :func:`group_log_scales`: every factor ≤ ~1 and the best
+    assignment ≈ 1, so only entries below 1e-308 of the best assignment's
+    factors flush to 0 — an assignment through them weighs < 1e-308 of the best
+    and changes no marginal by more than that. The unused-column weight becomes
+    ``e^γ``, not 1, so this is exact only where every column is used (a
+    square permanent: ``log_shift`` then restores ``log Z = log Z' + log_shift``);
+    ``ok`` is False when no assignment has positive weight.
+    """
+    a, g, ok = group_log_scales(lw, lu, row_counts, col_counts)
+    with np.errstate(under="ignore"):
+        W = np.exp(lw + a[:, None] + g[None, :])
+        null = np.exp(lu + a)
+    shift = -float(np.dot(row_counts, a) + np.dot(col_counts, g))
+    return np.ascontiguousarray(W), null, shift, ok
 
 
 def scale_problem(W, null):

@@ -121,6 +121,12 @@ class SampledPermanent:
         False when the effective sample size is tiny (below min(50, N/10)): the
         weights are then dominated by a few samples, `rel_stderr` is itself
         unreliable and the estimate may be far off (a RuntimeWarning is issued).
+    marginals, marginals_stderr : (n, m) ndarray or None
+        With ``marginals=True``: the self-normalised importance estimate of
+        P[t, j] = A[t, j]·Per(A₍₋ₜ,₋ⱼ₎)/Per(A), Σ_s W_s [σ_s(t) = j] / Σ_s W_s,
+        and its delta-method standard error
+        √(Σ_s W_s² ([σ_s(t) = j] − P̂)²) / Σ_s W_s (consistent, not unbiased:
+        a ratio of unbiased sums).
     """
 
     log_value: float
@@ -129,6 +135,8 @@ class SampledPermanent:
     n_samples: int
     effective_sample_size: float = math.nan
     converged: bool = True
+    marginals: np.ndarray | None = None
+    marginals_stderr: np.ndarray | None = None
 
     def confidence_interval(self, level: float = 0.95, *, log: bool = False):
         """Normal-approximation (CLT) confidence interval for Per(A).
@@ -190,9 +198,14 @@ def _balance(logA: np.ndarray, n_pad: int, max_sweeps: int = 200, tol: float = 1
 
 
 @numba.njit(cache=True)
-def _sis_kernel(B, ly, U, out):  # pragma: no cover - compiled
-    """Sequential importance sampling: one log-weight per row of U (see module doc)."""
+def _sis_kernel(B, ly, U, out, picks):  # pragma: no cover - compiled
+    """Sequential importance sampling: one log-weight per row of U (see module doc).
+
+    ``picks`` (n_s, n) receives each sample's column per row (for the marginal
+    estimates), or has 0 columns when they are not wanted.
+    """
     n_s, n = U.shape
+    record = picks.shape[1] > 0
     m = B.shape[1]
     free = np.empty(m, dtype=np.bool_)
     for s in range(n_s):
@@ -217,11 +230,15 @@ def _sis_kernel(B, ly, U, out):  # pragma: no cover - compiled
                     if acc > target:
                         break
             free[pick] = False
+            if record:
+                picks[s, t] = pick
             logw += math.log(w) - ly[pick]
         out[s] = logw
 
 
-def sample_permanent(A, n_samples: int = 10_000, *, rng=None) -> SampledPermanent:
+def sample_permanent(
+    A, n_samples: int = 10_000, *, rng=None, marginals: bool = False
+) -> SampledPermanent:
     r"""Unbiased importance-sampling estimate of Per(A) with a standard error.
 
     See the module docstring for the estimator (Sinkhorn-balanced sequential
@@ -236,12 +253,16 @@ def sample_permanent(A, n_samples: int = 10_000, *, rng=None) -> SampledPermanen
         number of independent samples N; the cost is O(N·n·m).
     rng : numpy.random.Generator, int or None
         source of randomness (an int is a seed; None draws fresh entropy).
+    marginals : bool
+        also estimate every assignment marginal from the same samples (memory
+        N·n integers).
 
     Returns
     -------
     SampledPermanent
-        ``log_value``, ``value``, ``rel_stderr``, ``n_samples`` and
-        ``confidence_interval(level)``.
+        ``log_value``, ``value``, ``rel_stderr``, ``n_samples``,
+        ``confidence_interval(level)`` and, with ``marginals=True``,
+        ``marginals`` and ``marginals_stderr``.
 
     Raises
     ------
@@ -255,7 +276,8 @@ def sample_permanent(A, n_samples: int = 10_000, *, rng=None) -> SampledPermanen
     gen = as_rng(rng)
     n, m = A.shape
     if n == 0:
-        return SampledPermanent(0.0, 1.0, 0.0, n_samples, float(n_samples), True)
+        empty = np.zeros((0, m)) if marginals else None
+        return SampledPermanent(0.0, 1.0, 0.0, n_samples, float(n_samples), True, empty, empty)
 
     allowed = _allowed_support(A > 0)  # raises InfeasibleAssignmentError
     order = np.argsort(allowed.sum(axis=1), kind="stable")
@@ -276,11 +298,12 @@ def sample_permanent(A, n_samples: int = 10_000, *, rng=None) -> SampledPermanen
     B = np.ascontiguousarray(np.exp(logA + lx[:, None] + ly[None, :]))
 
     logw = np.empty(n_samples)
+    picks = np.zeros((n_samples, n if marginals else 0), np.int64)
     chunk = max(1, 1_000_000 // n)
     for start in range(0, n_samples, chunk):
         stop = min(n_samples, start + chunk)
         U = gen.random((stop - start, n))
-        _sis_kernel(B, ly, U, logw[start:stop])
+        _sis_kernel(B, ly, U, logw[start:stop], picks[start:stop])
 
     shift = float(np.max(logw))
     if shift == -math.inf:
@@ -305,6 +328,28 @@ def sample_permanent(A, n_samples: int = 10_000, *, rng=None) -> SampledPermanen
             stacklevel=2,
         )
     log_value = shift + math.log(mean) - float(np.sum(lx))
+    P = P_err = None
+    if marginals:
+        P, P_err = _sampled_marginals(w, picks, order, m)
     return SampledPermanent(
-        log_value, _safe_exp(log_value), rel_stderr, n_samples, ess, bool(converged)
+        log_value, _safe_exp(log_value), rel_stderr, n_samples, ess, bool(converged), P, P_err
     )
+
+
+def _sampled_marginals(w, picks, order, m):
+    """Self-normalised marginal estimates and their delta-method standard errors."""
+    n_s, n = picks.shape
+    live = w > 0  # dead ends carry no assignment
+    w, picks = w[live], picks[live]
+    total = w.sum()
+    rows = np.broadcast_to(np.arange(n), picks.shape)
+    S1 = np.zeros((n, m))
+    S2 = np.zeros((n, m))
+    np.add.at(S1, (rows, picks), w[:, None])
+    np.add.at(S2, (rows, picks), (w * w)[:, None])
+    P = S1 / total
+    # Σ_s w_s² ([σ_s(t)=j] − P)² = S2 (1 − 2P) + P² Σ_s w_s²
+    var = np.maximum(S2 * (1.0 - 2.0 * P) + P * P * np.sum(w * w), 0.0) / (total * total)
+    out, err = np.empty_like(P), np.empty_like(P)
+    out[order], err[order] = P, np.sqrt(var)  # undo the row order of the sampler
+    return np.clip(out, 0.0, 1.0), err
