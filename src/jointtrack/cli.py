@@ -454,6 +454,50 @@ def reproduce_bojilov(
     boj.print_report(result, console)
 
 
+@reproduce_app.command("schaub")
+def reproduce_schaub(
+    quick: Annotated[
+        bool, typer.Option("--quick", help="One seed, 40 steps, reference every 5th step.")
+    ] = False,
+    seeds: Annotated[
+        int | None, typer.Option("--seeds", help="Seeds 0..N-1 (default 5; quick 1).")
+    ] = None,
+    steps: Annotated[
+        int | None, typer.Option("--steps", help="Time steps per example (default 100).")
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("jointtrack-out"),
+    progress: Annotated[
+        bool | None,
+        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
+    ] = None,
+) -> None:
+    """Schaub §4 examples 1-3: max KL vs step per method (Figures 5-7), ms per step."""
+    from jointtrack._console import make_console
+
+    console = make_console()
+    show = console.is_terminal if progress is None else progress
+    if seeds is not None and seeds < 1:
+        _fail(f"--seeds must be >= 1, got {seeds}")
+    if steps is not None and steps < 1:
+        _fail(f"--steps must be >= 1, got {steps}")
+    try:
+        from jointtrack.experiments import schaub
+
+        result = schaub.reproduce(
+            quick,
+            out_dir=out,
+            seeds=None if seeds is None else range(seeds),
+            steps=steps,
+            progress=show,
+            console=console,
+        )
+    except KeyboardInterrupt:
+        _fail("interrupted", code=130)
+    except (ValueError, OSError) as exc:
+        _fail(exc)
+    schaub.print_report(result, console)
+
+
 def main() -> None:
     app()
 

@@ -4,6 +4,8 @@
 * :func:`plot_gospa` — GOSPA over time and its decomposition (``gospa.png``).
 * :func:`plot_bojilov` — association cost per cluster size vs Bojilov's
   Tables 2–3 (``reproduce-bojilov.png``).
+* :func:`plot_schaub` — max KL divergence vs time step per method, one of
+  Schaub's Figures 5–7 (``schaub-example{1,2,3}.png``).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-__all__ = ["plot_bojilov", "plot_gospa", "plot_scene"]
+__all__ = ["plot_bojilov", "plot_gospa", "plot_scene", "plot_schaub"]
 
 _MAX_LABELLED_TRACKS = 60
 
@@ -274,3 +276,75 @@ def plot_bojilov(path, result: dict) -> Path:
 
 def _key(beta) -> str:
     return f"beta={float(beta):g}"
+
+
+def plot_schaub(path, res: dict, paper: dict) -> Path:
+    """Max KL (58) vs time step for every method — Schaub's Figures 5–7 for one example.
+
+    An infinite divergence (the one-hot max-weight answer while it is wrong) is
+    drawn as a marker at the top edge instead of a point.
+    """
+    from jointtrack.experiments.schaub import LABELS
+
+    ex = str(res["example"])
+    fig, ax = plt.subplots(figsize=(8.0, 4.8))
+    finite_max = max(
+        (v for series in res["max_kl"].values() for v in series if np.isfinite(v)), default=1.0
+    )
+    top = max(1.0, 1.15 * finite_max)
+    styles = {"exact": "-", "sinkhorn": "--", "local": ":", "maxweight": "-."}
+    colors = {}
+    for m, series in res["max_kl"].items():
+        y = np.array(series, dtype=float)
+        k = np.arange(1, y.size + 1)
+        finite = np.isfinite(y)
+        (line,) = ax.plot(
+            np.where(finite, k, np.nan),
+            np.where(finite, y, np.nan),
+            styles.get(m, "-"),
+            label=LABELS.get(m, m),
+        )
+        colors[m] = line.get_color()
+        if (~finite).any():
+            ax.plot(
+                k[~finite],
+                np.full((~finite).sum(), top),
+                "v",
+                color=line.get_color(),
+                markersize=4,
+                label=f"{LABELS.get(m, m)}: ∞ (wrong)",
+            )
+    med = res.get("over_seeds", {}).get("median_max_kl")
+    if med and len(res["over_seeds"]["seeds"]) > 1:
+        for m, series in med.items():
+            y = np.array(series, dtype=float)
+            ax.plot(
+                np.arange(1, y.size + 1),
+                np.where(np.isfinite(y), y, np.nan),
+                styles.get(m, "-"),
+                lw=0.7,
+                alpha=0.45,
+                color=colors.get(m),
+            )
+        ax.plot(
+            [],
+            [],
+            "k-",
+            lw=0.7,
+            alpha=0.45,
+            label=f"thin: median over {len(res['over_seeds']['seeds'])} seeds",
+        )
+    ax.axhline(np.log(2), color="grey", lw=0.6)
+    ax.text(1, np.log(2), " ln 2", va="bottom", fontsize=8, color="grey")
+    ax.set_ylim(0, top * 1.05)
+    ax.set_xlabel("time step k")
+    ax.set_ylabel(f"max KL over observed tracks, nats ({res['plotted_kl']})")
+    ax.set_title(
+        f"Schaub example {ex} (seed {res['seed']}): {res['n_observed_tracks']} observed tracks, "
+        f"{res['n_identities']} identities — exact {1e3 * res['seconds_per_step']['exact']:.1f} "
+        f"ms/step (paper {1e3 * paper['seconds_per_step'][ex]:.0f} ms)",
+        fontsize=9,
+    )
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)

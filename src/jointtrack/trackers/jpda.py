@@ -124,7 +124,9 @@ class ClusterRecord:
 class JPDATracker:
     """Multi-target JPDA tracker (see the module docstring).
 
+    >>> import numpy as np
     >>> trk = JPDATracker(TrackerConfig(clutter_density=1e-4))
+    >>> detections = [(float(t), np.array([[t, 0.0], [50.0, 3.0 * t]])) for t in range(5)]
     >>> for t, z in detections:            # z: (M, dim) positions at time t
     ...     result = trk.step(t, z)        # confirmed tracks in result.ids / result.x
     >>> table = trk.history()              # every confirmed estimate: a TrackHistory
