@@ -146,6 +146,36 @@ def test_tentative_duplicates_keep_the_more_probable_track():
     assert keep.tolist() == [False, True]
 
 
+def test_two_confirmed_tracks_never_merge():
+    # crossing targets come within d² < 1 of each other for a scan or two; merging
+    # two confirmed tracks there would delete a real target
+    x, P, ids, r, conf = _two([0.5, 0.2, 1.0, 0.1], confirmed=(True, True), existence=(0.9, 0.95))
+    keep, r2 = merge_duplicates(x, P, ids, r, conf, 2, threshold=1.0)
+    assert keep.all() and np.array_equal(r2, r)
+
+
+def test_crossing_targets_keep_both_tracks():
+    # two targets 10° apart crossing (jointtrack.identity.crossing's scene), tracked by
+    # the plain tracker from the truth with the default merge threshold: both tracks live
+    from jointtrack.identity.crossing import identity_crossing
+
+    for seed in range(5):
+        sc = identity_crossing(seed)
+        cfg = TrackerConfig(
+            measurement_noise=float(sc.measurement_noise[0, 0]),
+            clutter_density=sc.position_clutter_density,
+            p_d=sc.p_d,
+            process_noise=1.0,
+            max_speed=15.0,
+        )
+        trk = JPDATracker(cfg)
+        trk.start_tracks(sc.truth[:, 0], np.diag([100.0, 100.0, 1.0, 1.0]))
+        ids = set(trk.ids.tolist())
+        for t, Z in zip(sc.times, sc.measurements, strict=True):
+            trk.step(t, Z[:, :2])
+            assert ids <= set(trk.ids.tolist()), f"seed {seed}: a true track was deleted at t={t}"
+
+
 @pytest.mark.parametrize("threshold", [1.0, 0.0])
 def test_neighbours_one_lane_apart_never_merge(threshold):
     x, P, ids, r, conf = _two([0.0, 20.0, 1.0, 0.0])

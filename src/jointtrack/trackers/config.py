@@ -72,7 +72,8 @@ class TrackerConfig:
     r_report : a confirmed JIPDA track is reported (in ``ScanResult`` and the
         history) while its existence is ≥ r_report; r_delete < r_report ≤ 1.
     merge_threshold : two tracks whose state distance (x₁ − x₂)ᵀ(P₁ + P₂)⁻¹(x₁ − x₂)
-        is below this are duplicates of one target and merged (0: never).
+        is below this, at least one of them tentative, are duplicates of one
+        target and merged (0: never; two confirmed tracks are never merged).
     seed : seed of the random generator used by randomised approximations
         (an integer ≥ 0, or None).
 

@@ -47,6 +47,11 @@ apart at 1 unit/s, σ = 5, P_D = 0.9, 60 clutter returns per scan):
    tentative, then more probable, then older; it takes the union
    1 − (1 − r₁)(1 − r₂) of the two existences. The threshold is far below
    the χ² distance of two targets one gate apart, so neighbours never merge.
+   Two *confirmed* tracks are never merged: crossing targets come within
+   d² < 1 for a scan or two (two targets 10° apart at 10 m/s lost one of
+   their tracks in every seed), while leaving confirmed duplicates alone cost
+   nothing measurable on the abreast scene (12 seeds: same times to confirm
+   and targets held, false tracks 0.110 → 0.122 per scan).
 
 Confirmation and deletion are thresholds on r (``r_confirm``, ``r_delete``):
 the JIPDA odds update is Wald's sequential probability ratio test, so the
@@ -87,6 +92,9 @@ def existence_update(r, beta0, weights, rows, pdg):
 def merge_duplicates(x, P, ids, existence, confirmed, dim, threshold):
     """Which tracks to keep after merging statistical duplicates (see the module docstring).
 
+    A pair is merged when d² < ``threshold`` and at least one of the two is
+    tentative (two confirmed tracks may be crossing targets).
+
     Returns ``(keep, existence)``: a boolean mask and the updated existences
     (the survivors of merges hold the union of the pair's existences).
     """
@@ -109,7 +117,7 @@ def merge_duplicates(x, P, ids, existence, confirmed, dim, threshold):
     existence = existence.copy()
     order = np.argsort(d2[close])  # closest pairs first
     for a, b in zip(i[close][order], j[close][order], strict=True):
-        if not (keep[a] and keep[b]):
+        if not (keep[a] and keep[b]) or (confirmed[a] and confirmed[b]):
             continue
         rank_a = (confirmed[a], existence[a], -ids[a])
         rank_b = (confirmed[b], existence[b], -ids[b])
