@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from brute import log_fraction
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.identity import deconflict
 from jointtrack.identity.metrics import (
@@ -22,14 +23,6 @@ from jointtrack.identity.metrics import (
 )
 
 # ------------------------------------------------------------------ exact reference
-
-
-def _log_fraction(x: Fraction) -> float:
-    if x == 0:
-        return -math.inf
-    p, q = x.numerator, x.denominator
-    sp, sq = max(p.bit_length() - 60, 0), max(q.bit_length() - 60, 0)
-    return math.log(p >> sp) - math.log(q >> sq) + (sp - sq) * math.log(2)
 
 
 def brute(entries, b, rows, cols):
@@ -64,7 +57,7 @@ def brute(entries, b, rows, cols):
         [[float(acc.get((r, c), 0) / total) / cols[c] for c in range(len(cols))] for r in first]
     )
     Pf = np.array([float(acc.get((r, -1), 0) / total) for r in first])
-    return _log_fraction(total), P, Pf
+    return log_fraction(total), P, Pf
 
 
 @st.composite

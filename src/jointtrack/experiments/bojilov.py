@@ -45,11 +45,12 @@ from __future__ import annotations
 import contextlib
 import datetime
 import math
-import platform
 import time
 from pathlib import Path
 
 import numpy as np
+
+from jointtrack._provenance import machine_info
 
 __all__ = ["PAPER_TABLES", "analyse_cluster", "print_report", "record_clusters", "reproduce"]
 
@@ -362,11 +363,7 @@ def reproduce(
         "experiment": "Bojilov et al. Tables 2-3",
         "jointtrack_version": __version__,
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "machine": {
-            "platform": platform.platform(),
-            "python": platform.python_version(),
-            "processor": platform.processor() or platform.machine(),
-        },
+        "machine": machine_info(),
         "settings": {
             "runs": runs,
             "seeds": list(range(runs)),

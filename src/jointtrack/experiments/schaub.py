@@ -85,11 +85,12 @@ from __future__ import annotations
 
 import datetime
 import math
-import platform
 import time
 from pathlib import Path
 
 import numpy as np
+
+from jointtrack._provenance import machine_info
 
 __all__ = ["PAPER", "example_setup", "print_report", "reproduce", "run_example"]
 
@@ -457,11 +458,7 @@ def reproduce(
         "experiment": "Schaub section 4, examples 1-3",
         "jointtrack_version": __version__,
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "machine": {
-            "platform": platform.platform(),
-            "python": platform.python_version(),
-            "processor": platform.processor() or platform.machine(),
-        },
+        "machine": machine_info(),
         "settings": {
             "steps": n_steps,
             "seeds": seeds,
