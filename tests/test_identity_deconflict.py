@@ -65,7 +65,7 @@ def problems(draw):
     """Compressed M = [A | b·J] with hidden tracks and classes; values drawn, not seeded.
 
     Entries are m·2^e with m a drawn float in [0, 1] (zeros included) and e an
-    integer exponent from −1200 to 1200, given to jointtrack as log M — far
+    integer exponent up to ±15000 (products of hundreds of likelihoods), given as log M — far
     outside the float range — and to the reference as exact Fractions.
     """
     n_obs = draw(st.integers(1, 3))
@@ -79,7 +79,7 @@ def problems(draw):
     extra = draw(st.integers(0, max(0, 6 - n_tracks)))
     if extra:
         rows = rows + [extra]
-    spread = draw(st.sampled_from([0, 3, 60, 1200]))
+    spread = draw(st.sampled_from([0, 3, 60, 1200, 15000]))  # 15000 bits ≈ 10⁴ nats
     mant = st.one_of(st.just(0.0), st.floats(1e-3, 1.0), st.just(5e-324))
     R, C = len(rows), len(cols)
     m = [[draw(mant) for _ in range(C)] for _ in range(R)]

@@ -196,6 +196,8 @@ def from_log_weights(lw, lu, row_counts, col_counts):
     ``ok`` is False when no assignment has positive weight.
     """
     a, g, ok = group_log_scales(lw, lu, row_counts, col_counts)
+    if not ok:  # no assignment has positive weight: nothing to bring in range
+        return np.zeros(lw.shape), np.zeros(lu.shape), 0.0, False
     with np.errstate(under="ignore"):
         W = np.exp(lw + a[:, None] + g[None, :])
         null = np.exp(lu + a)
