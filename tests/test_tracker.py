@@ -261,3 +261,18 @@ def test_other_motion_models_and_dimensions(motion, dim):
     stats = track_statistics(*truth, rows[:, 0], rows[:, 1].astype(int), rows[:, 2:], gate=20)
     assert stats.n_true_tracks == 2 and stats.n_false_tracks == 0, stats.as_dict()
     assert stats.coverage >= 0.85 and stats.rmse <= 2 * sigma, stats.as_dict()
+
+
+def test_start_tracks_with_a_time_sets_the_clock_so_the_next_scan_predicts():
+    cfg = TrackerConfig(clutter_density=1e-6, process_noise=1e-4)
+    x0 = np.array([[0.0, 0.0, 10.0, 0.0]])
+    P0 = np.diag([1.0, 1.0, 0.01, 0.01])
+    a = JPDATracker(cfg)
+    a.start_tracks(x0, P0, time=0.0)
+    r = a.step(5.0, np.array([[50.0, 0.0]]))
+    assert r.x[0, 0] == pytest.approx(50.0, abs=0.5)  # predicted 5 s ahead, then updated
+    b = JPDATracker(cfg)
+    b.start_tracks(x0, P0)  # no time: the first scan is taken to be at the states' time
+    assert b.step(5.0, np.array([[50.0, 0.0]])).x[0, 0] < 45.0
+    with pytest.raises(ValueError, match="differs from the tracker's clock"):
+        a.start_tracks(x0, P0, time=1.0)

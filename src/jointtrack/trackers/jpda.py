@@ -666,12 +666,32 @@ class JPDATracker:
         )
         return ids
 
-    def start_tracks(self, x0, P0, *, confirmed: bool = True, existence: float = 0.99):
+    def start_tracks(self, x0, P0, *, confirmed: bool = True, existence: float = 0.99, time=None):
         """Add tracks with known states (e.g. from a previous stage or ground truth).
 
         ``x0`` (K, n) states in the motion model's layout, ``P0`` (K, n, n) or
-        (n, n) covariances. Returns the new track ids.
+        (n, n) covariances. ``time``: the time the states refer to. A tracker
+        that has seen no scan yet takes it as its clock, so the next ``step``
+        predicts the new tracks from it (without it, the first scan is taken to
+        be at the states' time and nothing is predicted); a tracker that has a
+        clock requires ``time`` to equal it (predict states from other times
+        yourself). Returns the new track ids.
         """
+        t0 = None
+        if time is not None:
+            origin = self.time_origin
+            try:
+                t0 = self._scan_time(time)
+            finally:
+                if self.time is None:  # nothing is changed until the tracks are valid
+                    self.time_origin = origin
+            if not math.isfinite(t0):
+                raise ValueError(f"time must be finite, got {time!r}")
+            if self.time is not None and t0 != self.time:
+                raise ValueError(
+                    f"time = {t0} differs from the tracker's clock ({self.time}); start tracks "
+                    "at the current time or predict their states to it first"
+                )
         n = self._motion.state_dim
         x0 = np.atleast_2d(np.asarray(x0, dtype=float))
         if x0.ndim != 2 or x0.shape[1] != n:
@@ -682,7 +702,12 @@ class JPDATracker:
             raise ValueError("x0 and P0 must be finite")
         if np.any(np.linalg.eigvalsh(0.5 * (P0 + P0.transpose(0, 2, 1))) <= 0):
             raise ValueError("every P0 must be symmetric positive definite")
-        return self._append(x0, P0, confirmed=confirmed, existence=existence)
+        ids = self._append(x0, P0, confirmed=confirmed, existence=existence)
+        if t0 is not None and self.time is None:
+            if is_datetime(time):
+                self._scan_time(time)  # fixes time_origin, validated above
+            self.time = t0
+        return ids
 
     # -------------------------------------------------------------- history
     def history(self) -> TrackHistory:
