@@ -23,6 +23,7 @@ import pytest
 from brute import brute_assignment, log_fraction
 from jointtrack.assignment import assignment_sum
 from jointtrack.association import exact_jpda, marginals
+from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent import assignment_marginals, log_permanent, permanent
 
 TOL = 1e-12
@@ -286,3 +287,18 @@ def test_compressed_overflow_contract(method):
     check_permanent([[1e-200, 1.0]], method, [2], [2, 1])
     # [[1e-200]] with 2 rows × 2 columns: 2·1e-400 underflows
     check_permanent([[1e-200]], method, [2], [2])
+
+
+@pytest.mark.parametrize("rows", [1, 2, 5])
+def test_no_columns_is_the_product_of_the_null_weights(rows):
+    # zero columns used to reach uninitialised memory in the frontier plan (an
+    # intermittent segfault); run it several times to make a recurrence likely to show
+    null = np.linspace(0.2, 0.9, rows)
+    for _ in range(20):
+        r = assignment_sum(np.zeros((rows, 0)), null, marginals=False)
+        assert r.log_normalizer == pytest.approx(np.log(null).sum(), rel=1e-15)
+    r = assignment_sum(np.zeros((rows, 0)), null)
+    assert r.beta.tolist() == [[1.0]] * rows
+    assert assignment_sum(np.zeros((rows, 0)), 0.0, marginals=False).log_normalizer == -np.inf
+    with pytest.raises(InfeasibleAssignmentError):
+        assignment_sum(np.zeros((rows, 0)), 0.0)

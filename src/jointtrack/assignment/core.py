@@ -470,6 +470,15 @@ def solve_checked(W, null, rows, cols, marginals, method, max_bits, max_memory, 
             True,
             {},
         )
+    if C == 0:
+        # no columns: every row is unassigned, Z = Π null (the DP's plans assume a
+        # column to visit; zero columns reached uninitialised memory there)
+        if not (null > 0).all():
+            return _infeasible("trivial", marginals, {})
+        logZ = float(np.dot(rows, np.log(null)))
+        if not marginals:
+            return AssignmentResult(logZ, None, None, "trivial", True, {})
+        return AssignmentResult(logZ, np.zeros((R, 0)), np.ones(R), "trivial", True, {})
     compressed = bool((rows > 1).any() or (cols > 1).any())
     if not compressed and method == "auto":
         repeats = find_repeats(W) if R * C <= 1_000_000 else None
