@@ -16,7 +16,10 @@ a_m makes an unused column weigh 1, the convention of the assignment-sum core
     log I = a_0 + Σ_m log a_m + log Z(W = f_km / a_m, null = f_k0).
 
 Rows are scaled in log space first (a row's scale multiplies every term
-once), so coefficients anywhere in the float range are fine.
+once), so coefficients anywhere in the float range are fine as long as,
+within one factor, the ratios f_km/a_m and f_k0 lie within ~1e308 of the
+factor's largest (only row scalings are free: the core's unused column
+weighs 1); a smaller one flushes to 0 in the float core.
 
 Saddle point (``method="saddle"``, eqs. 24, 30, 31)
 ----------------------------------------------------
@@ -35,12 +38,46 @@ density of X at its mean:
 
     log I ≈ φ(û) − (M/2) log 2π − ½ log det ∇²φ(û).
 
-Newton's method with backtracking on φ runs batched over particles (one numpy
-pass per iteration for all L problems), from u = 0, to ‖∇φ‖∞ ≤ 1e-12;
-convergence is reported per problem and a problem that has not converged in
-``max_iter`` steps raises :class:`SaddlePointError` (or is flagged, with
-``raise_on_failure=False``). a_m > 0 makes φ strictly convex and coercive:
-the saddle point exists and is unique (Streit §4.2).
+Its error is that of a Gaussian density standing in for a lattice
+probability: about (e/√(2π))^M globally (Table 1), a few % per problem.
+
+Corrected saddle point (``method="saddle-corrected"``)
+------------------------------------------------------
+The same saddle point, and log I ≈ φ(û) + log P(X = 1) with P(X = 1) from
+:mod:`jointtrack.saddle.corrections`: every single coordinate P(X_m = 1) and
+pair P(X_m = 1, X_n = 1) exact (closed forms of the tilted law), the
+dependence of three or more coordinates by the Gaussian and second-order
+Edgeworth terms that the singles and pairs do not already carry. No global
+bias; on Table 1's setup within 0.41 % in mean and 0.35 % in spread in every
+cell (eq. 30: +45…+234 % and up to 1.6 %), exact for M ≤ 2 and for K = 0.
+Cost O(K M³ + K² M²) per problem after the saddle point (O(K M³) for the
+pairs' complement sums, a matrix product); for L = 1000 problems of K = 7,
+M = 15 about 2.3× the plain saddle point, 4.5× at M = 30.
+
+Newton's method
+---------------
+Batched over problems (one numpy pass per iteration over the problems not yet
+converged), from u_m = −log(a_m + Σ_k f̃_km) (f̃ each factor scaled to
+largest coefficient 1: every tilted mean starts within a factor M + 1 of 1,
+whatever the scale of the coefficients), with Armijo backtracking on φ
+evaluated in log space, to ‖∇φ‖∞ ≤ 1e-12; convergence is reported per
+problem and a problem that has not converged in ``max_iter`` steps raises
+:class:`SaddlePointError` (or is flagged, with ``raise_on_failure=False``).
+
+When there is no interior saddle point. a_m > 0 makes φ strictly convex;
+it is coercive unless some factors with f_k0 = 0 can only take as many
+measurements as there are of them (Hall-tight; Streit §4.2 assumes this
+away). φ's infimum is then approached with λ → 0 on those measurements and
+Newton's method stops there at ‖∇φ‖ ≤ 1e-12, where X lives on a sublattice
+(Σ of those coordinates fixed). Eq. (30) is meaningless there (it raises
+when det ∇²φ underflows, else returns what the Gaussian formula gives). The
+corrected method is exact for a tight block of one or two measurements (its
+singles and pairs); a block of three or more shows as a numerically
+singular correlation matrix, and those problems alone are handed to the
+exact core (a Gaussian remainder on a sublattice was 40–60 % off for 3×3 to
+5×5 blocks). With *more* such factors than measurements, I = 0: Newton's
+method cannot converge and :func:`log_mixed_derivative` returns −inf after a
+matching check of those problems only.
 """
 
 from __future__ import annotations
@@ -51,9 +88,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import logsumexp
 
+from jointtrack.assignment._checks import _as_real_array
 from jointtrack.assignment.core import DEFAULT_MAX_BITS, DEFAULT_MAX_MEMORY, solve_checked
 from jointtrack.errors import InfeasibleAssignmentError
-from jointtrack.saddle.generating import check_coefficients, log_psi
+from jointtrack.saddle.corrections import log_unit_probability, tilt
+from jointtrack.saddle.generating import check_coefficients
 
 __all__ = [
     "METHODS",
@@ -64,7 +103,7 @@ __all__ = [
     "saddle_point",
 ]
 
-METHODS = ("exact", "saddle")
+METHODS = ("exact", "saddle", "saddle-corrected")
 _LOG_2PI = math.log(2.0 * math.pi)
 
 
@@ -124,6 +163,9 @@ def jpda_log_weights(a0, a, b, C) -> np.ndarray:
     a0, a, b, _ = check_coefficients(a0, a, b)
     _, _, C, _ = check_coefficients(a0, a, C)
     log_a = np.log(a)
+    if a.size == 0:  # I_l = e^{a0} b_l0 Π_j c_j0 (and the core is not asked about 0 columns)
+        with np.errstate(divide="ignore"):
+            return a0 + np.log(C[:, 0]).sum() + np.log(b[:, 0])
     if C.shape[0]:
         with np.errstate(divide="ignore"):
             logW = np.log(C[:, 1:]) - log_a[None, :]
@@ -169,7 +211,7 @@ class SaddlePoint:
     u : (…, M) ndarray
         log of the saddle point r̂ (eq. 24).
     phi : (…,) ndarray
-        φ(û) = log Ψ(r̂) − Σ log r̂.
+        φ(û) = log Ψ(r̂) − Σ n_m log r̂_m (n = ``counts``, 1 for eq. 24).
     log_det : (…,) ndarray
         log det ∇²φ(û) (the Hessian of eq. 31 in log coordinates).
     iterations : int
@@ -187,64 +229,156 @@ class SaddlePoint:
     gradient_norm: np.ndarray
 
 
-def _derivatives(u, a, F):
-    """φ's gradient and Hessian at u (batched), and the tilted probabilities."""
-    r = np.exp(u)
-    lam = a * r  # (…, M)
-    num = F[..., 1:] * r[..., None, :]  # (…, K, M)
-    s = F[..., 0] + num.sum(-1)  # (…, K)
-    p = num / s[..., None]
-    grad = lam + p.sum(-2) - 1.0
-    hess = -np.einsum("...km,...kn->...mn", p, p)
-    diag = lam + p.sum(-2)
-    idx = np.arange(u.shape[-1])
-    hess[..., idx, idx] += diag
-    return grad, hess
+def _phi(u, a0, a, logF, counts):
+    """φ(u) = log Ψ(e^u) − Σ n u in log space (+inf, never NaN, where e^u overflows).
+
+    Also returns the size of its terms, |a0| + Σ λ + Σ |log s_k| + Σ |n u|: φ's
+    rounding error is a small multiple of 1e-16 times that.
+    """
+    t = logF[..., 1:] + u[..., None, :]
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        logs = logsumexp(np.concatenate([logF[..., :1], t], axis=-1), axis=-1)
+        lam = a * np.exp(u)
+        phi = a0 + lam.sum(-1) + logs.sum(-1) - (counts * u).sum(-1)
+        scale = abs(a0) + lam.sum(-1) + np.abs(logs).sum(-1) + np.abs(counts * u).sum(-1)
+    return phi, scale
+
+
+def _start(a, F):
+    """Newton's starting point: every coordinate's tilted mean within a factor M + 1 of 1.
+
+    With each factor scaled to largest coefficient 1 (p is unchanged by that),
+    u_m = −log(a_m + Σ_k f̃_km) gives s_k ∈ [1, M + 1] for a factor whose
+    largest coefficient is a measurement's, so λ_m + Σ_k p_km ∈ [1/(M+1), 1]:
+    the search starts a bounded distance from the saddle point whatever the
+    scale of the coefficients (1e±300 included), where u = 0 could be hundreds
+    of Newton steps away.
+    """
+    top = F.max(-1, keepdims=True)
+    Ft = F[..., 1:] / np.where(top > 0, top, 1.0)
+    return -np.log(a + Ft.sum(-2))
+
+
+def _newton_step(hess, grad):
+    try:
+        return -np.linalg.solve(hess, grad[..., None])[..., 0]
+    except np.linalg.LinAlgError:  # a numerically singular Hessian: least-norm step
+        return -(np.linalg.pinv(hess) @ grad[..., None])[..., 0]
 
 
 def saddle_point(
-    a0, a, F, *, tol: float = 1e-12, max_iter: int = 100, raise_on_failure: bool = True
+    a0,
+    a,
+    F,
+    *,
+    tol: float = 1e-12,
+    max_iter: int = 100,
+    raise_on_failure: bool = True,
+    counts=None,
 ) -> SaddlePoint:
-    """Minimise φ(u) = log Ψ(e^u) − Σ u by Newton's method, batched over ``F`` (L, K, M+1)."""
+    """Minimise φ(u) = log Ψ(e^u) − Σ n_m u_m by Newton's method, batched over ``F`` (L, K, M+1).
+
+    ``counts`` n (default 1: eq. 24, the mixed derivative) gives the saddle
+    point of the coefficient [β^{n−1}]·… of the contour integrand Ψ(β)/Π β^{n}
+    in θ: ∇φ = E[X] − n (module docstring). Figure 1's f(z) = e^z (1+10z)^4
+    z^{−6} (M = 1, four factors 1 + 10z, a = 1, n = 6) has its saddle point at
+    the positive root of 10z² − 19z − 6 = 0:
+
+    >>> import numpy as np
+    >>> sp = saddle_point(0.0, [1.0], [[1.0, 10.0]] * 4, counts=[6.0])
+    >>> round(float(np.exp(sp.u[0])), 10), round((19 + 601**0.5) / 20, 10)
+    (2.1757650672, 2.1757650672)
+
+    Newton's direction with Armijo backtracking on φ (convex), the test
+    allowing φ's own rounding (1e-14 times the size of its terms), so that near
+    the minimum, where the decrease of a Newton step is below that rounding,
+    the full step is taken and the iteration does not stall short of ``tol``.
+    Raises :class:`SaddlePointError` (unless ``raise_on_failure=False``) when a
+    problem has ‖∇φ‖∞ > max(tol, 1e-9) after ``max_iter`` steps.
+    """
     a0, a, F, _ = check_coefficients(a0, a, F)
     M = a.size
+    if counts is None:
+        n = np.ones(M)
+    else:
+        n = _as_real_array(counts, "counts")
+        if n.shape != (M,) or not np.isfinite(n).all() or (n <= 0).any():
+            raise ValueError(f"counts must be {M} finite numbers > 0, got {counts!r}")
+    if (F == 0).all(-1).any():
+        raise ValueError("F has a factor with every coefficient 0: Ψ ≡ 0, no saddle point")
     batch = F.shape[:-2]
-    u = np.zeros((*batch, M))
-    phi = log_psi(u, a0, a, F) - u.sum(-1)
-    active = np.ones(batch, bool)
+    K = F.shape[-2]
+    Ff = F.reshape(math.prod(batch), K, M + 1)
+    with np.errstate(divide="ignore"):
+        logF = np.log(Ff)
+    u = _start(a, Ff) if M else np.zeros((Ff.shape[0], 0))
+    phi, scale = _phi(u, a0, a, logF, n)
+    gnorm = np.zeros(Ff.shape[0])
+    act = np.arange(Ff.shape[0]) if M else np.arange(0)
     it = 0
-    gnorm = np.full(batch, np.inf)
-    for it in range(1, max_iter + 1):
-        grad, hess = _derivatives(u, a, F)
-        gnorm = np.abs(grad).max(-1) if M else np.zeros(batch)
-        active = gnorm > tol
-        if not active.any():
-            it -= 1
+    while act.size:
+        # Newton's method on the problems still active only
+        tl = tilt(u[act], a, Ff[act])
+        grad = tl.lam + tl.p.sum(-2) - n
+        gnorm[act] = np.abs(grad).max(-1)
+        live = gnorm[act] > tol
+        if it == max_iter or not live.any():
             break
-        step = np.zeros_like(u)
-        step[active] = -np.linalg.solve(hess[active], grad[active][..., None])[..., 0]
-        # backtracking: φ is convex, the Newton direction descends; halve until it does
-        t = np.ones(batch)
+        it += 1
+        act, grad, cov = act[live], grad[live], tl.cov[live]
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            step = _newton_step(cov, grad)
+            slope = (grad * step).sum(-1)  # −(Newton decrement)² < 0
+        # no usable Newton direction (the Hessian singular in float: a variance
+        # below 1e-16 of another lost in their sum): steepest descent instead
+        wild = ~np.isfinite(step).all(-1) | ~(-slope > 1e-12 * (grad * grad).sum(-1))
+        step[wild] = -grad[wild]
+        slope[wild] = -(grad[wild] ** 2).sum(-1)
+        u_a, phi_a, scale_a, logF_a = u[act], phi[act], scale[act], logF[act]
+        # backtracking: φ is convex, the direction descends; halve until it does
+        t = np.ones(act.size)
         for _ in range(60):
-            trial = u + t[..., None] * step
-            phi_t = log_psi(trial, a0, a, F) - trial.sum(-1)
-            ok = ~active | (phi_t <= phi + 1e-4 * t * (grad * step).sum(-1) + 1e-15 * np.abs(phi))
+            phi_t, _ = _phi(u_a + t[:, None] * step, a0, a, logF_a, n)
+            ok = phi_t <= phi_a + 1e-4 * t * slope + 1e-14 * scale_a
             if ok.all():
                 break
             t = np.where(ok, t, 0.5 * t)
-        u = np.where(active[..., None], u + t[..., None] * step, u)
-        phi = log_psi(u, a0, a, F) - u.sum(-1)
-    grad, hess = _derivatives(u, a, F)
-    gnorm = np.abs(grad).max(-1) if M else np.zeros(batch)
+        t = np.where(ok, t, 0.0)  # no acceptable step: the problem stalls where it is
+        # a steepest-descent step has no natural length: double it while φ decreases
+        grow = wild & (t == 1.0)
+        if grow.any():
+            g_idx = np.flatnonzero(grow)
+            best = phi_t[g_idx]
+            for _ in range(40):
+                trial = u_a[g_idx] + 2.0 * t[g_idx, None] * step[g_idx]
+                phi_g, _ = _phi(trial, a0, a, logF_a[g_idx], n)
+                better = phi_g < best
+                if not better.any():
+                    break
+                t[g_idx[better]] *= 2.0
+                best = np.where(better, phi_g, best)
+                g_idx, best = g_idx[better], best[better]
+        u[act] = u_a + t[:, None] * step
+        phi[act], scale[act] = _phi(u[act], a0, a, logF_a, n)
+        act = act[t > 0]
     converged = gnorm <= max(tol, 1e-9)
+    u = u.reshape(*batch, M)
+    phi, gnorm, converged = phi.reshape(batch), gnorm.reshape(batch), converged.reshape(batch)
     if raise_on_failure and not converged.all():
         bad = np.argwhere(~converged)
+        where = f"index {tuple(int(i) for i in bad[0])}, " if batch else ""
         raise SaddlePointError(
-            f"the saddle point was not found in {max_iter} Newton steps for "
-            f"{len(bad)} problem(s) (first: index {tuple(int(i) for i in bad[0])}, "
-            f"gradient norm {float(gnorm[tuple(bad[0])]):.3g})"
+            f"the saddle point was not found in max_iter = {max_iter} Newton steps for "
+            f"{len(bad)} problem(s) ({where}gradient norm "
+            f"{float(gnorm[tuple(bad[0])]):.3g} > tol = {max(tol, 1e-9):.3g}); raise max_iter, "
+            "or the problem has none (e.g. more factors with f_k0 = 0 than measurements "
+            "they can take: I = 0)"
         )
-    sign, log_det = np.linalg.slogdet(hess) if M else (np.ones(batch), np.zeros(batch))
+    if M:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            _, log_det = np.linalg.slogdet(tilt(u, a, F).cov)
+    else:
+        log_det = np.zeros(batch)
     return SaddlePoint(u, phi, log_det, it, converged, gnorm)
 
 
@@ -261,8 +395,11 @@ def log_mixed_derivative(a0, a, F, method: str = "exact"):
         clutter terms a_m = Λ p_Λ(y_m).
     F : (K, M+1) or (L, K, M+1) array_like, ≥ 0
         the linear factors, column 0 the constants; a batch of L problems.
-    method : {"exact", "saddle"}
-        ``"exact"``: the assignment sum on the core; ``"saddle"``: eq. (30).
+    method : {"exact", "saddle", "saddle-corrected"}
+        ``"exact"``: the assignment sum on the core; ``"saddle"``: eq. (30);
+        ``"saddle-corrected"``: φ(û) + log P(X = 1) with exact single and pair
+        lattice terms and the Gaussian–Edgeworth remainder
+        (:mod:`jointtrack.saddle.corrections`), no global bias.
 
     Returns
     -------
@@ -282,8 +419,11 @@ def log_mixed_derivative(a0, a, F, method: str = "exact"):
     True
     >>> round(float(np.exp(log_mixed_derivative(0.0, a, F, "saddle") - exact)), 2)
     1.12
+    >>> # exact up to the dependence of ≥ 3 measurements: here (M = 2) exact
+    >>> round(float(np.exp(log_mixed_derivative(0.0, a, F, "saddle-corrected") - exact)), 12)
+    1.0
     """
-    if method not in METHODS:
+    if not isinstance(method, str) or method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     a0, a, F, batched = check_coefficients(a0, a, F)
     M = a.size
@@ -297,8 +437,47 @@ def log_mixed_derivative(a0, a, F, method: str = "exact"):
             return np.array([_exact_one(a0, log_a, Fi) for Fi in F])
         return _exact_one(a0, log_a, F)
     # a factor that is identically zero makes Ψ ≡ 0: I = 0 exactly, no saddle point
-    zero = (F == 0).all(-1).any(-1)
-    sp = saddle_point(a0, a, np.where(zero[..., None, None], 1.0, F))
-    out = sp.phi - 0.5 * M * _LOG_2PI - 0.5 * sp.log_det
+    zero = np.array((F == 0).all(-1).any(-1))
+    Fs = np.where(zero[..., None, None], 1.0, F)
+    sp = saddle_point(a0, a, Fs, raise_on_failure=False)
+    failed = ~sp.converged & ~zero
+    if failed.any():
+        # no saddle point: I = 0 when the factors with f_k0 = 0 cannot all get a
+        # measurement of their own (Hall); otherwise a genuine failure
+        from jointtrack.assignment.feasibility import is_feasible
+
+        for i in zip(*np.nonzero(failed), strict=True) if batched else [()]:
+            if not is_feasible(F[i][:, 1:], F[i][:, 0]):
+                zero[i] = True
+        failed &= ~zero
+        if failed.any():
+            bad = tuple(int(i) for i in np.argwhere(failed)[0])
+            raise SaddlePointError(
+                f"the saddle point was not found for {int(failed.sum())} problem(s) "
+                f"({'index ' + str(bad) + ', ' if batched else ''}gradient norm "
+                f"{float(sp.gradient_norm[bad]):.3g} after {sp.iterations} Newton steps)"
+            )
+    if method == "saddle":
+        singular = ~np.isfinite(sp.log_det) & ~zero
+        if singular.any():
+            # (30) needs det ∇²φ(û) > 0; it underflows when factors with f_k0 = 0
+            # are confined to as many measurements (X then lives on a sublattice)
+            raise SaddlePointError(
+                f"eq. (30) is undefined for {int(singular.sum())} problem(s): the Hessian "
+                "at the saddle point is singular (factors with f_k0 = 0 confined to as "
+                "many measurements); method='saddle-corrected' or 'exact' handle it"
+            )
+        out = sp.phi - 0.5 * M * _LOG_2PI - 0.5 * sp.log_det
+    else:
+        logp, singular = log_unit_probability(tilt(sp.u, a, Fs), with_flags=True)
+        out = sp.phi + logp
+        singular &= ~zero
+        if singular.any():
+            # no interior saddle point (a Hall-tight block of factors with f_k0 = 0):
+            # no Gaussian remainder exists, those problems go to the exact core
+            out = np.array(out)
+            log_a = np.log(a)
+            for i in zip(*np.nonzero(singular), strict=True) if batched else [()]:
+                out[i] = _exact_one(a0, log_a, F[i])
     out = np.where(zero, -np.inf, out)
     return out if batched else float(out)
