@@ -183,3 +183,18 @@ def test_a_failed_batch_falls_back_to_trial_by_trial(monkeypatch):
     assert res["status"] == "ok" and not res["batched"] and res["n_failed"] == 0
     assert "trial by trial" in res["message"]
     assert np.isfinite(res["log"]).all()
+
+
+def test_cli_reproduce_streit_quick(tmp_path):
+    from typer.testing import CliRunner
+
+    from jointtrack.cli import app
+
+    out = tmp_path / "streit"
+    r = CliRunner().invoke(
+        app, ["reproduce", "streit", "--quick", "--out", str(out), "--no-progress"]
+    )
+    assert r.exit_code == 0, r.output
+    assert (out / "streit.json").exists()
+    for name in ("figure1", "figure3", "figure4", "cost"):
+        assert (out / f"streit-{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -161,8 +161,31 @@ def run_command(
             help="truth: start confirmed tracks at the true states of the first scan (the "
             "default for bojilov, the paper's experiment); nothing: the tracker initiates "
             "every track from the detections (the default for the other scenarios and "
-            "--detections). Overrides start_from in [scenario].",
+            "--detections). Overrides start_from in \\[scenario].",
         ),
+    ] = None,
+    tracker: Annotated[
+        str | None,
+        typer.Option(
+            "--tracker",
+            metavar="[jpda|particle]",
+            help="jpda (default): the Kalman JPDA tracker; particle: particle JPDA of the "
+            "scenario's known targets, started from the truth (bojilov, crossing; no "
+            "checkpoints). Overrides kind in \\[tracker].",
+        ),
+    ] = None,
+    weights: Annotated[
+        str | None,
+        typer.Option(
+            "--weights",
+            metavar="[exact|saddle|saddle-corrected]",
+            help="Particle weights (--tracker particle): Streit's mixed derivative, exact "
+            "(default) or by the saddle point.",
+        ),
+    ] = None,
+    particles: Annotated[
+        int | None,
+        typer.Option("--particles", help="Particles per target (--tracker particle; 1000)."),
     ] = None,
 ) -> None:
     """Track: detections in, tracks out (default: Bojilov's five targets, beta = 1, seed 0).
@@ -182,6 +205,19 @@ def run_command(
             raise runmod.RunConfigError(
                 f"--start-from must be truth or nothing, got {start_from!r}"
             )
+        if resume is not None and runmod.particle_options(tracker, weights, particles) is not None:
+            raise runmod.RunConfigError(
+                "--resume continues a checkpointed Kalman JPDA run; the particle tracker "
+                "(--tracker particle) has no checkpoints"
+            )
+        if resume is not None and config is not None:
+            opts = runmod.load_config(config).tracker_options
+            if runmod.particle_options(table=opts, source=str(config)) is not None:
+                raise runmod.RunConfigError(
+                    f'--config {config} sets kind = "particle" in [tracker], but --resume '
+                    "continues a checkpointed Kalman JPDA run; the particle tracker has no "
+                    "checkpoints"
+                )
         if resume is not None:
             detections, config, scenario, seed, out, fmt, checkpoint_every, restored = (
                 _from_checkpoint(
@@ -201,9 +237,10 @@ def run_command(
             restored = None
         out = Path("jointtrack-out") if out is None else out
         fmt = "csv" if fmt is None else fmt
-        checkpoint_every = 10 if checkpoint_every is None else checkpoint_every
+        every_given = checkpoint_every
         if fmt not in runmod.FORMATS:
             raise runmod.RunConfigError(f"--format must be csv or parquet, got {fmt!r}")
+        checkpoint_every = 10 if checkpoint_every is None else checkpoint_every
         if scenario is not None and scenario not in runmod.SCENARIOS:
             raise runmod.RunConfigError(
                 f"--scenario must be one of {', '.join(runmod.SCENARIOS)}, got {scenario!r}"
@@ -211,6 +248,30 @@ def run_command(
         cfg = runmod.load_config(config) if config is not None else runmod.RunConfig()
         if restored is not None:
             cfg = restored
+        particle = runmod.particle_options(
+            tracker, weights, particles, cfg.tracker_options, cfg.tracker, source=cfg.source
+        )
+        if particle is not None:
+            if detections is not None:
+                raise runmod.RunConfigError(
+                    "--tracker particle runs on a built-in scenario (it starts every target "
+                    f"from its true state at the first scan); --detections {detections} has none"
+                )
+            for flag, value in (
+                ("--checkpoint", checkpoint),
+                ("--checkpoint-every", every_given),
+            ):
+                if value is not None:
+                    raise runmod.RunConfigError(
+                        f"{flag}: the particle tracker has no checkpoints (the checkpoint "
+                        "format holds Kalman tracks); run it without checkpoint options"
+                    )
+            if start_from == "nothing":
+                raise runmod.RunConfigError(
+                    "--start-from nothing: the particle tracker follows a known, fixed set of "
+                    "targets started from the truth at the first scan; it does not initiate "
+                    "tracks"
+                )
         common = dict(
             out_dir=out,
             fmt=fmt,
@@ -284,7 +345,12 @@ def run_command(
                 )
             runmod.check_sensor(tracker_cfg, "position", f"scenario {name}", cfg.source)
             metrics = runmod.run_scenario(
-                sc, tracker_cfg, scenario_kwargs=sc_table, start_from=start, **common
+                sc,
+                tracker_cfg,
+                scenario_kwargs=sc_table,
+                start_from=start,
+                particle=particle,
+                **common,
             )
     except KeyboardInterrupt:
         _fail(
@@ -496,6 +562,33 @@ def reproduce_schaub(
     except (ValueError, OSError) as exc:
         _fail(exc)
     schaub.print_report(result, console)
+
+
+@reproduce_app.command("streit")
+def reproduce_streit(
+    quick: Annotated[
+        bool, typer.Option("--quick", help="100 trials per cell and a small cost grid.")
+    ] = False,
+    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("jointtrack-out"),
+    progress: Annotated[
+        bool | None,
+        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
+    ] = None,
+) -> None:
+    """Streit Table 1 (saddle-point ratios), Figures 1, 3, 4 and the exact-vs-saddle cost table."""
+    from jointtrack._console import make_console
+
+    console = make_console()
+    show = console.is_terminal if progress is None else progress
+    try:
+        from jointtrack.experiments import streit
+
+        result = streit.reproduce(quick, out_dir=out, progress=show, console=console)
+    except KeyboardInterrupt:
+        _fail("interrupted", code=130)
+    except (ValueError, OSError) as exc:
+        _fail(exc)
+    streit.print_report(result, console)
 
 
 def main() -> None:

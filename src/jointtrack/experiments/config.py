@@ -7,8 +7,10 @@ scenario and :func:`make_tracker_config` the tracker configuration;
 :func:`start_truth_tracks` starts tracks at the true states with the
 steady-state covariance (:func:`steady_state_covariance`); :func:`start_setting`
 and :func:`default_start` say how a run's tracks start (``"truth"`` or
-``"nothing"``). Bad settings raise :class:`RunConfigError` with a one-line
-message.
+``"nothing"``); :func:`particle_options` resolves which tracker runs (the
+Kalman JPDA tracker, or the particle JPDA tracker with its weights method and
+particle count) from the flags and the ``[tracker]`` table. Bad settings raise
+:class:`RunConfigError` with a one-line message.
 """
 
 from __future__ import annotations
@@ -29,6 +31,8 @@ from jointtrack.trackers.config import check_field
 __all__ = [
     "SCENARIOS",
     "STARTS",
+    "TRACKER_KINDS",
+    "TRACKER_OPTION_KEYS",
     "TRUTH_START_NOTE",
     "RunConfig",
     "RunConfigError",
@@ -37,8 +41,10 @@ __all__ = [
     "load_config",
     "make_scenario",
     "make_tracker_config",
+    "particle_options",
     "scenario_tracker_settings",
     "start_setting",
+    "start_truth_particles",
     "start_truth_tracks",
     "steady_state_covariance",
 ]
@@ -67,6 +73,8 @@ class RunConfig:
     metrics: dict = field(default_factory=dict)
     source: str | None = None
     sensors: dict = field(default_factory=dict)  # sensor id → [sensors.NAME] table
+    # which tracker: [tracker] keys kind / weights / particles (see particle_options)
+    tracker_options: dict = field(default_factory=dict)
 
 
 _TABLES = ("tracker", "scenario", "metrics", "sensors")
@@ -114,6 +122,8 @@ def load_config(path) -> RunConfig:
         if not isinstance(value, dict):
             raise RunConfigError(f"{path}: '{key}' must be a table ([{key}])")
     tracker = dict(data.get("tracker", {}))
+    options = {k: tracker.pop(k) for k in TRACKER_OPTION_KEYS if k in tracker}
+    _check_tracker_options(options, str(path))
     _check_tracker_keys(tracker, str(path))
     metrics = dict(data.get("metrics", {}))
     for key, value in metrics.items():
@@ -144,7 +154,12 @@ def load_config(path) -> RunConfig:
     )
     sensors = _sensor_tables(data.get("sensors", {}), str(path))
     return RunConfig(
-        tracker=tracker, scenario=scenario, metrics=metrics, source=str(path), sensors=sensors
+        tracker=tracker,
+        scenario=scenario,
+        metrics=metrics,
+        source=str(path),
+        sensors=sensors,
+        tracker_options=options,
     )
 
 
@@ -224,9 +239,8 @@ def _check_tracker_keys(d: Mapping, where: str) -> None:
     known = {f.name for f in dataclasses.fields(TrackerConfig)}
     for key, value in d.items():
         if key not in known:
-            raise RunConfigError(
-                f"{where}: unknown key '{key}' in [tracker] (known: {', '.join(sorted(known))})"
-            )
+            names = ", ".join(sorted(known | set(TRACKER_OPTION_KEYS)))
+            raise RunConfigError(f"{where}: unknown key '{key}' in [tracker] (known: {names})")
         if key == "clutter_density" and value == "estimate":
             continue
         try:
@@ -236,6 +250,111 @@ def _check_tracker_keys(d: Mapping, where: str) -> None:
             for prefix in ("TrackerConfig: ", f"{key} "):
                 msg = msg.removeprefix(prefix)
             raise RunConfigError(f"{where}: [tracker] key '{key}' {msg}") from None
+
+
+# ----------------------------------------------------------------------------- which tracker
+
+#: ``jointtrack run --tracker``: the Kalman JPDA tracker (default) or the particle JPDA tracker
+TRACKER_KINDS = ("jpda", "particle")
+#: ``[tracker]`` keys that choose the tracker rather than set a TrackerConfig field
+TRACKER_OPTION_KEYS = ("kind", "weights", "particles")
+
+
+def particle_options(
+    kind=None,
+    weights=None,
+    particles=None,
+    table: Mapping | None = None,
+    tracker: Mapping | None = None,
+    *,
+    source: str | None = None,
+) -> dict | None:
+    """Which tracker a run uses: ``None`` (Kalman JPDA) or the particle tracker's options.
+
+    ``kind``, ``weights``, ``particles``: the ``--tracker``, ``--weights`` and
+    ``--particles`` flags (None when not given), which win over ``table`` (the
+    ``[tracker]`` keys ``kind``, ``weights``, ``particles``). ``tracker``: the
+    other ``[tracker]`` keys; with the particle tracker only the
+    :class:`~jointtrack.trackers.TrackerConfig` fields it uses are allowed
+    (:attr:`~jointtrack.trackers.particle.ParticleConfig.FROM_TRACKER`), and
+    ``clutter_density`` must be a number. Returns ``{"weights": …,
+    "particles": …}`` for the particle tracker. Options that make no sense
+    together (``--weights`` or ``--particles`` with the Kalman tracker, an
+    unavailable weights method, a particle count < 1, …) raise
+    :class:`RunConfigError` with a one-line message.
+    """
+    from jointtrack.trackers.particle import ParticleConfig, available_weight_methods
+
+    table = dict(table or {})
+    where = f"{source}: [tracker]" if source else "[tracker]"
+
+    def pick(flag, value, key):
+        # the flag wins over the table, like --scenario over [scenario] name
+        if value is not None:
+            return value, flag
+        if key in table:
+            return table[key], f"{where} key '{key}'"
+        return None, None
+
+    kind, kind_from = pick("--tracker", kind, "kind")
+    weights, weights_from = pick("--weights", weights, "weights")
+    particles, particles_from = pick("--particles", particles, "particles")
+    _check_option_values(kind, kind_from, weights, weights_from, particles, particles_from)
+    if kind != "particle":
+        extra = weights_from or particles_from
+        if extra is not None:
+            what = "--tracker jpda" if kind_from == "--tracker" else "the Kalman JPDA tracker"
+            raise RunConfigError(
+                f"{extra} applies to the particle tracker only, but this run uses {what}; "
+                'add --tracker particle (or kind = "particle" in [tracker])'
+            )
+        return None
+    if weights is not None and weights not in available_weight_methods():
+        raise RunConfigError(
+            f"{weights_from} = {weights!r} needs the method {weights!r} of jointtrack.saddle, "
+            f"which this installation does not provide (it has: "
+            f"{', '.join(available_weight_methods())})"
+        )
+    unused = sorted(set(tracker or {}) - set(ParticleConfig.FROM_TRACKER))
+    if unused:
+        raise RunConfigError(
+            f"{where} key(s) {', '.join(unused)} set the Kalman JPDA tracker, not the particle "
+            f"tracker (it uses {', '.join(ParticleConfig.FROM_TRACKER)}); remove them, or run "
+            "the Kalman JPDA tracker"
+        )
+    if (tracker or {}).get("clutter_density") == "estimate":
+        raise RunConfigError(
+            f'{where} clutter_density = "estimate" is not available to the particle tracker: '
+            "its clutter terms a_m = Λ p_Λ(y_m) need a known clutter density (a number)"
+        )
+    out = {}
+    if weights is not None:
+        out["weights"] = weights
+    if particles is not None:
+        out["particles"] = int(particles)
+    return out
+
+
+def _check_option_values(kind, kind_from, weights, weights_from, particles, particles_from):
+    from jointtrack.trackers.particle import WEIGHT_METHODS
+
+    if kind is not None and kind not in TRACKER_KINDS:
+        raise RunConfigError(f"{kind_from} must be {' or '.join(TRACKER_KINDS)}, got {kind!r}")
+    if weights is not None and weights not in WEIGHT_METHODS:
+        raise RunConfigError(
+            f"{weights_from} must be one of {', '.join(WEIGHT_METHODS)}, got {weights!r}"
+        )
+    if particles is not None and (not _is_int(particles) or particles < 1):
+        raise RunConfigError(f"{particles_from} must be an integer ≥ 1, got {particles!r}")
+
+
+def _check_tracker_options(table: Mapping, where: str) -> None:
+    """The ``[tracker]`` keys kind / weights / particles, each on its own (values, types)."""
+    args = []
+    for key in TRACKER_OPTION_KEYS:
+        value = table.get(key)
+        args += [value, f"{where}: [tracker] key '{key}'" if value is not None else None]
+    _check_option_values(*args)
 
 
 def make_tracker_config(
@@ -446,6 +565,25 @@ def start_truth_tracks(trk: JPDATracker, states, dt: float) -> np.ndarray:
     P0 = np.eye(n)
     P0[: 2 * d, : 2 * d] = steady_state_covariance(dt, c.process_noise, c.measurement_noise, d)
     return trk.start_tracks(x0, P0)
+
+
+def start_truth_particles(trk, states, dt: float) -> np.ndarray:
+    """Start a particle tracker's targets at the true NCV ``states`` (N, 2·dim) of the first scan.
+
+    Each target's particles are drawn from N(state, P0) with P0 the
+    :func:`steady_state_covariance` of the tracker's own q and R, as
+    :func:`start_truth_tracks` starts the Kalman tracks (a constant-acceleration
+    model gets zero acceleration with unit variance). Returns the target ids 1…N.
+    """
+    c = trk.config
+    n = trk.state_dim
+    d = c.dim
+    states = np.atleast_2d(np.asarray(states, dtype=float))
+    x0 = np.zeros((len(states), n))
+    x0[:, : 2 * d] = states[:, : 2 * d]
+    P0 = np.eye(n)
+    P0[: 2 * d, : 2 * d] = steady_state_covariance(dt, c.process_noise, c.measurement_noise, d)
+    return trk.start(x0, P0)
 
 
 def _describe(identity) -> str:

@@ -80,6 +80,29 @@ not match the detections (range–bearing detections without ``sensor =
 for either sensor. ``--scenario``, ``--seed`` and ``--start-from`` on the command
 line override ``name``, ``seed`` and ``start_from``.
 
+Particle tracker (``--tracker particle``)
+-----------------------------------------
+``jointtrack run --tracker particle [--weights exact|saddle|saddle-corrected]
+[--particles N]`` (or ``[tracker] kind = "particle"``, ``weights``,
+``particles``) runs :class:`~jointtrack.trackers.particle.ParticleJPDATracker`
+instead: N particles per target (default 1000), weights by Streit's mixed
+derivative — exact (default) or the saddle-point approximation — and
+systematic resampling every scan. It follows a known, fixed set of targets, so
+it runs on a built-in scenario whose targets all exist from the first scan to
+the last (``bojilov``, ``crossing``; not ``many``, which has births and deaths,
+nor ``--detections``), started from the truth at the first scan (particles
+drawn around the true states with the steady-state covariance above; ``--start-from
+nothing`` is refused). It uses the derived settings ``dim``, ``motion``,
+``process_noise``, ``measurement_noise``, ``p_d``, ``p_g`` (each particle's
+likelihood is truncated to its gate of probability P_G; 1 = no gate),
+``clutter_density`` (a number) and ``seed`` (of its random generator); any
+other ``[tracker]`` key is refused. The outputs are the same files; the
+existence column is 1, ``metrics.json`` has a ``particle`` section (weights
+method, particles, seconds in coefficients and derivatives, effective sample
+sizes, saddle-point Newton stalls accepted) instead of ``association``.
+Checkpoints are not supported for it: ``--checkpoint``, ``--checkpoint-every``
+and ``--resume`` are refused (the checkpoint format holds Kalman tracks).
+
 Checkpoints: with ``checkpoint=FILE`` the rows since the last checkpoint are
 committed as a part and then the tracker state is saved, every
 ``checkpoint_every`` scans and at the end (:meth:`JPDATracker.save`, with the
@@ -115,6 +138,8 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     _TABLES,
     SCENARIOS,
     STARTS,
+    TRACKER_KINDS,
+    TRACKER_OPTION_KEYS,
     TRUTH_START_NOTE,
     RunConfig,
     RunConfigError,
@@ -128,8 +153,10 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     make_scenario,
     make_sensors,
     make_tracker_config,
+    particle_options,
     scenario_tracker_settings,
     start_setting,
+    start_truth_particles,
     start_truth_tracks,
     steady_state_covariance,
 )
@@ -139,6 +166,7 @@ from jointtrack.experiments.summary import (  # noqa: F401 - re-exported
     _ospa_mean,
     _run_metrics,
     _version,
+    particle_metrics,
     print_summary,
     start_description,
     summary_tables,
@@ -163,6 +191,7 @@ __all__ = [
     "load_config",
     "make_scenario",
     "make_tracker_config",
+    "particle_options",
     "print_summary",
     "run_detections",
     "run_scenario",
@@ -324,12 +353,21 @@ def _check_resume(resume: Path, info, trk, src, identity, out_dir: Path, fmt: st
         )
 
 
-def _warm_up(cfg: TrackerConfig) -> None:
+def _warm_up(cfg: TrackerConfig, particle=None) -> None:
     """Load / compile the association kernels before anything is timed.
 
     numba loads each compiled kernel on its first call (≈ 0.1 s), which would
-    otherwise be charged to the first cluster of that kind.
+    otherwise be charged to the first cluster of that kind. ``particle``: the
+    particle tracker's config; its weights method is run on small scans instead.
     """
+    if particle is not None:
+        from jointtrack.trackers.particle import jpda_particle_log_weights
+
+        rng = np.random.default_rng(12345)
+        for n, m in ((2, 3), (3, 6)):
+            log_lik = np.log(rng.random((n, 8, m)))
+            jpda_particle_log_weights(np.zeros(m), np.full((n, 8), 0.9), log_lik, particle.weights)
+        return
     from jointtrack.association import marginals
 
     rng = np.random.default_rng(12345)
@@ -343,6 +381,38 @@ def _warm_up(cfg: TrackerConfig) -> None:
                 marginals(L, miss, method=method, **opts)
             except ValueError:
                 pass
+
+
+def _check_particle_run(src: _Source, checkpoint, resume, sensors) -> None:
+    """The particle tracker runs a known, fixed set of targets started from the truth."""
+    if checkpoint is not None or resume is not None:
+        flag = "--resume" if resume is not None else "--checkpoint"
+        raise RunConfigError(
+            f"{flag}: the particle tracker has no checkpoints (the checkpoint format holds "
+            "Kalman tracks, not particle sets and their generator); run it without "
+            "--checkpoint, --checkpoint-every and --resume"
+        )
+    if sensors:
+        raise RunConfigError("the particle tracker takes no [sensors] tables")
+    if getattr(src, "detections", None) is not None or src.truth_ids is None:
+        raise RunConfigError(
+            "the particle tracker runs on a built-in scenario: it starts every target from "
+            "the true state at the first scan, which a detections file does not have"
+        )
+    if src.x0 is None or not len(src.x0):
+        raise RunConfigError(
+            "the particle tracker follows a known, fixed set of targets started from the "
+            "truth at the first scan; it does not initiate tracks (--start-from nothing "
+            "is for the Kalman JPDA tracker)"
+        )
+    first = np.sort(np.asarray(src.truth_ids[0]))
+    for k, ids in enumerate(src.truth_ids):
+        if not np.array_equal(np.sort(np.asarray(ids)), first):
+            raise RunConfigError(
+                f"the particle tracker follows a known, fixed set of targets, but in "
+                f"{_describe(src.identity)} targets are born or die (the targets at scan {k} "
+                f"are not the {len(first)} of the first scan); use the Kalman JPDA tracker"
+            )
 
 
 def _run(
@@ -360,7 +430,11 @@ def _run(
     console=None,
     plots: bool = True,
     sensors: Mapping | None = None,
+    particle=None,
 ) -> dict:
+    """The run loop (see the module docstring); ``particle``: a
+    :class:`~jointtrack.trackers.particle.ParticleConfig` to run the particle
+    tracker instead of the Kalman JPDA tracker ``cfg``."""
     from rich.console import Console
 
     wall0 = time.perf_counter()
@@ -375,6 +449,8 @@ def _run(
 
     if fmt not in FORMATS:
         raise RunConfigError(f"unknown format {fmt!r}; choose csv or parquet")
+    if particle is not None:
+        _check_particle_run(src, checkpoint, resume, sensors)
     if checkpoint_every < 1:
         raise RunConfigError(f"--checkpoint-every must be ≥ 1, got {checkpoint_every}")
     if max_scans is not None and max_scans < 1:
@@ -416,13 +492,21 @@ def _run(
             checkpoint = resume  # keep checkpointing where the run was checkpointed
     else:
         writer.start_fresh()
-        trk = JPDATracker(cfg)
-        if src.x0 is not None and len(src.x0):
-            dt = float(np.median(np.diff(src.times))) if len(src.times) > 1 else 1.0
-            start_truth_tracks(trk, src.x0, dt)
+        dt = float(np.median(np.diff(src.times))) if len(src.times) > 1 else 1.0
+        if particle is not None:
+            from jointtrack.trackers.particle import ParticleJPDATracker
+
+            trk = ParticleJPDATracker(particle)
+            start_truth_particles(trk, src.x0, dt)
+        else:
+            trk = JPDATracker(cfg)
+            if src.x0 is not None and len(src.x0):
+                start_truth_tracks(trk, src.x0, dt)
 
     sensor_tables = {int(k): dict(v) for k, v in (sensors or {}).items()}
-    _register_sensors(trk, src, sensor_tables, warn)
+    if particle is None:
+        _register_sensors(trk, src, sensor_tables, warn)
+    scan_weights: list = []  # particle tracker: per scan [coefficient s, derivative s, …]
     K = len(src.times)
     stop = K if max_scans is None else min(K, int(max_scans))
 
@@ -455,9 +539,9 @@ def _run(
         with console.status(
             "loading the compiled kernels (the first run after install compiles them, about 20 s)…"
         ):
-            _warm_up(cfg)
+            _warm_up(cfg, particle)
     else:
-        _warm_up(cfg)
+        _warm_up(cfg, particle)
     # one line per approximated cluster would flood the terminal: they are counted
     # per reason in metrics.json and the summary instead
     tracker_log = logging.getLogger("jointtrack.tracker")
@@ -481,6 +565,18 @@ def _run(
             for k in range(start, stop):
                 t = float(src.times[k])
                 for res in _step_scan(trk, t, src, k):
+                    if particle is not None:
+                        scan_weights.append(
+                            [
+                                res.coefficient_seconds,
+                                res.derivative_seconds,
+                                float(res.ess.mean()),
+                                float(res.ess.min()),
+                                res.saddle_stalls,
+                                max((c[1] for c in res.components), default=0),
+                            ]
+                        )
+                        continue
                     for (n_tr, n_me), sec, conf in zip(
                         res.cluster_sizes, res.cluster_seconds, res.cluster_confirmed, strict=True
                     ):
@@ -535,14 +631,17 @@ def _run(
         notes,
     )
 
-    metrics["association"] = {
-        "method": cfg.association,
-        "approximation": cfg.approximation,
-        "fallbacks": dict(sorted(fallbacks.items())),
-        "fallbacks_note": "clusters solved by the approximation instead of the configured "
-        "method, by reason (exact_max_tracks, or refused by the exact engine's budget); "
-        "', tentative tracks' marks clusters of tentative tracks",
-    }
+    if particle is not None:
+        particle_metrics(metrics, particle, scan_weights)
+    else:
+        metrics["association"] = {
+            "method": cfg.association,
+            "approximation": cfg.approximation,
+            "fallbacks": dict(sorted(fallbacks.items())),
+            "fallbacks_note": "clusters solved by the approximation instead of the configured "
+            "method, by reason (exact_max_tracks, or refused by the exact engine's budget); "
+            "', tentative tracks' marks clusters of tentative tracks",
+        }
     files = {"tracks": str(writer.path), "metrics": str(out_dir / "metrics.json")}
     if plots:
         from jointtrack.experiments import plots as _plots
@@ -592,6 +691,7 @@ def run_scenario(
     metrics_opts: Mapping | None = None,
     console=None,
     plots: bool = True,
+    particle=None,
 ) -> dict:
     """Run the tracker on a built-in scenario, write the outputs, return the metrics dict.
 
@@ -618,6 +718,11 @@ def run_scenario(
         ``switch_penalty`` (0).
     console : rich console for the progress bar and warnings.
     plots : write ``scene.png`` and ``gospa.png``.
+    particle : run the particle JPDA tracker instead of the Kalman one: a
+        :class:`~jointtrack.trackers.particle.ParticleConfig` (used as is), or
+        a mapping of its ``weights`` and ``particles`` (the other settings come
+        from ``config``, see :func:`particle_options` and the module
+        docstring). Its start defaults to ``"truth"`` (the only one it takes).
     """
     kwargs = dict(scenario_kwargs or {})
     if isinstance(scenario, str):
@@ -628,7 +733,8 @@ def run_scenario(
         identity = {"scenario": scenario.name, "seed": scenario.seed, "kwargs": kwargs}
     start = start_setting(start_from, start_from_truth, "run_scenario:", noun="argument")
     if start is None:
-        start = default_start(scenario.name)
+        # the particle tracker follows the targets it is started with: from the truth
+        start = "truth" if particle is not None else default_start(scenario.name)
     start_from_truth = start == "truth"
     if isinstance(config, TrackerConfig):
         cfg = config
@@ -639,6 +745,8 @@ def run_scenario(
             f"[tracker] dim = {cfg.dim} but scenario {scenario.name} is {scenario.dim}-D"
         )
     check_sensor(cfg, "position", f"scenario {scenario.name}")
+    if particle is not None:
+        particle = _particle_config(particle, cfg)
     # the identity keeps the boolean spelling so that older checkpoints still resume
     identity["start_from_truth"] = start_from_truth
     sigma = float(math.sqrt(np.mean(np.diag(scenario.R))))
@@ -668,7 +776,35 @@ def run_scenario(
         metrics_opts=metrics_opts,
         console=console,
         plots=plots,
+        particle=particle,
     )
+
+
+def _particle_config(particle, cfg: TrackerConfig):
+    """A ParticleConfig from a ParticleConfig or a mapping of weights / particles on ``cfg``."""
+    from jointtrack.trackers.particle import ParticleConfig
+
+    if isinstance(particle, ParticleConfig):
+        return particle
+    if not isinstance(particle, Mapping):
+        raise RunConfigError(
+            f"particle must be a ParticleConfig or a mapping, got {type(particle).__name__}"
+        )
+    opts = dict(particle)
+    unknown = sorted(set(opts) - {"weights", "particles"})
+    if unknown:
+        raise RunConfigError(
+            f"particle: unknown option(s) {', '.join(unknown)} (known: weights, particles)"
+        )
+    if cfg.clutter_density is None:
+        raise RunConfigError(
+            "the particle tracker needs a known clutter density (its clutter terms "
+            'a_m = Λ p_Λ(y_m)); clutter_density = "estimate" is for the Kalman tracker'
+        )
+    try:
+        return ParticleConfig.from_tracker_config(cfg, **opts)
+    except (TypeError, ValueError) as exc:
+        raise RunConfigError(f"particle tracker: {_one_line(exc)}") from None
 
 
 @dataclass

@@ -17,7 +17,18 @@ import numpy as np
 from jointtrack.experiments.config import TRUTH_START_NOTE, _describe
 from jointtrack.trackers import TrackerConfig
 
-__all__ = ["print_summary", "start_description", "summary_tables"]
+__all__ = [
+    "PARTICLE_START_NOTE",
+    "particle_metrics",
+    "print_summary",
+    "start_description",
+    "summary_tables",
+]
+
+PARTICLE_START_NOTE = (
+    "targets started from the truth at the first scan: the particle JPDA tracker follows a "
+    "known, fixed set of targets (no births, no deletions)"
+)
 
 
 def _cluster_timing(clusters: list) -> list[dict]:
@@ -165,6 +176,54 @@ def _run_metrics(
     return metrics, series, truth
 
 
+def particle_metrics(metrics: dict, config, scans: list) -> None:
+    """Make a run's metrics dict (from :func:`_run_metrics`) that of a particle-tracker run.
+
+    ``config``: the :class:`~jointtrack.trackers.particle.ParticleConfig`;
+    ``scans``: per scan ``[coefficient seconds, derivative seconds, mean ESS,
+    min ESS, saddle stalls, largest component's measurements]``. Replaces
+    ``tracker``, the cluster timing and the truth-start note, and adds the
+    ``particle`` section (there is no association step and no ``association``
+    section).
+    """
+    a = np.asarray(scans, dtype=float).reshape(-1, 6)
+    L = config.particles
+    weight = a[:, 0] + a[:, 1]
+
+    def stat(x) -> dict:
+        if not len(x):
+            return {"total": 0.0, "mean": None, "max": None}
+        return {"total": float(x.sum()), "mean": float(x.mean()), "max": float(x.max())}
+
+    metrics["tracker"] = {"kind": "particle", **config.to_dict()}
+    metrics["particle"] = {
+        "weights": config.weights,
+        "particles": L,
+        "resampling": "systematic, every scan",
+        "p_g": config.p_g,
+        "weight_seconds_per_scan": stat(weight),
+        "coefficient_seconds_per_scan": stat(a[:, 0]),
+        "derivative_seconds_per_scan": stat(a[:, 1]),
+        "mean_ess_fraction": float(a[:, 2].mean() / L) if len(a) else None,
+        "min_ess": float(a[:, 3].min()) if len(a) else None,
+        "saddle_stalls": int(a[:, 4].sum()),
+        "max_component_measurements": int(a[:, 5].max()) if len(a) else 0,
+        "note": "weights = coefficients (7) + derivatives (18) of every target, per scan; "
+        "ESS = 1/sum(w^2) per target before resampling; saddle_stalls = particles whose "
+        "saddle-point Newton iteration ended just short of its tolerance and was accepted "
+        "(jointtrack.trackers.particle)",
+    }
+    tm = metrics["timing"]
+    for key in ("clusters", "association_seconds"):
+        tm.pop(key, None)
+    tm["weight_seconds"] = float(weight.sum())
+    tm["note"] = (
+        "loop = predict / likelihoods / particle weights / estimates / resampling + writing tracks"
+    )
+    notes = metrics.get("notes", [])
+    metrics["notes"] = [PARTICLE_START_NOTE if n == TRUTH_START_NOTE else n for n in notes]
+
+
 # ----------------------------------------------------------------------------- summary
 
 
@@ -186,6 +245,8 @@ def start_description(metrics: Mapping) -> str:
     start = metrics.get("start")
     if start is None:
         start = "truth" if metrics.get("start_from_truth") else "nothing"
+    if "particle" in metrics:
+        return PARTICLE_START_NOTE
     source = metrics.get("source")
     bojilov = isinstance(source, Mapping) and source.get("scenario") == "bojilov"
     if start == "truth":
@@ -251,15 +312,39 @@ def summary_tables(metrics: Mapping) -> list:
             "(score with --truth FILE)",
         )
     tm = metrics["timing"]
-    main.add_row(
-        "time",
-        f"{_fmt(tm['loop_seconds'])} s tracking, {_fmt(tm['scans_per_second'])} scans/s "
-        f"({_fmt(tm['association_seconds'])} s in multi-track association)",
-    )
+    pa = metrics.get("particle")
+    if pa is not None:
+        main.add_row(
+            "particle tracker",
+            f"{pa['particles']} particles per target, {pa['weights']} weights, "
+            f"resampling {pa['resampling']}; ESS {_fmt(pa['mean_ess_fraction'])} of the "
+            f"particles on average (min {_fmt(pa['min_ess'])})"
+            + (
+                f"; {pa['saddle_stalls']} saddle-point stalls accepted"
+                if pa["saddle_stalls"]
+                else ""
+            ),
+        )
+        w = pa["weight_seconds_per_scan"]
+        main.add_row(
+            "time",
+            f"{_fmt(tm['loop_seconds'])} s tracking, {_fmt(tm['scans_per_second'])} scans/s "
+            f"({_fmt(tm['weight_seconds'])} s in particle weights: mean "
+            f"{_fmt(None if w['mean'] is None else 1e3 * w['mean'])} ms, max "
+            f"{_fmt(None if w['max'] is None else 1e3 * w['max'])} ms per scan)",
+        )
+    else:
+        main.add_row(
+            "time",
+            f"{_fmt(tm['loop_seconds'])} s tracking, {_fmt(tm['scans_per_second'])} scans/s "
+            f"({_fmt(tm['association_seconds'])} s in multi-track association)",
+        )
     main.add_row("outputs", ", ".join(Path(f).name for f in metrics.get("files", {}).values()))
     for note in metrics.get("notes", []):
-        if note != TRUTH_START_NOTE:  # the start row above says it
+        if note not in (TRUTH_START_NOTE, PARTICLE_START_NOTE):  # the start row says it
             main.add_row("note", note)
+    if pa is not None:
+        return [main]  # no association step, so no cluster table
 
     cl = Table(
         title="association time per multi-track cluster of confirmed tracks",
