@@ -146,7 +146,6 @@ pairs (marginals · G · E) the JPDA-like spreads were 5.5 %, 4.0 %, 3.8 %
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import logsumexp
 
 __all__ = ["MAX_STANDARDISED_CUMULANT", "Tilt", "log_unit_probability", "tilt"]
 
@@ -173,10 +172,19 @@ class Tilt:
     def __init__(self, lam, p, p0, q):
         self.lam, self.p, self.p0, self.q = lam, p, p0, q
         self.var = lam + (p * q).sum(-2)
-        cov = -np.einsum("...km,...kn->...mn", p, p)
+        cov = -(np.swapaxes(p, -1, -2) @ p)  # Σ_k p_k p_kᵀ (matmul: 3× einsum's speed)
         idx = np.arange(lam.shape[-1])
         cov[..., idx, idx] = self.var
         self.cov = cov
+
+
+def log_sum_exp(x: np.ndarray) -> np.ndarray:
+    """log Σ exp over the last axis; −inf for an all −inf row (scipy's logsumexp without
+    its argument handling, which cost half of a Newton step)."""
+    top = x.max(-1)
+    top = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(divide="ignore"):
+        return top + np.log(np.exp(x - top[..., None]).sum(-1))
 
 
 def tilt(u, a, F) -> Tilt:
@@ -190,7 +198,7 @@ def tilt(u, a, F) -> Tilt:
         logF = np.log(F)
     t = logF[..., 1:] + u[..., None, :]
     with np.errstate(divide="ignore", invalid="ignore"):
-        logs = logsumexp(np.concatenate([logF[..., :1], t], axis=-1), axis=-1)
+        logs = log_sum_exp(np.concatenate([logF[..., :1], t], axis=-1))
         p = np.exp(t - logs[..., None])
         p0 = np.exp(logF[..., 0] - logs)
     q = p0[..., None] + p @ (1.0 - np.eye(M))

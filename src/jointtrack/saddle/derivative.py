@@ -91,7 +91,7 @@ from scipy.special import logsumexp
 from jointtrack.assignment._checks import _as_real_array
 from jointtrack.assignment.core import DEFAULT_MAX_BITS, DEFAULT_MAX_MEMORY, solve_checked
 from jointtrack.errors import InfeasibleAssignmentError
-from jointtrack.saddle.corrections import log_unit_probability, tilt
+from jointtrack.saddle.corrections import log_sum_exp, log_unit_probability, tilt
 from jointtrack.saddle.generating import check_coefficients
 
 __all__ = [
@@ -237,7 +237,7 @@ def _phi(u, a0, a, logF, counts):
     """
     t = logF[..., 1:] + u[..., None, :]
     with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        logs = logsumexp(np.concatenate([logF[..., :1], t], axis=-1), axis=-1)
+        logs = log_sum_exp(np.concatenate([logF[..., :1], t], axis=-1))
         lam = a * np.exp(u)
         phi = a0 + lam.sum(-1) + logs.sum(-1) - (counts * u).sum(-1)
         scale = abs(a0) + lam.sum(-1) + np.abs(logs).sum(-1) + np.abs(counts * u).sum(-1)
