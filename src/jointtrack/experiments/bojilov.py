@@ -51,6 +51,9 @@ from pathlib import Path
 import numpy as np
 
 from jointtrack._provenance import machine_info
+from jointtrack.experiments._report import fmt as _f
+from jointtrack.experiments._report import seconds as _sec
+from jointtrack.experiments._report import table as _table
 
 __all__ = ["PAPER_TABLES", "analyse_cluster", "print_report", "record_clusters", "reproduce"]
 
@@ -396,32 +399,6 @@ def reproduce(
 
 
 # ----------------------------------------------------------------------------- report
-
-
-def _f(v, spec) -> str:
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "–"
-    return format(v, spec)
-
-
-def _sec(v) -> str:
-    if v is None:
-        return "–"
-    if v >= 0.1:
-        return f"{v:.3g} s"
-    if v >= 1e-4:
-        return f"{1e3 * v:.3g} ms"
-    return f"{1e6 * v:.3g} µs"
-
-
-def _table(title: str, headers):
-    from rich import box
-    from rich.table import Table
-
-    t = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
-    for h in headers:
-        t.add_column(h, justify="right")
-    return t
 
 
 def report_tables(result: dict) -> list:
