@@ -45,7 +45,7 @@ def _as_real_array(value, name: str) -> np.ndarray:
         raise ValueError(f"{name} holds a boolean; pass numbers")
     if kind == "c":
         raise ValueError(
-            f"{name} has complex entries; weights must be real (the imaginary part "
+            f"{name} has complex entries; it must be real (the imaginary part "
             "would otherwise be dropped)"
         )
     if kind == "b":
@@ -57,7 +57,7 @@ def _as_real_array(value, name: str) -> np.ndarray:
             if isinstance(x, bool | np.bool_):
                 raise ValueError(f"{name} holds a boolean; pass numbers")
             if isinstance(x, complex | np.complexfloating):
-                raise ValueError(f"{name} holds a complex number ({x}); weights must be real")
+                raise ValueError(f"{name} holds a complex number ({x}); it must be real")
             if isinstance(x, numbers.Integral) and abs(int(x)) > 2**1023:
                 raise ValueError(
                     f"{name} holds an integer too large for a float64 "

@@ -83,7 +83,7 @@ import numpy as np
 from scipy import stats
 from scipy.special import logsumexp
 
-from jointtrack.assignment._checks import _as_real_array
+from jointtrack.assignment._checks import _as_real_array, as_float
 from jointtrack.models import ConstantAcceleration, ConstantVelocity, LinearPosition
 from jointtrack.saddle import (
     SaddlePointError,
@@ -637,11 +637,11 @@ class ParticleJPDATracker:
         Replaces any targets the tracker had; uses the tracker's generator.
         """
         n, L = self.state_dim, self.config.particles
-        x0 = np.atleast_2d(_real_array(x0, "x0"))
+        x0 = np.atleast_2d(_as_real_array(x0, "x0"))
         if x0.ndim != 2 or x0.shape[1] != n or x0.shape[0] < 1:
             raise ValueError(f"x0 must have shape (N, {n}) with N ≥ 1, got {x0.shape}")
         N = x0.shape[0]
-        P0 = _real_array(P0, "P0")
+        P0 = _as_real_array(P0, "P0")
         if P0.shape not in ((n, n), (N, n, n)):
             raise ValueError(f"P0 must have shape ({n}, {n}) or ({N}, {n}, {n}), got {P0.shape}")
         P0 = np.broadcast_to(P0, (N, n, n))
@@ -680,8 +680,8 @@ class ParticleJPDATracker:
         left exactly as it was — particles, time, scan counter and random
         generator — and the same scan can be retried.
         """
-        t = _scan_time(t)
-        z = _real_array(z, "measurements")
+        t = as_float(t, "scan time")
+        z = _as_real_array(z, "measurements")
         d = self._mdim
         if z.size == 0:
             z = z.reshape(0, d)
@@ -736,7 +736,7 @@ class ParticleJPDATracker:
     def _detection(self, X: np.ndarray) -> np.ndarray:
         if not callable(self._p_d):
             return np.full(X.shape[:2], float(self._p_d))
-        pd = _real_array(self._p_d(X), "p_d(x)")
+        pd = _as_real_array(self._p_d(X), "p_d(x)")
         if pd.shape != X.shape[:2]:
             try:
                 pd = np.broadcast_to(pd, X.shape[:2])
@@ -762,7 +762,7 @@ class ParticleJPDATracker:
     def _log_clutter(self, z: np.ndarray) -> np.ndarray:
         if self._clutter is None:
             return np.full(len(z), math.log(self.config.clutter_density))
-        a = _real_array(self._clutter(z), "clutter(z)")
+        a = _as_real_array(self._clutter(z), "clutter(z)")
         if a.shape != (len(z),):
             raise ValueError(f"clutter(z) must return {len(z)} values, got shape {a.shape}")
         if not np.isfinite(a).all() or (a <= 0).any():
@@ -792,21 +792,3 @@ class ParticleJPDATracker:
         return self.ids.copy(), x, P
 
 
-def _real_array(value, name: str) -> np.ndarray:
-    """A float64 array; complex, boolean, string or ragged input is refused naming ``name``."""
-    try:
-        complex_ = np.iscomplexobj(value)
-    except (TypeError, ValueError):  # ragged: _as_real_array names the problem
-        complex_ = False
-    if complex_:
-        raise ValueError(f"{name} has complex entries; it must be real")
-    return _as_real_array(value, name)
-
-
-def _scan_time(t) -> float:
-    if isinstance(t, bool | np.bool_) or not isinstance(t, numbers.Real):
-        raise ValueError(f"scan time must be a real number (seconds), got {t!r}")
-    t = float(t)
-    if not math.isfinite(t):
-        raise ValueError(f"scan time must be finite, got {t}")
-    return t
