@@ -487,6 +487,24 @@ def _truth_from_checkpoint(resume, truth):
     return Path(saved) if saved is not None else None
 
 
+def _reproduce(progress, run):
+    """Run a reproduction: console, progress default, and one-line errors.
+
+    ``run(console, show_progress)`` returns the result; ``(result, console)``
+    is returned for the report.
+    """
+    from jointtrack._console import make_console
+
+    console = make_console()
+    show = console.is_terminal if progress is None else progress
+    try:
+        return run(console, show), console
+    except KeyboardInterrupt:
+        _fail("interrupted", code=130)
+    except (ValueError, OSError) as exc:
+        _fail(exc)
+
+
 @reproduce_app.command("bojilov")
 def reproduce_bojilov(
     runs: Annotated[
@@ -502,21 +520,15 @@ def reproduce_bojilov(
     ] = None,
 ) -> None:
     """Bojilov et al. Tables 2-3 (hypotheses, multiplications, seconds per cluster) vs ours."""
-    from jointtrack._console import make_console
-
-    console = make_console()
-    show = console.is_terminal if progress is None else progress
     n = runs if runs is not None else (2 if quick else 10)
     if n < 1:
         _fail(f"--runs must be >= 1, got {n}")
-    try:
-        from jointtrack.experiments import bojilov as boj
+    from jointtrack.experiments import bojilov as boj
 
-        result = boj.reproduce(runs=n, out_dir=out, progress=show, console=console)
-    except KeyboardInterrupt:
-        _fail("interrupted", code=130)
-    except (ValueError, OSError) as exc:
-        _fail(exc)
+    result, console = _reproduce(
+        progress,
+        lambda console, show: boj.reproduce(runs=n, out_dir=out, progress=show, console=console),
+    )
     boj.print_report(result, console)
 
 
@@ -538,29 +550,23 @@ def reproduce_schaub(
     ] = None,
 ) -> None:
     """Schaub §4 examples 1-3: max KL vs step per method (Figures 5-7), ms per step."""
-    from jointtrack._console import make_console
-
-    console = make_console()
-    show = console.is_terminal if progress is None else progress
     if seeds is not None and seeds < 1:
         _fail(f"--seeds must be >= 1, got {seeds}")
     if steps is not None and steps < 1:
         _fail(f"--steps must be >= 1, got {steps}")
-    try:
-        from jointtrack.experiments import schaub
+    from jointtrack.experiments import schaub
 
-        result = schaub.reproduce(
+    result, console = _reproduce(
+        progress,
+        lambda console, show: schaub.reproduce(
             quick,
             out_dir=out,
             seeds=None if seeds is None else range(seeds),
             steps=steps,
             progress=show,
             console=console,
-        )
-    except KeyboardInterrupt:
-        _fail("interrupted", code=130)
-    except (ValueError, OSError) as exc:
-        _fail(exc)
+        ),
+    )
     schaub.print_report(result, console)
 
 
@@ -576,18 +582,12 @@ def reproduce_streit(
     ] = None,
 ) -> None:
     """Streit Table 1 (saddle-point ratios), Figures 1, 3, 4 and the exact-vs-saddle cost table."""
-    from jointtrack._console import make_console
+    from jointtrack.experiments import streit
 
-    console = make_console()
-    show = console.is_terminal if progress is None else progress
-    try:
-        from jointtrack.experiments import streit
-
-        result = streit.reproduce(quick, out_dir=out, progress=show, console=console)
-    except KeyboardInterrupt:
-        _fail("interrupted", code=130)
-    except (ValueError, OSError) as exc:
-        _fail(exc)
+    result, console = _reproduce(
+        progress,
+        lambda console, show: streit.reproduce(quick, out_dir=out, progress=show, console=console),
+    )
     streit.print_report(result, console)
 
 
