@@ -8,10 +8,21 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
-__all__ = ["MISS_MODELS", "TrackerConfig", "check_field"]
+__all__ = ["MISS_MODELS", "TrackerConfig", "check_field", "config_from_dict"]
 
 #: How the weight of "track detected nothing" is formed (see ``TrackerConfig.miss_model``).
 MISS_MODELS = ("1-pd*pg", "1-pd")
+
+
+def config_from_dict(cls, d: dict, noun: str):
+    """``cls(**d)`` for a config dataclass; unknown keys are an error naming them."""
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(d) - known)
+    if unknown:
+        raise ValueError(
+            f"unknown {noun} setting(s): {', '.join(unknown)}; known: {', '.join(sorted(known))}"
+        )
+    return cls(**d)
 
 
 @dataclass(frozen=True)
@@ -172,14 +183,7 @@ class TrackerConfig:
     @classmethod
     def from_dict(cls, d: dict) -> TrackerConfig:
         """Build from a (TOML) mapping; unknown keys are an error naming them."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(
-                f"unknown tracker setting(s): {', '.join(unknown)}; "
-                f"known: {', '.join(sorted(known))}"
-            )
-        return cls(**d)
+        return config_from_dict(cls, d, "tracker")
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -77,7 +77,7 @@ import copy
 import math
 import numbers
 import time as _time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from scipy import stats
@@ -92,7 +92,7 @@ from jointtrack.saddle import (
     log_mixed_derivative,
     saddle_point,
 )
-from jointtrack.trackers.config import _check_noise, check_field
+from jointtrack.trackers.config import _check_noise, check_field, config_from_dict
 
 __all__ = [
     "WEIGHT_METHODS",
@@ -235,14 +235,7 @@ class ParticleConfig:
     @classmethod
     def from_dict(cls, d: dict) -> ParticleConfig:
         """Build from a mapping; unknown keys are an error naming them."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(
-                f"unknown particle tracker setting(s): {', '.join(unknown)}; "
-                f"known: {', '.join(sorted(known))}"
-            )
-        return cls(**d)
+        return config_from_dict(cls, d, "particle tracker")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -790,5 +783,3 @@ class ParticleJPDATracker:
         dev = self.particles - x[:, None, :]
         P = np.einsum("nli,nlj->nij", dev, dev) / self.particles.shape[1]
         return self.ids.copy(), x, P
-
-
