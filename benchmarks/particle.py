@@ -35,7 +35,7 @@ Run as ``python benchmarks/particle.py [--quick] [--seeds S] [--out FILE]``.
   quick 3 seeds, 300 particles), exact vs saddle weights with the same tracker
   seed (common random numbers). Printed: mean GOSPA (c = 5σ, p = 2) and OSPA,
   the ratio saddle / exact, the paired difference with its standard error,
-  weight ms per scan and saddle-point stalls. Target: saddle's mean GOSPA
+  weight ms per scan. Target: saddle's mean GOSPA
   within 5 % of exact.
 
 ``saddle-corrected`` is run beside ``saddle`` wherever :mod:`jointtrack.saddle`
@@ -279,7 +279,7 @@ def _scan(console, quick, results):
     n_scans = 5 if quick else SCANS
     P0 = steady_state_covariance(1.0, 1.0, 100.0, 2)
     methods = ["exact", *SADDLES]
-    rows = {m: {"weights_s": [], "step_s": [], "stalls": 0, "components": set()} for m in methods}
+    rows = {m: {"weights_s": [], "step_s": [], "components": set()} for m in methods}
     err = {m: [] for m in SADDLES}
     for seed in range(n_scans):
         x0, z = _one_scan(seed)
@@ -300,7 +300,6 @@ def _scan(console, quick, results):
                     best_w, best_step = min(best_w, res.weight_seconds), min(best_step, dt)
             rows[m]["weights_s"].append(best_w)
             rows[m]["step_s"].append(best_step)
-            rows[m]["stalls"] += res.saddle_stalls
             rows[m]["components"].update(res.components)
             weights[m] = res.weights
         for m in SADDLES:  # same seed: the same particles, so the weights compare one to one
@@ -309,7 +308,7 @@ def _scan(console, quick, results):
             err[m].append(float(np.std(lr[ok])))
     out = {}
     t = Table(title=f"(b) one scan: 5 targets × 1000 particles, M = 10 (median of {n_scans})")
-    for name in ("weights", "weights ms", "step ms", "vs exact", "stalls", "components",
+    for name in ("weights", "weights ms", "step ms", "vs exact", "components",
                  "σ log(w/w_exact)", "≤ 50 ms"):  # fmt: skip
         t.add_column(name, justify="right")
     ex = statistics.median(rows["exact"]["weights_s"])
@@ -321,7 +320,6 @@ def _scan(console, quick, results):
             "weights_seconds_max": max(r["weights_s"]),
             "step_seconds_median": statistics.median(r["step_s"]),
             "ratio_to_exact": med / ex,
-            "saddle_stalls": r["stalls"],
             "components": sorted(r["components"]),
             "weight_log_ratio_std_median": statistics.median(err[m]) if m in err else None,
         }
@@ -330,7 +328,6 @@ def _scan(console, quick, results):
             f"{1e3 * med:.1f}",
             f"{1e3 * out[m]['step_seconds_median']:.1f}",
             f"{med / ex:.2f}×",
-            str(r["stalls"]),
             ", ".join(f"{a}×{b}" for a, b in sorted(r["components"])),
             "–" if m not in err else f"{statistics.median(err[m]):.4f}",
             "–" if m == "exact" else ("PASS" if med <= SCAN_TARGET_SECONDS else "FAIL"),
@@ -348,11 +345,11 @@ def _accuracy(console, quick, seeds, results):
     out = {"particles": particles, "seeds": list(range(seeds)), "scenarios": {}}
     t = Table(title=f"(c) tracking accuracy: {seeds} seeds, {particles} particles, jointtrack run")
     for name in ("scenario", "weights", "GOSPA", "OSPA", "ratio", "paired Δ ± se",
-                 "weights ms/scan", "stalls", "within 5 %"):  # fmt: skip
+                 "weights ms/scan", "within 5 %"):  # fmt: skip
         t.add_column(name, justify="right")
     with tempfile.TemporaryDirectory() as tmp:
         for name in ("crossing", "bojilov"):
-            per = {m: {"gospa": [], "ospa": [], "weight_ms": [], "stalls": 0} for m in methods}
+            per = {m: {"gospa": [], "ospa": [], "weight_ms": []} for m in methods}
             for seed in range(seeds):
                 for m in methods:
                     met = run_scenario(
@@ -367,7 +364,6 @@ def _accuracy(console, quick, seeds, results):
                     per[m]["weight_ms"].append(
                         1e3 * met["particle"]["weight_seconds_per_scan"]["mean"]
                     )
-                    per[m]["stalls"] += met["particle"]["saddle_stalls"]
                 console.print(
                     f"  {name} seed {seed}: "
                     + ", ".join(f"{m} {per[m]['gospa'][-1]:.3f}" for m in methods),
@@ -390,7 +386,6 @@ def _accuracy(console, quick, seeds, results):
                     if len(d) > 1
                     else None,
                     "weight_ms_per_scan_mean": float(np.mean(per[m]["weight_ms"])),
-                    "saddle_stalls": per[m]["stalls"],
                     "within_tolerance": abs(ratio - 1) <= ACCURACY_TOLERANCE,
                 }
                 r = rows[m]
@@ -403,7 +398,6 @@ def _accuracy(console, quick, seeds, results):
                     f"{ratio:.4f}",
                     "–" if m == "exact" else f"{d.mean():+.3f} ± {se or 0:.3f}",
                     f"{r['weight_ms_per_scan_mean']:.1f}",
-                    str(r["saddle_stalls"]),
                     "–" if m == "exact" else ("PASS" if r["within_tolerance"] else "FAIL"),
                 )
             out["scenarios"][name] = rows

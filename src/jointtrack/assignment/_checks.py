@@ -196,7 +196,12 @@ def as_float(
     open_min: bool = False,
     open_max: bool = False,
 ) -> float:
-    """A finite real number within the bounds (open or closed at each end)."""
+    """A finite real number within the bounds (open or closed at each end).
+
+    A 0-d real array (what numpy reductions and indexing return) counts as a number.
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
+        value = value[()]
     if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
         raise ValueError(f"{name} must be a real number, got {value!r}")
     try:

@@ -99,7 +99,7 @@ likelihood is truncated to its gate of probability P_G; 1 = no gate),
 other ``[tracker]`` key is refused. The outputs are the same files; the
 existence column is 1, ``metrics.json`` has a ``particle`` section (weights
 method, particles, seconds in coefficients and derivatives, effective sample
-sizes, saddle-point Newton stalls accepted) instead of ``association``.
+sizes) instead of ``association``.
 Checkpoints are not supported for it: ``--checkpoint``, ``--checkpoint-every``
 and ``--resume`` are refused (the checkpoint format holds Kalman tracks).
 
@@ -572,7 +572,6 @@ def _run(
                                 res.derivative_seconds,
                                 float(res.ess.mean()),
                                 float(res.ess.min()),
-                                res.saddle_stalls,
                                 max((c[1] for c in res.components), default=0),
                             ]
                         )

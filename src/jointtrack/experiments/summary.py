@@ -181,12 +181,12 @@ def particle_metrics(metrics: dict, config, scans: list) -> None:
 
     ``config``: the :class:`~jointtrack.trackers.particle.ParticleConfig`;
     ``scans``: per scan ``[coefficient seconds, derivative seconds, mean ESS,
-    min ESS, saddle stalls, largest component's measurements]``. Replaces
+    min ESS, largest component's measurements]``. Replaces
     ``tracker``, the cluster timing and the truth-start note, and adds the
     ``particle`` section (there is no association step and no ``association``
     section).
     """
-    a = np.asarray(scans, dtype=float).reshape(-1, 6)
+    a = np.asarray(scans, dtype=float).reshape(-1, 5)
     L = config.particles
     weight = a[:, 0] + a[:, 1]
 
@@ -206,12 +206,9 @@ def particle_metrics(metrics: dict, config, scans: list) -> None:
         "derivative_seconds_per_scan": stat(a[:, 1]),
         "mean_ess_fraction": float(a[:, 2].mean() / L) if len(a) else None,
         "min_ess": float(a[:, 3].min()) if len(a) else None,
-        "saddle_stalls": int(a[:, 4].sum()),
-        "max_component_measurements": int(a[:, 5].max()) if len(a) else 0,
+        "max_component_measurements": int(a[:, 4].max()) if len(a) else 0,
         "note": "weights = coefficients (7) + derivatives (18) of every target, per scan; "
-        "ESS = 1/sum(w^2) per target before resampling; saddle_stalls = particles whose "
-        "saddle-point Newton iteration ended just short of its tolerance and was accepted "
-        "(jointtrack.trackers.particle)",
+        "ESS = 1/sum(w^2) per target before resampling (jointtrack.trackers.particle)",
     }
     tm = metrics["timing"]
     for key in ("clusters", "association_seconds"):
@@ -318,12 +315,7 @@ def summary_tables(metrics: Mapping) -> list:
             "particle tracker",
             f"{pa['particles']} particles per target, {pa['weights']} weights, "
             f"resampling {pa['resampling']}; ESS {_fmt(pa['mean_ess_fraction'])} of the "
-            f"particles on average (min {_fmt(pa['min_ess'])})"
-            + (
-                f"; {pa['saddle_stalls']} saddle-point stalls accepted"
-                if pa["saddle_stalls"]
-                else ""
-            ),
+            f"particles on average (min {_fmt(pa['min_ess'])})",
         )
         w = pa["weight_seconds_per_scan"]
         main.add_row(

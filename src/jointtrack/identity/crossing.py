@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from jointtrack.assignment._checks import as_int, as_rng
-from jointtrack.identity.database import Identity, IdentityDatabase, _real, _scalar
+from jointtrack.assignment._checks import as_float, as_int, as_rng
+from jointtrack.identity.database import Identity, IdentityDatabase, _real
 from jointtrack.identity.jpda import IdentityJPDAConfig
 from jointtrack.models.motion import cv_transition
 
@@ -135,25 +135,27 @@ def identity_crossing(
     """
     rng = as_rng(seed, "seed")
     n_scans = as_int(n_scans, "n_scans", minimum=2)
-    dt = _scalar(dt, "dt", low=0.0, open_low=True)
-    speed = _scalar(speed, "speed", low=0.0, open_low=True)
-    angle = _scalar(angle_deg, "angle_deg", low=0.0, high=180.0, open_low=True, open_high=True)
-    sigma = _scalar(sigma, "sigma", low=0.0, open_low=True)
+    dt = as_float(dt, "dt", minimum=0.0, open_min=True)
+    speed = as_float(speed, "speed", minimum=0.0, open_min=True)
+    angle = as_float(
+        angle_deg, "angle_deg", minimum=0.0, maximum=180.0, open_min=True, open_max=True
+    )
+    sigma = as_float(sigma, "sigma", minimum=0.0, open_min=True)
     attrs = _real(attributes, "attributes")
     if attrs.ndim != 1 or attrs.size < 2:
         raise ValueError(f"attributes must hold one value per target (≥ 2), got {attrs.shape}")
     N = attrs.size
-    var_a = _scalar(attribute_variance, "attribute_variance", low=0.0, open_low=True)
+    var_a = as_float(attribute_variance, "attribute_variance", minimum=0.0, open_min=True)
     noise = _per_target(process_noise, "process_noise", N)
     truth_noise = (
         noise
         if truth_process_noise is None
         else _per_target(truth_process_noise, "truth_process_noise", N)
     )
-    p_d = _scalar(p_d, "p_d", low=0.0, high=1.0, open_low=True)
-    rate = _scalar(clutter_per_scan, "clutter_per_scan", low=0.0)
-    margin = _scalar(margin, "margin", low=0.0)
-    attribute_margin = _scalar(attribute_margin, "attribute_margin", low=0.0, open_low=True)
+    p_d = as_float(p_d, "p_d", minimum=0.0, maximum=1.0, open_min=True)
+    rate = as_float(clutter_per_scan, "clutter_per_scan", minimum=0.0)
+    margin = as_float(margin, "margin", minimum=0.0)
+    attribute_margin = as_float(attribute_margin, "attribute_margin", minimum=0.0, open_min=True)
 
     dim = 2
     db = IdentityDatabase(

@@ -50,7 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from jointtrack.assignment._checks import _as_real_array, as_int
+from jointtrack.assignment._checks import _as_real_array, as_float, as_int
 from jointtrack.filters.kalman import _check_psd, _check_sym
 
 __all__ = ["Identity", "IdentityDatabase"]
@@ -77,29 +77,8 @@ def _real(value, name: str, *, allow_nonfinite: bool = False) -> np.ndarray:
     return arr
 
 
-def _scalar(
-    value,
-    name: str,
-    *,
-    low: float | None = None,
-    high: float | None = None,
-    open_low: bool = False,
-    open_high: bool = False,
-) -> float:
-    """A finite real scalar within the bounds; ValueError naming ``name`` otherwise."""
-    arr = _real(value, name)
-    if arr.ndim != 0:
-        raise ValueError(f"{name} must be a scalar, got an array of shape {arr.shape}")
-    out = float(arr)
-    if low is not None and (out < low or (open_low and out == low)):
-        raise ValueError(f"{name} must be {'>' if open_low else '≥'} {low}, got {out}")
-    if high is not None and (out > high or (open_high and out == high)):
-        raise ValueError(f"{name} must be {'<' if open_high else '≤'} {high}, got {out}")
-    return out
-
-
 def _probability_of_detection(value, name: str = "p_d") -> float:
-    return _scalar(value, name, low=0.0, high=1.0, open_low=True)
+    return as_float(value, name, minimum=0.0, maximum=1.0, open_min=True)
 
 
 def _covariance(value, name: str, dim: int | None = None) -> np.ndarray:
@@ -463,7 +442,7 @@ class IdentityDatabase:
         -------
         (C, 2·dim, 2·dim) ndarray
         """
-        dt = np.float64(_scalar(dt, "dt", low=0.0))  # numpy powers overflow to inf, not raise
+        dt = np.float64(as_float(dt, "dt", minimum=0.0))  # numpy powers overflow to inf, not raise
         with np.errstate(over="ignore", invalid="ignore"):
             block = np.array([[dt**4 / 4.0, dt**3 / 2.0], [dt**3 / 2.0, dt**2]])
             Q = block[None, :, None, :, None] * self._noise[:, None, :, None, :]

@@ -120,7 +120,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from jointtrack.assignment._checks import as_int
+from jointtrack.assignment._checks import as_float, as_int
 from jointtrack.filters import kalman
 from jointtrack.filters.kalman import _check_psd, _check_sym, _chol_pd
 from jointtrack.identity.database import (
@@ -128,7 +128,6 @@ from jointtrack.identity.database import (
     _covariance,
     _frozen,
     _real,
-    _scalar,
 )
 from jointtrack.models.motion import cv_transition
 
@@ -239,7 +238,7 @@ def _log_p_d(p_d, db: IdentityDatabase) -> np.ndarray:
 
 
 def _log_p_f(p_f) -> float:
-    p_f = _scalar(p_f, "p_f", low=0.0, high=1.0, open_high=True)
+    p_f = as_float(p_f, "p_f", minimum=0.0, maximum=1.0, open_max=True)
     with np.errstate(divide="ignore"):
         return float(np.log(p_f))
 
@@ -640,7 +639,7 @@ class FilterBank:
         self._state = self._updated(t, z, R, p_d, p_f)
 
     def _time(self, t) -> float:
-        t = _scalar(t, "t")
+        t = as_float(t, "t")
         now = self._require().time
         if t < now:
             raise ValueError(
@@ -650,7 +649,7 @@ class FilterBank:
 
     def _started(self, t, z, R, p_d, p_f) -> _State:
         """The state after :meth:`start`, without assigning it."""
-        t = _scalar(t, "t")
+        t = as_float(t, "t")
         meas = _measurements([z], [R], self._db)[0]
         log_pd, log_pf = _log_p_d(p_d, self._db), _log_p_f(p_f)
         return _start(self._db, self._velocity_cov, t, [meas], log_pd, log_pf)[0]
@@ -873,13 +872,13 @@ class IdentityBank:
         return new
 
     def _started(self, t, zs, Rs, p_d, p_f) -> list[_State]:
-        t = _scalar(t, "t")
+        t = as_float(t, "t")
         metas = _measurements(zs, Rs, self._db)
         log_pd, log_pf = _log_p_d(p_d, self._db), _log_p_f(p_f)
         return _start(self._db, self._velocity_cov, t, metas, log_pd, log_pf)
 
     def _updated(self, t, keys, zs, Rs, p_d, p_f) -> list[_State]:
-        t = _scalar(t, "t")
+        t = as_float(t, "t")
         states = [self._tracks[key]._state for key in keys]
         if any(t < state.time for state in states):
             raise ValueError("t is earlier than the time of a listed track")
@@ -921,7 +920,7 @@ class IdentityBank:
             counts.append(self._n_hidden)
         log_A = np.array(rows, dtype=np.float64).reshape(len(rows), db.n_classes)
         if floor is not None:
-            floor = _scalar(floor, "floor", low=0.0, open_low=True)
+            floor = as_float(floor, "floor", minimum=0.0, open_min=True)
             log_A = np.maximum(log_A, np.log(floor))
         return (
             log_A,

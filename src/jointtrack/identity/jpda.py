@@ -134,6 +134,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import logsumexp
 
+from jointtrack.assignment._checks import as_float
 from jointtrack.association import marginals
 from jointtrack.association.gating import gate_measurements
 from jointtrack.filters import kalman
@@ -144,7 +145,6 @@ from jointtrack.identity.database import (
     _covariance,
     _frozen,
     _real,
-    _scalar,
 )
 from jointtrack.identity.deconflict import deconflict
 from jointtrack.identity.filterbank import FilterBank, _State
@@ -198,12 +198,12 @@ class IdentityJPDAConfig:
                 f"variances, got shape {R.shape}"
             )
         object.__setattr__(self, "measurement_noise", _frozen(R))
-        lam = _scalar(self.clutter_density, "clutter_density", low=0.0, open_low=True)
+        lam = as_float(self.clutter_density, "clutter_density", minimum=0.0, open_min=True)
         object.__setattr__(self, "clutter_density", lam)
         if self.p_d is not None:
-            p_d = _scalar(self.p_d, "p_d", low=0.0, high=1.0, open_low=True)
+            p_d = as_float(self.p_d, "p_d", minimum=0.0, maximum=1.0, open_min=True)
             object.__setattr__(self, "p_d", p_d)
-        p_g = _scalar(self.p_g, "p_g", low=0.0, high=1.0, open_low=True)
+        p_g = as_float(self.p_g, "p_g", minimum=0.0, maximum=1.0, open_min=True)
         object.__setattr__(self, "p_g", p_g)
         vel = _covariance(self.velocity_cov, "velocity_cov")
         object.__setattr__(self, "velocity_cov", float(vel) if vel.ndim == 0 else _frozen(vel))
@@ -362,7 +362,7 @@ class IdentityJPDA:
             symmetric positive semi-definite covariances.
         """
         db = self._db
-        t = _scalar(t, "t")
+        t = as_float(t, "t")
         n = db.state_dim
         x0 = _real(x0, "x0")
         if x0.ndim != 2 or x0.shape[1] != n:
@@ -402,7 +402,7 @@ class IdentityJPDA:
         measurements : (T, dim + attribute_dim) array_like
             1 ≤ T ≤ number of identities; unmeasured components may be NaN.
         """
-        t = _scalar(t, "t")
+        t = as_float(t, "t")
         Z = self._measurement_table(measurements)
         T = self._check_count(Z.shape[0], "measurements")
         banks = []
@@ -458,7 +458,7 @@ class IdentityJPDA:
             the tracker has not been started.
         """
         P_prior = self._require()
-        t = _scalar(t, "t")
+        t = as_float(t, "t")
         if not t > self.time:
             raise ValueError(
                 f"t = {t:g} is not after the tracker's time {self.time:g}; scan times must increase"

@@ -91,7 +91,8 @@ from scipy.special import logsumexp
 from jointtrack.assignment._checks import _as_real_array
 from jointtrack.assignment.core import DEFAULT_MAX_BITS, DEFAULT_MAX_MEMORY, solve_checked
 from jointtrack.errors import InfeasibleAssignmentError
-from jointtrack.saddle.corrections import log_sum_exp, log_unit_probability, tilt
+from jointtrack.saddle._newton import newton_batch
+from jointtrack.saddle.corrections import log_unit_probability, tilt
 from jointtrack.saddle.generating import check_coefficients
 
 __all__ = [
@@ -229,21 +230,6 @@ class SaddlePoint:
     gradient_norm: np.ndarray
 
 
-def _phi(u, a0, a, logF, counts):
-    """φ(u) = log Ψ(e^u) − Σ n u in log space (+inf, never NaN, where e^u overflows).
-
-    Also returns the size of its terms, |a0| + Σ λ + Σ |log s_k| + Σ |n u|: φ's
-    rounding error is a small multiple of 1e-16 times that.
-    """
-    t = logF[..., 1:] + u[..., None, :]
-    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        logs = log_sum_exp(np.concatenate([logF[..., :1], t], axis=-1))
-        lam = a * np.exp(u)
-        phi = a0 + lam.sum(-1) + logs.sum(-1) - (counts * u).sum(-1)
-        scale = abs(a0) + lam.sum(-1) + np.abs(logs).sum(-1) + np.abs(counts * u).sum(-1)
-    return phi, scale
-
-
 def _start(a, F):
     """Newton's starting point: every coordinate's tilted mean within a factor M + 1 of 1.
 
@@ -257,13 +243,6 @@ def _start(a, F):
     top = F.max(-1, keepdims=True)
     Ft = F[..., 1:] / np.where(top > 0, top, 1.0)
     return -np.log(a + Ft.sum(-2))
-
-
-def _newton_step(hess, grad):
-    try:
-        return -np.linalg.solve(hess, grad[..., None])[..., 0]
-    except np.linalg.LinAlgError:  # a numerically singular Hessian: least-norm step
-        return -(np.linalg.pinv(hess) @ grad[..., None])[..., 0]
 
 
 def saddle_point(
@@ -311,59 +290,22 @@ def saddle_point(
     Ff = F.reshape(math.prod(batch), K, M + 1)
     with np.errstate(divide="ignore"):
         logF = np.log(Ff)
-    u = _start(a, Ff) if M else np.zeros((Ff.shape[0], 0))
-    phi, scale = _phi(u, a0, a, logF, n)
-    gnorm = np.zeros(Ff.shape[0])
-    act = np.arange(Ff.shape[0]) if M else np.arange(0)
-    it = 0
-    while act.size:
-        # Newton's method on the problems still active only
-        tl = tilt(u[act], a, Ff[act])
-        grad = tl.lam + tl.p.sum(-2) - n
-        gnorm[act] = np.abs(grad).max(-1)
-        live = gnorm[act] > tol
-        if it == max_iter or not live.any():
-            break
-        it += 1
-        act, grad, cov = act[live], grad[live], tl.cov[live]
-        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            step = _newton_step(cov, grad)
-            slope = (grad * step).sum(-1)  # −(Newton decrement)² < 0
-        # no usable Newton direction (the Hessian singular in float: a variance
-        # below 1e-16 of another lost in their sum): steepest descent instead
-        wild = ~np.isfinite(step).all(-1) | ~(-slope > 1e-12 * (grad * grad).sum(-1))
-        step[wild] = -grad[wild]
-        slope[wild] = -(grad[wild] ** 2).sum(-1)
-        u_a, phi_a, scale_a, logF_a = u[act], phi[act], scale[act], logF[act]
-        # backtracking: φ is convex, the direction descends; halve until it does
-        t = np.ones(act.size)
-        for _ in range(60):
-            phi_t, _ = _phi(u_a + t[:, None] * step, a0, a, logF_a, n)
-            ok = phi_t <= phi_a + 1e-4 * t * slope + 1e-14 * scale_a
-            if ok.all():
-                break
-            t = np.where(ok, t, 0.5 * t)
-        t = np.where(ok, t, 0.0)  # no acceptable step: the problem stalls where it is
-        # a steepest-descent step has no natural length: double it while φ decreases
-        grow = wild & (t == 1.0)
-        if grow.any():
-            g_idx = np.flatnonzero(grow)
-            best = phi_t[g_idx]
-            for _ in range(40):
-                trial = u_a[g_idx] + 2.0 * t[g_idx, None] * step[g_idx]
-                phi_g, _ = _phi(trial, a0, a, logF_a[g_idx], n)
-                better = phi_g < best
-                if not better.any():
-                    break
-                t[g_idx[better]] *= 2.0
-                best = np.where(better, phi_g, best)
-                g_idx, best = g_idx[better], best[better]
-        u[act] = u_a + t[:, None] * step
-        phi[act], scale[act] = _phi(u[act], a0, a, logF_a, n)
-        act = act[t > 0]
+    u = np.ascontiguousarray(_start(a, Ff)) if M else np.zeros((Ff.shape[0], 0))
+    # one compiled call runs Newton's method for every problem (module _newton)
+    phi, gnorm, steps, log_det = newton_batch(
+        float(a0), a, np.ascontiguousarray(logF), n, u, float(tol), int(max_iter)
+    )
+    it = int(steps.max(initial=0))
+    odd = np.isnan(log_det)
+    if odd.any():
+        # ∇²φ(û) not positive definite in float (near-singular): LAPACK's slogdet says
+        # how small its determinant is (−inf when it underflows)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            _, log_det[odd] = np.linalg.slogdet(tilt(u[odd], a, Ff[odd]).cov)
     converged = gnorm <= max(tol, 1e-9)
     u = u.reshape(*batch, M)
     phi, gnorm, converged = phi.reshape(batch), gnorm.reshape(batch), converged.reshape(batch)
+    log_det = log_det.reshape(batch)
     if raise_on_failure and not converged.all():
         bad = np.argwhere(~converged)
         where = f"index {tuple(int(i) for i in bad[0])}, " if batch else ""
@@ -374,11 +316,6 @@ def saddle_point(
             "or the problem has none (e.g. more factors with f_k0 = 0 than measurements "
             "they can take: I = 0)"
         )
-    if M:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            _, log_det = np.linalg.slogdet(tilt(u, a, F).cov)
-    else:
-        log_det = np.zeros(batch)
     return SaddlePoint(u, phi, log_det, it, converged, gnorm)
 
 

@@ -86,11 +86,9 @@ from scipy.special import logsumexp
 from jointtrack.assignment._checks import _as_real_array, as_float
 from jointtrack.models import ConstantAcceleration, ConstantVelocity, LinearPosition
 from jointtrack.saddle import (
-    SaddlePointError,
     jpda_coefficients,
     jpda_log_weights,
     log_mixed_derivative,
-    saddle_point,
 )
 from jointtrack.trackers.config import _check_noise, check_field, config_from_dict
 
@@ -259,16 +257,12 @@ class ScanWeights:
         time spent building the coefficients (7) — with the column scaling
         and the components — and in the derivatives (core calls or saddle
         points).
-    saddle_stalls : int
-        particles whose saddle-point Newton iteration ended just short of its
-        tolerance and were accepted (see :func:`_saddle_log_weights`).
     """
 
     log_weights: np.ndarray
     components: list
     coefficient_seconds: float
     derivative_seconds: float
-    saddle_stalls: int = 0
 
 
 def _components(touch: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -339,7 +333,7 @@ def jpda_particle_log_weights(log_clutter, p_d, log_likelihood, method: str = "e
         with np.errstate(divide="ignore"):
             out = np.log1p(-pd)
         _check_alive(out)
-        return ScanWeights(out, [], 0.0, 0.0, 0)
+        return ScanWeights(out, [], 0.0, 0.0)
 
     t0 = _time.perf_counter()
     # column scaling (exact, see the module docstring): every column's largest term is 1
@@ -351,7 +345,6 @@ def jpda_particle_log_weights(log_clutter, p_d, log_likelihood, method: str = "e
     out = np.empty((N, L))
     components = []
     coef_s = deriv_s = 0.0
-    stalls = 0
     for lab in np.unique(tgt_label):
         members = np.flatnonzero(tgt_label == lab)
         ms = np.flatnonzero(meas_label == lab)
@@ -376,8 +369,7 @@ def jpda_particle_log_weights(log_clutter, p_d, log_likelihood, method: str = "e
             if method == "exact":
                 out[n] = jpda_log_weights(a0, aa, F[:, 0, :], F[0, 1:, :])
             else:
-                out[n], k = _saddle_log_weights(a0, aa, F, method)
-                stalls += k
+                out[n] = log_mixed_derivative(a0, aa, F, method)
             t3 = _time.perf_counter()
             coef_s += t2 - t1
             deriv_s += t3 - t2
@@ -386,43 +378,7 @@ def jpda_particle_log_weights(log_clutter, p_d, log_likelihood, method: str = "e
     _check_alive(out)
     # the components' bookkeeping counts as coefficient work (§7's overhead)
     coef_s = (_time.perf_counter() - t0) - deriv_s
-    return ScanWeights(out, components, coef_s, deriv_s, stalls)
-
-
-#: ‖∇φ‖∞ up to which a saddle point short of Newton's tolerance is accepted (method saddle)
-STALL_GRADIENT = 1e-6
-
-
-def _saddle_log_weights(a0, a, F, method):
-    """Batched :func:`log_mixed_derivative`; a saddle point missed by a hair is accepted.
-
-    If Newton's iteration in :func:`jointtrack.saddle.saddle_point` ends short
-    of its tolerance (‖∇φ‖∞ ≤ 1e-9) for some particles,
-    :func:`log_mixed_derivative` raises :class:`SaddlePointError` for the whole
-    batch. At a point with ‖∇φ‖∞ ≤ :data:`STALL_GRADIENT`, φ is within about
-    ‖∇φ‖²/λ_min(∇²φ) of its minimum, far below any weight's precision, so for
-    ``method="saddle"`` eq. (30) is evaluated there (from :func:`saddle_point`
-    with ``raise_on_failure=False``) rather than losing the scan; the count is
-    reported (``saddle_stalls``). Returns ``(log weights, stalled problems)``.
-    Other methods, and real failures, raise.
-    """
-    try:
-        return log_mixed_derivative(a0, a, F, method), 0
-    except SaddlePointError:
-        if method != "saddle":
-            raise
-    zero = (F == 0).all(-1).any(-1)  # Ψ ≡ 0: I = 0, as log_mixed_derivative
-    sp = saddle_point(
-        a0, a, np.where(zero[..., None, None], 1.0, F), max_iter=30, raise_on_failure=False
-    )
-    stalled = ~sp.converged & ~zero
-    if (sp.gradient_norm[stalled] > STALL_GRADIENT).any():
-        raise SaddlePointError(
-            f"the saddle point was not found for {int(stalled.sum())} particle(s) (largest "
-            f"gradient norm {float(sp.gradient_norm[stalled].max()):.3g})"
-        )
-    out = sp.phi - 0.5 * a.size * math.log(2.0 * math.pi) - 0.5 * sp.log_det  # eq. (30)
-    return np.where(zero, -np.inf, out), int(stalled.sum())
+    return ScanWeights(out, components, coef_s, deriv_s)
 
 
 def _check_alive(log_w: np.ndarray) -> None:
@@ -488,9 +444,7 @@ class ParticleScanResult:
     and ``weights`` (N, L) their normalised weights, ``ess`` (N,) the effective
     sample size 1/Σw² before resampling. ``weight_seconds`` = coefficients +
     derivatives (:class:`ScanWeights`); ``components`` the (targets,
-    measurements) of each component solved; ``saddle_stalls`` the particles
-    whose saddle-point Newton iteration ended just short of its tolerance and
-    was accepted (:class:`ScanWeights`).
+    measurements) of each component solved.
     """
 
     time: float
@@ -505,7 +459,6 @@ class ParticleScanResult:
     coefficient_seconds: float
     derivative_seconds: float
     components: list = field(default_factory=list)
-    saddle_stalls: int = 0
 
     @property
     def weight_seconds(self) -> float:
@@ -719,7 +672,6 @@ class ParticleJPDATracker:
             coefficient_seconds=sw.coefficient_seconds,
             derivative_seconds=sw.derivative_seconds,
             components=sw.components,
-            saddle_stalls=sw.saddle_stalls,
         )
         # commit: plain assignments, nothing here can fail
         self.particles, self.time, self.rng = resampled, t, rng
