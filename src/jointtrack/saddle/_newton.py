@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = ["newton_batch", "tilt_batch"]
 
@@ -258,19 +258,10 @@ def _minimise_one(a0, a, log_F, counts, u, tol, max_iter, work):
 
 
 @njit(cache=True)
-def newton_batch(a0, a, log_F, counts, u, tol, max_iter):
-    """Saddle points of B problems (``log_F`` (B, K, M+1), start ``u`` (B, M) updated in place).
-
-    Problem b starts from ``u[b]`` or from problem b − 1's saddle point,
-    whichever has the smaller φ (so the result depends on the order only
-    within Newton's tolerance).
-
-    Returns ``(phi, gradient_norm, iterations, log_det)``, each (B,);
-    ``log_det`` is NaN where ∇²φ(û) is not positive definite in float.
-    """
-    B, K, M1 = log_F.shape
-    M = M1 - 1
-    work = (
+def _work_buffers(K, M):
+    """Scratch arrays of one chunk: the tilt at u and at the trial point, ∇φ, ∇²φ, its
+    Cholesky factor, the step and the trial point."""
+    return (
         np.empty(M),
         np.empty((K, M)),
         np.empty(K),
@@ -285,26 +276,47 @@ def newton_batch(a0, a, log_F, counts, u, tol, max_iter):
         np.empty(M),
         np.empty(M),
     )
-    converged_before = False
+
+
+#: problems per chunk of :func:`newton_batch`: chunks run in parallel, problems within
+#: one in order (warm starts). Fixed, so results do not depend on the thread count.
+CHUNK = 128
+
+
+@njit(cache=True, parallel=True)
+def newton_batch(a0, a, log_F, counts, u, tol, max_iter):
+    """Saddle points of B problems (``log_F`` (B, K, M+1), start ``u`` (B, M) updated in place).
+
+    Problems run in chunks of :data:`CHUNK`, the chunks in parallel. Within a
+    chunk problem b starts from ``u[b]`` or from problem b − 1's saddle point,
+    whichever has the smaller φ: a batch is typically one target's particles,
+    whose problems differ little, and the previous saddle point is often 2–3
+    Newton steps closer than the cold start. (So a result depends on its
+    neighbours only within Newton's tolerance.)
+
+    Returns ``(phi, gradient_norm, iterations, log_det)``, each (B,);
+    ``log_det`` is NaN where ∇²φ(û) is not positive definite in float.
+    """
+    B, K, M1 = log_F.shape
+    M = M1 - 1
     phi = np.empty(B)
     gnorm = np.empty(B)
     iterations = np.empty(B, np.int64)
     log_det = np.empty(B)
-    lam, p, p0, q = work[0], work[1], work[2], work[3]
-    for b in range(B):
-        if b > 0 and converged_before:
-            # warm start: a batch is typically one target's particles, whose problems
-            # differ little; the previous saddle point is often 2-3 Newton steps closer
-            # than the cold start. Take whichever has the smaller φ.
-            log_s, abs_log_s = _tilt_one(u[b], a, log_F[b], lam, p, p0, q)
-            phi_cold, _ = _phi(a0, log_s, abs_log_s, lam, counts, u[b])
-            log_s, abs_log_s = _tilt_one(u[b - 1], a, log_F[b], lam, p, p0, q)
-            phi_warm, _ = _phi(a0, log_s, abs_log_s, lam, counts, u[b - 1])
-            if phi_warm < phi_cold:
-                for m in range(M):
-                    u[b, m] = u[b - 1, m]
-        phi[b], gnorm[b], iterations[b], log_det[b] = _minimise_one(
-            a0, a, log_F[b], counts, u[b], tol, max_iter, work
-        )
-        converged_before = gnorm[b] <= tol
+    n_chunks = (B + CHUNK - 1) // CHUNK
+    for c in prange(n_chunks):
+        work = _work_buffers(K, M)
+        lam, p, p0, q = work[0], work[1], work[2], work[3]
+        for b in range(c * CHUNK, min(B, (c + 1) * CHUNK)):
+            if b > c * CHUNK and gnorm[b - 1] <= tol:
+                log_s, abs_log_s = _tilt_one(u[b], a, log_F[b], lam, p, p0, q)
+                phi_cold, _ = _phi(a0, log_s, abs_log_s, lam, counts, u[b])
+                log_s, abs_log_s = _tilt_one(u[b - 1], a, log_F[b], lam, p, p0, q)
+                phi_warm, _ = _phi(a0, log_s, abs_log_s, lam, counts, u[b - 1])
+                if phi_warm < phi_cold:
+                    for m in range(M):
+                        u[b, m] = u[b - 1, m]
+            phi[b], gnorm[b], iterations[b], log_det[b] = _minimise_one(
+                a0, a, log_F[b], counts, u[b], tol, max_iter, work
+            )
     return phi, gnorm, iterations, log_det
