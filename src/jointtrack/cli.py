@@ -121,7 +121,11 @@ def run_command(
     ] = None,
     scenario: Annotated[
         str | None,
-        typer.Option("--scenario", help="Built-in scenario: bojilov (default) | crossing | many."),
+        typer.Option(
+            "--scenario",
+            help="Built-in scenario: bojilov (default) | crossing | many | acoustic "
+            "(superpositional sensors, see --filter).",
+        ),
     ] = None,
     out: Annotated[
         Path | None, typer.Option("--out", help="Output directory (default jointtrack-out).")
@@ -185,7 +189,27 @@ def run_command(
     ] = None,
     particles: Annotated[
         int | None,
-        typer.Option("--particles", help="Particles per target (--tracker particle; 1000)."),
+        typer.Option(
+            "--particles",
+            help="Particles per target (--tracker particle; 1000). --scenario acoustic: "
+            "particles of the filter (4000; sps-mb: per component, 1000).",
+        ),
+    ] = None,
+    filter_name: Annotated[
+        str | None,
+        typer.Option(
+            "--filter",
+            metavar="[sps-cphd|sps-phd|sps-mb]",
+            help="--scenario acoustic: the superpositional-sensor filter (default sps-cphd).",
+        ),
+    ] = None,
+    likelihood: Annotated[
+        str | None,
+        typer.Option(
+            "--likelihood",
+            metavar="[gaussian|saddlepoint|hybrid]",
+            help="--scenario acoustic: the filter's likelihood method (default gaussian).",
+        ),
     ] = None,
 ) -> None:
     """Track: detections in, tracks out (default: Bojilov's five targets, beta = 1, seed 0).
@@ -198,6 +222,9 @@ def run_command(
 
     console = make_console()
     show = console.is_terminal if progress is None else progress
+    if scenario == "acoustic" or filter_name is not None or likelihood is not None:
+        _run_acoustic(locals(), console, show)
+        return
     try:
         from jointtrack.experiments import run as runmod
 
@@ -361,6 +388,52 @@ def run_command(
     except (DataFileError, ValueError, OSError) as exc:
         _fail(exc)
     runmod.print_summary(metrics, console)
+    console.print(f"outputs in {out}/", markup=False, highlight=False)
+
+
+def _run_acoustic(flags: dict, console, show: bool) -> None:
+    """``jointtrack run --scenario acoustic``: a superpositional-sensor filter (no detections)."""
+    if flags["scenario"] != "acoustic":
+        _fail("--filter and --likelihood apply to --scenario acoustic only")
+    refused = {
+        "detections": "--detections",
+        "truth": "--truth",
+        "config": "--config",
+        "checkpoint": "--checkpoint",
+        "checkpoint_every": "--checkpoint-every",
+        "resume": "--resume",
+        "weights": "--weights",
+        "start_from": "--start-from",
+    }
+    for key, flag in refused.items():
+        if flags[key] is not None:
+            _fail(
+                f"{flag} does not apply to --scenario acoustic (a superpositional sensor "
+                "network read by a particle SPS filter)"
+            )
+    if flags["tracker"] is not None:
+        _fail("--tracker does not apply to --scenario acoustic; choose the filter with --filter")
+    if flags["fmt"] not in (None, "csv"):
+        _fail("--format: --scenario acoustic writes tracks.csv only")
+    from jointtrack.experiments.acoustic_run import print_acoustic_summary, run_acoustic
+
+    out = Path("jointtrack-out") if flags["out"] is None else flags["out"]
+    try:
+        metrics = run_acoustic(
+            out,
+            filter_name=flags["filter_name"] or "sps-cphd",
+            likelihood=flags["likelihood"] or "gaussian",
+            seed=0 if flags["seed"] is None else flags["seed"],
+            max_scans=flags["max_scans"],
+            particles=flags["particles"],
+            progress=show,
+            console=console,
+        )
+    except KeyboardInterrupt:
+        _fail("interrupted", code=130)
+    except (ValueError, OSError, NotImplementedError) as exc:
+        _fail(exc)
+    print_acoustic_summary(metrics, console)
     console.print(f"outputs in {out}/", markup=False, highlight=False)
 
 
@@ -589,6 +662,27 @@ def reproduce_streit(
         lambda console, show: streit.reproduce(quick, out_dir=out, progress=show, console=console),
     )
     streit.print_report(result, console)
+
+
+@reproduce_app.command("nannuru")
+def reproduce_nannuru(
+    quick: Annotated[
+        bool, typer.Option("--quick", help="5 trials per row, 10 x 50 ratio states (< 60 s).")
+    ] = False,
+    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("jointtrack-out"),
+    progress: Annotated[
+        bool | None,
+        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
+    ] = None,
+) -> None:
+    """Nannuru & Coates Tables I-IV, Example 1, Figures 1-5: Gaussian vs exact superposition."""
+    from jointtrack.experiments import nannuru
+
+    result, console = _reproduce(
+        progress,
+        lambda console, show: nannuru.reproduce(quick, out_dir=out, progress=show, console=console),
+    )
+    nannuru.print_report(result, console)
 
 
 def main() -> None:

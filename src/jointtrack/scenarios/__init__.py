@@ -5,11 +5,14 @@
 * :func:`abreast` — targets abreast on parallel lanes at one speed (issue 11).
 * :func:`crossing` — two targets crossing in an X.
 * :func:`many_targets` — ≥ 100 NCV targets with births and deaths in clutter.
+* :func:`acoustic` — 3–5 targets read by a 5 × 5 grid of superpositional
+  amplitude sensors (no detections; :class:`AcousticScenario`).
 * :class:`Scenario` — the result; :func:`simulate_scenario` builds one from
   any truth; :func:`nominal_gate` the steady-state NCV gate used as Bojilov's
   clutter unit.
 """
 
+from jointtrack.scenarios.acoustic import AcousticScenario, acoustic
 from jointtrack.scenarios.generators import abreast, bojilov, crossing, many_targets, nominal_gate
 from jointtrack.scenarios.simulate import (
     Scenario,
@@ -19,8 +22,10 @@ from jointtrack.scenarios.simulate import (
 )
 
 __all__ = [
+    "AcousticScenario",
     "Scenario",
     "abreast",
+    "acoustic",
     "bojilov",
     "crossing",
     "many_targets",
