@@ -96,6 +96,14 @@ def _fail(message, code: int = 2):
     raise typer.Exit(code)
 
 
+#: options shared by the commands
+ReproduceOut = Annotated[Path, typer.Option("--out", help="Output directory.")]
+ProgressFlag = Annotated[
+    bool | None,
+    typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
+]
+
+
 @app.command("run")
 def run_command(
     detections: Annotated[
@@ -153,10 +161,7 @@ def run_command(
         int | None,
         typer.Option("--max-scans", help="Stop after this many scans (counted from the first)."),
     ] = None,
-    progress: Annotated[
-        bool | None,
-        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
-    ] = None,
+    progress: ProgressFlag = None,
     start_from: Annotated[
         str | None,
         typer.Option(
@@ -586,11 +591,8 @@ def reproduce_bojilov(
     quick: Annotated[
         bool, typer.Option("--quick", help="2 runs per clutter density (--runs wins).")
     ] = False,
-    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("jointtrack-out"),
-    progress: Annotated[
-        bool | None,
-        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
-    ] = None,
+    out: ReproduceOut = Path("jointtrack-out"),
+    progress: ProgressFlag = None,
 ) -> None:
     """Bojilov et al. Tables 2-3 (hypotheses, multiplications, seconds per cluster) vs ours."""
     n = runs if runs is not None else (2 if quick else 10)
@@ -616,11 +618,8 @@ def reproduce_schaub(
     steps: Annotated[
         int | None, typer.Option("--steps", help="Time steps per example (default 100).")
     ] = None,
-    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("jointtrack-out"),
-    progress: Annotated[
-        bool | None,
-        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
-    ] = None,
+    out: ReproduceOut = Path("jointtrack-out"),
+    progress: ProgressFlag = None,
 ) -> None:
     """Schaub §4 examples 1-3: max KL vs step per method (Figures 5-7), ms per step."""
     if seeds is not None and seeds < 1:
@@ -648,11 +647,8 @@ def reproduce_streit(
     quick: Annotated[
         bool, typer.Option("--quick", help="100 trials per cell and a small cost grid.")
     ] = False,
-    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("jointtrack-out"),
-    progress: Annotated[
-        bool | None,
-        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
-    ] = None,
+    out: ReproduceOut = Path("jointtrack-out"),
+    progress: ProgressFlag = None,
 ) -> None:
     """Streit Table 1 (saddle-point ratios), Figures 1, 3, 4 and the exact-vs-saddle cost table."""
     from jointtrack.experiments import streit
@@ -669,11 +665,8 @@ def reproduce_nannuru(
     quick: Annotated[
         bool, typer.Option("--quick", help="5 trials per row, 10 x 50 ratio states (< 60 s).")
     ] = False,
-    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("jointtrack-out"),
-    progress: Annotated[
-        bool | None,
-        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
-    ] = None,
+    out: ReproduceOut = Path("jointtrack-out"),
+    progress: ProgressFlag = None,
 ) -> None:
     """Nannuru & Coates Tables I-IV, Example 1, Figures 1-5: Gaussian vs exact superposition."""
     from jointtrack.experiments import nannuru
