@@ -26,9 +26,9 @@ from jointtrack.superpositional import (
     log_likelihood_ratio,
 )
 from jointtrack.superpositional import hybrid as hy
+from superpositional_helpers import H3 as H
+from superpositional_helpers import S0, assert_option_rejected
 
-H = np.array([[0.1, 0.7], [0.5, 0.5], [0.8, 0.2]])
-S0 = 0.25 * np.eye(3)
 coords = st.floats(0.0, 10.0, allow_nan=False)
 
 
@@ -55,24 +55,24 @@ def iidc_case(draw):
     return model, H @ np.array(draw(st.tuples(coords, coords))) * 2
 
 
+def assert_hybrid_is_exact(model, y0, budget):
+    """With the full mixture within ``budget``, hybrid reports and returns the exact value."""
+    exact = likelihood(y0, model, H, S0, method="exact").log_value
+    res = likelihood(y0, model, H, S0, method="hybrid", budget=budget)
+    assert res.info["exact"]
+    assert res.log_value == pytest.approx(exact, abs=1e-9)
+
+
 @settings(max_examples=30, deadline=None)
 @given(mb_case())
 def test_equals_exact_within_budget_multi_bernoulli(case):
-    model, y0 = case
-    exact = likelihood(y0, model, H, S0, method="exact").log_value
-    res = likelihood(y0, model, H, S0, method="hybrid", budget=64)
-    assert res.info["exact"]
-    assert res.log_value == pytest.approx(exact, abs=1e-9)
+    assert_hybrid_is_exact(*case, budget=64)
 
 
 @settings(max_examples=30, deadline=None)
 @given(iidc_case())
 def test_equals_exact_within_budget_iidc(case):
-    model, y0 = case
-    exact = likelihood(y0, model, H, S0, method="exact").log_value
-    res = likelihood(y0, model, H, S0, method="hybrid", budget=10_000)
-    assert res.info["exact"]
-    assert res.log_value == pytest.approx(exact, abs=1e-9)
+    assert_hybrid_is_exact(*case, budget=10_000)
 
 
 def test_union_and_poisson_exact_within_budget():
@@ -193,9 +193,7 @@ def test_union_with_uniform_part_against_monte_carlo():
     ],
 )
 def test_bad_options(option, value, match):
-    model = MultiBernoulli([0.5], [[0.0, 0.0]], [np.eye(2)])
-    with pytest.raises(ValueError, match=match):
-        likelihood(np.zeros(3), model, H, S0, method="hybrid", **{option: value})
+    assert_option_rejected("hybrid", option, value, match)
 
 
 def test_uniform_box_without_quadrature_falls_back():

@@ -24,10 +24,7 @@ from jointtrack.superpositional import (
     log_likelihood_ratio,
     reduced_moments,
 )
-
-H3 = np.array([[0.1, 0.7], [0.5, 0.5], [0.8, 0.2]])
-S0 = 0.25 * np.eye(3)
-
+from superpositional_helpers import H3, S0
 
 # ----------------------------------------------------------------------------- brute force
 

@@ -21,8 +21,7 @@ from jointtrack.superpositional import (
     sample_superposition,
 )
 from jointtrack.superpositional.models import reduced_mixture
-
-H3 = np.array([[0.1, 0.7], [0.5, 0.5], [0.8, 0.2]])
+from superpositional_helpers import H3
 
 
 def truncated_poisson(n0, n_max=15):

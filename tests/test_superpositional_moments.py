@@ -21,8 +21,8 @@ from jointtrack.superpositional import (
     sample_superposition,
 )
 from jointtrack.superpositional.models import reduced_mixture
+from superpositional_helpers import H3
 
-H3 = np.array([[0.1, 0.7], [0.5, 0.5], [0.8, 0.2]])
 N_MC = 60_000
 
 

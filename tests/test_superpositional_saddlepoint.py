@@ -22,9 +22,8 @@ from jointtrack.superpositional import (
     log_likelihood_ratio,
 )
 from jointtrack.superpositional import saddlepoint as sp
-
-H = np.array([[0.1, 0.7], [0.5, 0.5], [0.8, 0.2]])
-S0 = 0.25 * np.eye(3)
+from superpositional_helpers import H3 as H
+from superpositional_helpers import S0, assert_option_rejected
 
 floats = st.floats(-5.0, 5.0, allow_nan=False)
 probs = st.floats(0.2, 1.0)
@@ -211,9 +210,7 @@ def test_newton_failure_raises():
     ],
 )
 def test_bad_options(option, value, match):
-    model = MultiBernoulli([0.5], [[0.0, 0.0]], [np.eye(2)])
-    with pytest.raises(ValueError, match=match):
-        likelihood(np.zeros(3), model, H, S0, method="saddlepoint", **{option: value})
+    assert_option_rejected("saddlepoint", option, value, match)
 
 
 def test_linear_measurement_object_accepted():

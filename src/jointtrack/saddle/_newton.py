@@ -25,6 +25,8 @@ import math
 import numpy as np
 from numba import njit
 
+from jointtrack._numba_linalg import cholesky_lower, cholesky_solve
+
 __all__ = ["newton_batch", "tilt_batch"]
 
 # Armijo's sufficient-decrease constant, and φ's rounding allowance relative to the
@@ -120,7 +122,7 @@ def tilt_batch(u, a, log_F):
 def _gradient_hessian(lam, p, q, counts, grad, hess):
     """∇φ = λ + Σ_k p_k − n and ∇²φ = Cov X (diagonal λ_m + Σ_k p_km q_km); returns ‖∇φ‖∞.
 
-    Only the lower triangle of ``hess`` is filled (all :func:`_cholesky` reads).
+    Only the lower triangle of ``hess`` is filled (all :func:`cholesky_lower` reads).
     """
     K, M = p.shape
     for m in range(M):
@@ -147,44 +149,6 @@ def _gradient_hessian(lam, p, q, counts, grad, hess):
 
 
 @njit(cache=True)
-def _cholesky(hess, chol):
-    """Lower Cholesky factor of ``hess`` into ``chol``; (ok, log det). Not ok: not SPD in float."""
-    M = hess.shape[0]
-    log_det = 0.0
-    for j in range(M):
-        d = hess[j, j]
-        for k in range(j):
-            d -= chol[j, k] * chol[j, k]
-        if not d > 0.0 or not math.isfinite(d):
-            return False, -np.inf
-        d = math.sqrt(d)
-        chol[j, j] = d
-        log_det += 2.0 * math.log(d)
-        for i in range(j + 1, M):
-            s = hess[i, j]
-            for k in range(j):
-                s -= chol[i, k] * chol[j, k]
-            chol[i, j] = s / d
-    return True, log_det
-
-
-@njit(cache=True)
-def _newton_direction(chol, grad, step):
-    """step = −(L Lᵀ)⁻¹ ∇φ by forward and back substitution."""
-    M = grad.shape[0]
-    for i in range(M):
-        s = -grad[i]
-        for k in range(i):
-            s -= chol[i, k] * step[k]
-        step[i] = s / chol[i, i]
-    for i in range(M - 1, -1, -1):
-        s = step[i]
-        for k in range(i + 1, M):
-            s -= chol[k, i] * step[k]
-        step[i] = s / chol[i, i]
-
-
-@njit(cache=True)
 def _minimise_one(a0, a, log_F, counts, u, tol, max_iter, work, tilted, log_s, abs_log_s):
     """Newton's method with Armijo backtracking for one problem, ``u`` updated in place.
 
@@ -207,14 +171,15 @@ def _minimise_one(a0, a, log_F, counts, u, tol, max_iter, work, tilted, log_s, a
         if gnorm <= tol or iterations == max_iter:
             break
         iterations += 1
-        ok, _ = _cholesky(hess, chol)
+        ok, _ = cholesky_lower(hess, chol)  # not ok: ∇²φ not SPD in float
         slope = 0.0
         grad2 = 0.0
         for m in range(M):
             grad2 += grad[m] * grad[m]
         if ok:
-            _newton_direction(chol, grad, step)
+            cholesky_solve(chol, grad, step)
             for m in range(M):
+                step[m] = -step[m]  # Newton's direction −(∇²φ)⁻¹ ∇φ
                 slope += grad[m] * step[m]  # −(Newton decrement)² < 0
         # no usable Newton direction (the Hessian singular in float: a variance below
         # 1e-16 of another lost in their sum): steepest descent instead
@@ -260,7 +225,7 @@ def _minimise_one(a0, a, log_F, counts, u, tol, max_iter, work, tilted, log_s, a
         p0, p0_t = p0_t, p0
         q, q_t = q_t, q
         phi, size = phi_t, size_t
-    ok, log_det = _cholesky(hess, chol)
+    ok, log_det = cholesky_lower(hess, chol)
     if not ok:
         log_det = np.nan  # the caller decides (slogdet, or eq. 30 undefined)
     return phi, gnorm, iterations, log_det

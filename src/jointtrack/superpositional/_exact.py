@@ -39,6 +39,7 @@ import numba
 import numpy as np
 from scipy.special import gammaln, logsumexp
 
+from jointtrack._numba_linalg import cholesky_lower, mahalanobis_sq
 from jointtrack.assignment._checks import as_int
 from jointtrack.errors import ExactLimitError
 from jointtrack.superpositional.models import (
@@ -111,30 +112,15 @@ def _logsumexp_terms(counts, log_coef, bmean, bcov, base_cov, Y):
                     mu[i] += c * bmean[k, i]
                     for j in range(i + 1):
                         C[i, j] += c * bcov[k, i, j]
-        # Cholesky in place (lower triangle)
-        logdet = 0.0
-        for j in range(d):
-            s = C[j, j]
-            for p in range(j):
-                s -= C[j, p] * C[j, p]
-            s = math.sqrt(s)
-            C[j, j] = s
-            logdet += math.log(s)
-            for i in range(j + 1, d):
-                v = C[i, j]
-                for p in range(j):
-                    v -= C[i, p] * C[j, p]
-                C[i, j] = v / s
-        const = lc - logdet - half_d_log2pi
+        ok, logdet = cholesky_lower(C, C)  # in place
+        if not ok:
+            # the noise covariance is validated positive definite and the rest is a sum of
+            # PSD covariances, so only rounding of an ill-conditioned sum gets here: an
+            # error, as method "gaussian" gives, rather than a NaN likelihood
+            raise ValueError("a mixture term's covariance is not positive definite in float")
+        const = lc - 0.5 * logdet - half_d_log2pi
         for ell in range(L):
-            q = 0.0
-            for i in range(d):
-                v = Y[ell, i] - mu[i]
-                for p in range(i):
-                    v -= C[i, p] * z[p]
-                z[i] = v / C[i, i]
-                q += z[i] * z[i]
-            val = const - 0.5 * q
+            val = const - 0.5 * mahalanobis_sq(C, Y[ell], mu, z)
             m = run_max[ell]
             if val > m:
                 run_sum[ell] = run_sum[ell] * math.exp(m - val) + 1.0

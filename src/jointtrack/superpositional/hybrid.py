@@ -93,6 +93,7 @@ import numba
 import numpy as np
 from scipy.stats import poisson
 
+from jointtrack._numba_linalg import cholesky_lower, cholesky_solve, mahalanobis_sq
 from jointtrack.assignment._checks import as_float, as_int
 from jointtrack.superpositional.models import reduced_mixture
 from jointtrack.superpositional.saddlepoint import (
@@ -118,6 +119,8 @@ DEFAULT_BOX_BUDGET = 96
 _NEGLIGIBLE = math.log(1e-12)
 #: A Poisson cardinality is truncated where its upper tail is below this.
 _POISSON_TAIL = 1e-16
+#: A node covariance's Cholesky pivot ≤ 0 (rounding on a singular remainder) is set to this.
+_PIVOT_FLOOR = 1e-300
 #: Gauss-Legendre rule per polynomial piece of a uniform-sum density (outer coordinate).
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(12)
 _WINDOW = 6.0
@@ -431,29 +434,16 @@ def _uniform_sum_expectation(mu, cov, n, lo, w, glx, glw):
 
 
 @numba.njit(cache=True)
-def _box_node_terms(i, Y, n, mean, L, lw, qA, qlo, qw, glx, glw, term):
-    """term[i, p] = lw + log ∫ N(Y[p] - mean - A s; S) f_n(s) ds, S = L Lᵀ (Cholesky, in place).
+def _box_node_terms(i, Y, n, mean, L, logdet, lw, qA, qlo, qw, glx, glw, term):
+    """term[i, p] = lw + log ∫ N(Y[p] - mean - A s; S) f_n(s) ds, S = L Lᵀ, logdet = log det S.
 
     With P = AᵀS⁻¹A and ŝ = P⁻¹AᵀS⁻¹r, the Gaussian factor is a Gaussian in s
     times a constant, so the integral is that constant × E f_n(s), s ~ N(ŝ, P⁻¹).
     """
     dy, dx = qA.shape
-    logdet = 0.0
-    for j in range(dy):
-        logdet += 2.0 * math.log(L[j, j])
-    X = np.empty((dy, dx))  # S⁻¹ A by forward and back substitution
-    v = np.empty(dy)
+    X = np.empty((dy, dx))  # S⁻¹ A, column by column
     for c in range(dx):
-        for a in range(dy):
-            s = qA[a, c]
-            for k in range(a):
-                s -= L[a, k] * v[k]
-            v[a] = s / L[a, a]
-        for a in range(dy - 1, -1, -1):
-            s = v[a]
-            for k in range(a + 1, dy):
-                s -= L[k, a] * X[k, c]
-            X[a, c] = s / L[a, a]
+        cholesky_solve(L, qA[:, c], X[:, c])
     Pm = np.zeros((dx, dx))
     for a in range(dx):
         for b in range(dx):
@@ -473,14 +463,9 @@ def _box_node_terms(i, Y, n, mean, L, lw, qA, qlo, qw, glx, glw, term):
     bvec = np.empty(dx)
     shat = np.empty(dx)
     for p in range(Y.shape[0]):
-        q = 0.0
+        q = mahalanobis_sq(L, Y[p], mean, z)
         for a in range(dy):
             r[a] = Y[p, a] - mean[a]
-            s = r[a]
-            for k in range(a):
-                s -= L[a, k] * z[k]
-            z[a] = s / L[a, a]
-            q += z[a] * z[a]
         for a in range(dx):
             bvec[a] = 0.0
             for k in range(dy):
@@ -505,10 +490,11 @@ def _node_terms(
     """term[i, p] = lw[i] + log N(Y[p]; node i's mean, covariance) for every point p.
 
     The node's Gaussian is its fixed part plus the remainder moments A[d] + n_r B[d]
-    (and the uniform-box counts' moments) plus the noise; Cholesky by hand (dy is
-    small), ``work`` a (dy + 2, dy) scratch array. With ``quad`` = (on, A, low,
-    width, Gauss-Legendre nodes, weights) switched on, the first uniform-box
-    part's count enters through :func:`_box_node_terms` instead of its moments.
+    (and the uniform-box counts' moments) plus the noise, factored by
+    :func:`~jointtrack._numba_linalg.cholesky_lower` in ``work``, a (dy + 2, dy)
+    scratch array. With ``quad`` = (on, A, low, width, Gauss-Legendre nodes,
+    weights) switched on, the first uniform-box part's count enters through
+    :func:`_box_node_terms` instead of its moments.
     """
     use_quad, qA, qlo, qw, glx, glw = quad
     dy = Y.shape[1]
@@ -529,33 +515,20 @@ def _node_terms(
                 mean[a] += c * boxm[bx, a]
                 for b in range(a + 1):
                     L[a, b] += c * boxC[bx, a, b]
-    logdet = 0.0
-    for j in range(dy):
-        s = L[j, j]
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        if not s > 0.0:
-            s = 1e-300  # rounding on a singular remainder; the noise keeps s > 0 otherwise
-        L[j, j] = math.sqrt(s)
-        logdet += math.log(s)
-        for r in range(j + 1, dy):
-            s2 = L[r, j]
-            for k in range(j):
-                s2 -= L[r, k] * L[j, k]
-            L[r, j] = s2 / L[j, j]
+    # a pivot ≤ 0 is rounding on a singular remainder (the noise keeps it > 0 otherwise):
+    # floored, so the node keeps a finite term. With the floor, only an overflowed
+    # covariance (a +inf pivot) fails: its Gaussian density is taken as 0
+    ok, logdet = cholesky_lower(L, L, _PIVOT_FLOOR)
+    if not ok:
+        for p in range(Y.shape[0]):
+            term[i, p] = -np.inf
+        return
     if first_box:
-        _box_node_terms(i, Y, boxn[i, 0], mean, L, lw[i], qA, qlo, qw, glx, glw, term)
+        _box_node_terms(i, Y, boxn[i, 0], mean, L, logdet, lw[i], qA, qlo, qw, glx, glw, term)
         return
     const = lw[i] - 0.5 * (logdet + dy * _LOG_2PI)
     for p in range(Y.shape[0]):
-        q = 0.0
-        for a in range(dy):
-            s = Y[p, a] - mean[a]
-            for k in range(a):
-                s -= L[a, k] * z[k]
-            z[a] = s / L[a, a]
-            q += z[a] * z[a]
-        term[i, p] = const - 0.5 * q
+        term[i, p] = const - 0.5 * mahalanobis_sq(L, Y[p], mean, z)
 
 
 @numba.njit(cache=True)
