@@ -678,6 +678,114 @@ def reproduce_nannuru(
     nannuru.print_report(result, console)
 
 
+@app.command("sweep")
+def sweep_command(
+    spec: Annotated[
+        Path,
+        typer.Argument(
+            help="Sweep spec (TOML): [sweep] axes and seeds over the [tracker], [scenario], "
+            "[metrics] (and [filter]) base tables; see jointtrack.sweep.spec."
+        ),
+    ],
+    workers: Annotated[
+        int | None,
+        typer.Option("--workers", help="Worker processes of the local Dask cluster (cores)."),
+    ] = None,
+    scheduler: Annotated[
+        str | None,
+        typer.Option("--scheduler", help="Run on an existing Dask scheduler (tcp://host:port)."),
+    ] = None,
+    out: Annotated[
+        Path, typer.Option("--out", help="Output directory: results/ (Parquet), summary, plots.")
+    ] = Path("jointtrack-sweep"),
+    dry_run: Annotated[
+        bool,
+        typer.Option(
+            "--dry-run", help="Print the grid size, runs already done and the estimated cost."
+        ),
+    ] = False,
+    fail_fast: Annotated[
+        bool, typer.Option("--fail-fast", help="Stop at the first failed run.")
+    ] = False,
+    progress: Annotated[
+        bool | None,
+        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
+    ] = None,
+) -> None:
+    """Monte Carlo sweep on Dask: every cell x seed of SPEC, one Parquet row per run.
+
+    Finished runs are skipped when the same sweep is started again (resume);
+    exits non-zero if any run failed or is missing at the end.
+    """
+    from jointtrack._console import make_console
+    from jointtrack.sweep import engine, report
+    from jointtrack.sweep.spec import load_spec
+
+    if not engine.dask_available():
+        _fail(engine.DASK_MISSING)
+    if workers is not None and workers < 1:
+        _fail(f"--workers must be >= 1, got {workers}")
+    if workers is not None and scheduler is not None:
+        _fail("--workers and --scheduler: an existing scheduler brings its own workers")
+    console = make_console()
+    show = console.is_terminal if progress is None else progress
+    try:
+        parsed = load_spec(spec)
+        if dry_run:
+            _print_plan(engine.plan(parsed, out, workers=workers), console)
+            return
+        outcome = engine.run_sweep(
+            parsed,
+            out,
+            workers=workers,
+            scheduler=scheduler,
+            fail_fast=fail_fast,
+            progress=show,
+            console=console,
+        )
+        written = report.write_report(
+            engine.ResultStore(outcome.results).read_rows(), parsed.axes, out
+        )
+    except KeyboardInterrupt:
+        _fail(f"interrupted; finished runs are in {out}/results (run again to resume)", 130)
+    except (ValueError, OSError, ImportError) as exc:
+        _fail(exc)
+    report.print_summary(written["cells"], parsed.axes, console)
+    console.print(
+        f"{outcome.total} runs: {outcome.ok} ok, {outcome.failed} failed, "
+        f"{len(outcome.missing)} missing ({outcome.skipped} done before, {outcome.ran} run "
+        f"now on {outcome.workers} workers in {outcome.wall_seconds:.1f} s); results in "
+        f"{outcome.results}/, summary {written['summary']}, {len(written['plots'])} plots",
+        markup=False,
+        highlight=False,
+    )
+    if not outcome.complete:
+        _fail(
+            f"{outcome.failed} run(s) failed and {len(outcome.missing)} missing; their errors "
+            f"are in the rows with status = 'failed'; run the sweep again to retry them",
+            1,
+        )
+
+
+def _print_plan(p: dict, console) -> None:
+    """The dry run's report: grid, resume state and the estimate with its basis."""
+    lines = [
+        f"grid: {p['cells']} cells x {p['seeds']} seeds = {p['runs']} runs",
+        f"done already: {p['done']} (failed before, to rerun: {p['failed_before']}); "
+        f"to run: {p['pending']}",
+    ]
+    for scenario, method, seconds, status in p.get("pilots", []):
+        lines.append(f"pilot {scenario} {method}: {seconds:.2f} s ({status})")
+    if p["pending"]:
+        lines.append(
+            f"estimate: {p['cpu_seconds']:.0f} CPU-s, about {p['wall_seconds']:.0f} s on "
+            f"{p['workers']} workers (basis: one pilot run per scenario and method, run here, "
+            "times the runs of its group; Dask overhead not counted)"
+        )
+    for line in lines:
+        console.print(line, markup=False, highlight=False)
+
+
 def main() -> None:
     app()
 
