@@ -96,6 +96,15 @@ _METRIC_KEYS = {
 }
 
 
+def metric_value_ok(key: str, value) -> bool:
+    """Whether ``value`` is allowed for the ``[metrics]`` key ``key`` (of :data:`_METRIC_KEYS`)."""
+    if key == "switch_convention":
+        return value in ("partner", "stonesoup")
+    if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
+        return False
+    return {"c": value > 0, "p": value >= 1, "switch_penalty": value >= 0}[key]
+
+
 def load_config(path) -> RunConfig:
     """Read a TOML run configuration (format: :mod:`jointtrack.experiments.run`).
 
@@ -131,13 +140,7 @@ def load_config(path) -> RunConfig:
             raise RunConfigError(
                 f"{path}: unknown key '{key}' in [metrics] (known: {', '.join(_METRIC_KEYS)})"
             )
-        if key == "switch_convention":
-            ok = value in ("partner", "stonesoup")
-        else:
-            ok = isinstance(value, int | float) and not isinstance(value, bool)
-            ok = ok and math.isfinite(value)
-            ok = ok and {"c": value > 0, "p": value >= 1, "switch_penalty": value >= 0}[key]
-        if not ok:
+        if not metric_value_ok(key, value):
             raise RunConfigError(
                 f"{path}: [metrics] key '{key}' must be a {_METRIC_KEYS[key]}, got {value!r}"
             )

@@ -296,6 +296,7 @@ def _check_cell(params: Mapping, where: str, axes: Mapping) -> None:
         TRACKER_OPTION_KEYS,
         _check_tracker_keys,
         _check_tracker_options,
+        metric_value_ok,
         particle_options,
         start_setting,
     )
@@ -363,13 +364,7 @@ def _check_cell(params: Mapping, where: str, axes: Mapping) -> None:
                 f"{where}{_origin(f'metrics.{k}', axes)}: unknown key (known: "
                 f"{', '.join(_METRIC_KEYS)})"
             )
-        if k == "switch_convention":
-            ok = value in ("partner", "stonesoup")
-        else:
-            ok = isinstance(value, int | float) and not isinstance(value, bool)
-            ok = ok and math.isfinite(value)
-            ok = ok and {"c": value > 0, "p": value >= 1, "switch_penalty": value >= 0}[k]
-        if not ok:
+        if not metric_value_ok(k, value):
             raise ValueError(
                 f"{where}{_origin(f'metrics.{k}', axes)} must be a {_METRIC_KEYS[k]}, got {value!r}"
             )
