@@ -12,3 +12,32 @@ def make_console(**kwargs) -> Console:
     if not console.is_terminal:
         console = Console(width=160, **kwargs)
     return console
+
+
+def progress_bar(
+    console: Console,
+    *,
+    unit: str | None = None,
+    enabled: bool = True,
+    remaining: bool = False,
+    transient: bool = False,
+):
+    """The progress bar of every long command: description, bar, done/total [unit], elapsed
+    [, remaining]; ``enabled=False`` draws nothing (the work runs the same)."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    columns = [TextColumn("[progress.description]{task.description}"), BarColumn()]
+    columns.append(MofNCompleteColumn())
+    if unit:
+        columns.append(TextColumn(unit))
+    columns.append(TimeElapsedColumn())
+    if remaining:
+        columns.append(TimeRemainingColumn())
+    return Progress(*columns, console=console, disable=not enabled, transient=transient)

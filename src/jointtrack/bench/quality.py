@@ -439,13 +439,7 @@ def _warm_up() -> None:
 
 
 def run(quick: bool = False, out: str | None = None) -> dict:
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-    )
+    from jointtrack._console import progress_bar
 
     console = make_console()
     seeds = SEEDS_QUICK if quick else SEEDS_FULL
@@ -470,14 +464,7 @@ def run(quick: bool = False, out: str | None = None) -> dict:
     t_start = time.perf_counter()
     try:
         _warm_up()
-        with Progress(
-            TextColumn("[progress.description]{task.description}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TimeElapsedColumn(),
-            console=console,
-            transient=True,
-        ) as bar:
+        with progress_bar(console, transient=True) as bar:
             task = bar.add_task("quality", total=len(SCENES) * len(seeds) * len(trackers))
             per_scene = {}
             for scene in SCENES:

@@ -155,8 +155,8 @@ def run_acoustic(
     progress : rich progress bar.
     """
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+    from jointtrack._console import progress_bar
     from jointtrack.io import write_metrics
     from jointtrack.metrics.ospa import gospa, ospa
     from jointtrack.scenarios.acoustic import acoustic
@@ -193,16 +193,7 @@ def run_acoustic(
         k: []
         for k in ("ospa", "gospa", "localisation", "missed", "false", "n_true", "n_est", "seconds")
     }
-    with Progress(
-        TextColumn("[progress.description]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("scans"),
-        TimeElapsedColumn(),
-        console=console,
-        disable=not progress,
-        transient=False,
-    ) as bar:
+    with progress_bar(console, unit="scans", enabled=progress) as bar:
         task = bar.add_task(f"{filter_name} ({likelihood})", total=stop)
         for k in range(stop):
             t0 = time.perf_counter()

@@ -296,9 +296,9 @@ def reproduce(
     ``n_scans`` for a shorter run).
     """
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from jointtrack import __version__
+    from jointtrack._console import progress_bar
     from jointtrack.io import write_metrics
 
     if runs < 1:
@@ -310,15 +310,7 @@ def reproduce(
     per_beta: dict = {}
     run_info = []
     skipped = 0
-    with Progress(
-        TextColumn("[progress.description]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("runs"),
-        TimeElapsedColumn(),
-        console=console,
-        disable=not progress,
-    ) as bar:
+    with progress_bar(console, unit="runs", enabled=progress) as bar:
         task = bar.add_task("Bojilov runs", total=runs * len(betas))
         for beta in betas:
             records = []

@@ -516,9 +516,9 @@ def reproduce(
         Everything printed (JSON-ready once arrays are listed); ``files`` when written.
     """
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from jointtrack import __version__
+    from jointtrack._console import progress_bar
     from jointtrack.assignment._checks import as_int
     from jointtrack.io import write_metrics
 
@@ -540,14 +540,7 @@ def reproduce(
 
     rows = {t: [] for t in TABLES}
     ratio_rows = []
-    with Progress(
-        TextColumn("[progress.description]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        disable=not progress,
-    ) as bar:
+    with progress_bar(console, enabled=progress) as bar:
         t1 = bar.add_task("Tables I-III (trials)", total=len(TABLES) * len(n0s) * trials)
         t2 = bar.add_task("Example 1, Table IV (mean sets)", total=len(RATIO_ROWS) * n_sets)
         for table in TABLES:

@@ -526,14 +526,7 @@ def _run(
             "elapsed_seconds": seconds,
         }
 
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+    from jointtrack._console import progress_bar
 
     if console.is_terminal or progress:
         with console.status(
@@ -550,17 +543,7 @@ def _run(
     loop0 = time.perf_counter()
     n_done = 0
     try:
-        with Progress(
-            TextColumn("[progress.description]{task.description}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TextColumn("scans"),
-            TimeElapsedColumn(),
-            TimeRemainingColumn(),
-            console=console,
-            disable=not progress,
-            transient=False,
-        ) as bar:
+        with progress_bar(console, unit="scans", enabled=progress, remaining=True) as bar:
             task = bar.add_task("tracking", total=stop, completed=start)
             for k in range(start, stop):
                 t = float(src.times[k])

@@ -409,9 +409,9 @@ def reproduce(
     the one checked against the rational reference.
     """
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from jointtrack import __version__
+    from jointtrack._console import progress_bar
     from jointtrack.io import write_metrics
 
     console = console or Console(quiet=True)
@@ -427,15 +427,7 @@ def reproduce(
     every = 5 if quick else 1
     wall0 = time.perf_counter()
     examples = {}
-    with Progress(
-        TextColumn("[progress.description]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("steps"),
-        TimeElapsedColumn(),
-        console=console,
-        disable=not progress,
-    ) as bar:
+    with progress_bar(console, unit="steps", enabled=progress) as bar:
         task = bar.add_task("Schaub examples", total=len(seeds) * sum(n_steps.values()))
         for ex in (1, 2, 3):
             runs = []

@@ -733,9 +733,9 @@ def reproduce(
         On a bad argument.
     """
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from jointtrack import __version__
+    from jointtrack._console import progress_bar
     from jointtrack.io import write_metrics
 
     trials = int(trials) if trials is not None else (QUICK_TRIALS if quick else TRIALS)
@@ -763,14 +763,7 @@ def reproduce(
     wall0 = time.perf_counter()
 
     cells, fig_cell, cost_rows, over = [], None, [], {}
-    with Progress(
-        TextColumn("[progress.description]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        disable=not progress,
-    ) as bar:
+    with progress_bar(console, enabled=progress) as bar:
         t1 = bar.add_task("Table 1 (exact, trials)", total=len(TABLE_N) * len(TABLE_M) * trials)
         t2 = bar.add_task("cost grid (cells)", total=len(cost_N) * len(cost_M))
         for N in TABLE_N:
