@@ -56,10 +56,11 @@ M = 15 about 2.3× the plain saddle point, 4.5× at M = 30.
 
 Newton's method
 ---------------
-Batched over problems (one numpy pass per iteration over the problems not yet
-converged), from u_m = −log(a_m + Σ_k f̃_km) (f̃ each factor scaled to
+One compiled call for the whole batch (:mod:`jointtrack.saddle._newton`),
+each problem from u_m = −log(a_m + Σ_k f̃_km) (f̃ each factor scaled to
 largest coefficient 1: every tilted mean starts within a factor M + 1 of 1,
-whatever the scale of the coefficients), with Armijo backtracking on φ
+whatever the scale of the coefficients) or from the previous problem's saddle
+point when that has the smaller φ, with Armijo backtracking on φ
 evaluated in log space, to ‖∇φ‖∞ ≤ 1e-12; convergence is reported per
 problem and a problem that has not converged in ``max_iter`` steps raises
 :class:`SaddlePointError` (or is flagged, with ``raise_on_failure=False``).
