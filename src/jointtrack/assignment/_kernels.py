@@ -26,6 +26,15 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+# ``reassoc`` lets LLVM vectorise the floating-point sums. Rule for every kernel
+# compiled with it: no loop both stores to an array and accumulates a sum. A loop
+# that stores gets a runtime alias check between its arrays (numba cannot say
+# they are distinct), and when two small state arrays happen to lie within a
+# vector's span of each other in memory the scalar fallback runs instead, which
+# sums in another order: the result then depended on where the allocator put the
+# arrays, and the same tracker run differed in the last bit from one process to
+# the next. Sums therefore run in load-only loops, whose vector/scalar split
+# depends only on the trip count.
 _FM = {"reassoc", "contract", "nsz", "arcp"}
 
 
@@ -95,7 +104,7 @@ def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
     slots are fused three or four source blocks per pass over y (the first pass
     also writes u·x), so y is loaded and stored once per four sources instead of
     once per source; in-block slots are strided AXPYs; the three lowest slots use
-    explicit 8-element code fused with the block sum. Returns Σ y over the blocks.
+    explicit 8-element code. Returns Σ y over the blocks (a separate load-only pass).
     """
     B = 1 << kb
     w0 = w3[0]
@@ -186,7 +195,6 @@ def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
                 x1 = xb[i8 + 1]
                 x2 = xb[i8 + 2]
                 x4 = xb[i8 + 4]
-                y0 = yb[i8]
                 y1 = yb[i8 + 1] + w0 * x0
                 y2 = yb[i8 + 2] + w1 * x0
                 y3 = yb[i8 + 3] + (w0 * x2 + w1 * x1)
@@ -201,22 +209,21 @@ def _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, hb0, hb1):
                 yb[i8 + 5] = y5
                 yb[i8 + 6] = y6
                 yb[i8 + 7] = y7
-                sb += ((y0 + y1) + (y2 + y3)) + ((y4 + y5) + (y6 + y7))
-        else:
-            for t in range(B):
-                sb += yb[t]
+        for t in range(B):
+            sb += yb[t]
         tot += sb
     return tot
 
 
 @numba.njit(cache=True, fastmath=_FM)
 def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, acc):
-    """Adjoint layer update fused with the marginal contraction, on blocks [hb0, hb1).
+    """Adjoint layer update and the marginal contraction, block by block on [hb0, hb1).
 
     bp(S) = u·b(S) + Σ_{gated s ∉ S} w_s·b(S∪s);  acc[q] += Σ_{S ∌ s_q} F(S)·b(S∪s_q);
     acc[nq] += Σ F·b (the layer-unassigned term); acc[nq+1] = Σ bp. Block-level
-    source blocks are fused two or three per pass (one load of F and of bp per
-    pass); the three lowest slots' code also accumulates Σ bp.
+    source blocks are taken two or three per pass; each pass is a store loop
+    (bp) followed by a load-only loop (the contractions) over the same
+    L1-resident block, as the rule above ``_FM`` requires.
     """
     B = 1 << kb
     nq = ws.size
@@ -247,14 +254,12 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
             sa = 0.0
             sb_ = 0.0
             for t in range(B):
+                pb[t] = u * bb[t] + wa * c1[t] + wb_ * c2[t]
+            for t in range(B):
                 f = fb[t]
-                v1 = c1[t]
-                v2 = c2[t]
-                bv = bb[t]
-                pb[t] = u * bv + wa * v1 + wb_ * v2
-                s0 += f * bv
-                sa += f * v1
-                sb_ += f * v2
+                s0 += f * bb[t]
+                sa += f * c1[t]
+                sb_ += f * c2[t]
             acc[qi[0]] += sa
             acc[qi[1]] += sb_
             i = 2
@@ -263,19 +268,18 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
             wa = wt[0]
             sa = 0.0
             for t in range(B):
+                pb[t] = u * bb[t] + wa * c1[t]
+            for t in range(B):
                 f = fb[t]
-                v1 = c1[t]
-                bv = bb[t]
-                pb[t] = u * bv + wa * v1
-                s0 += f * bv
-                sa += f * v1
+                s0 += f * bb[t]
+                sa += f * c1[t]
             acc[qi[0]] += sa
             i = 1
         else:
             for t in range(B):
-                bv = bb[t]
-                pb[t] = u * bv
-                s0 += fb[t] * bv
+                pb[t] = u * bb[t]
+            for t in range(B):
+                s0 += fb[t] * bb[t]
         su += s0
         while na - i >= 3:
             c1 = b[src[i] : src[i] + B]
@@ -288,14 +292,12 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
             sb_ = 0.0
             sc = 0.0
             for t in range(B):
+                pb[t] += wa * c1[t] + wb_ * c2[t] + wc * c3[t]
+            for t in range(B):
                 f = fb[t]
-                v1 = c1[t]
-                v2 = c2[t]
-                v3 = c3[t]
-                pb[t] += wa * v1 + wb_ * v2 + wc * v3
-                sa += f * v1
-                sb_ += f * v2
-                sc += f * v3
+                sa += f * c1[t]
+                sb_ += f * c2[t]
+                sc += f * c3[t]
             acc[qi[i]] += sa
             acc[qi[i + 1]] += sb_
             acc[qi[i + 2]] += sc
@@ -308,12 +310,11 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
             sa = 0.0
             sb_ = 0.0
             for t in range(B):
+                pb[t] += wa * c1[t] + wb_ * c2[t]
+            for t in range(B):
                 f = fb[t]
-                v1 = c1[t]
-                v2 = c2[t]
-                pb[t] += wa * v1 + wb_ * v2
-                sa += f * v1
-                sb_ += f * v2
+                sa += f * c1[t]
+                sb_ += f * c2[t]
             acc[qi[i]] += sa
             acc[qi[i + 1]] += sb_
         elif na - i == 1:
@@ -321,9 +322,9 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
             wa = wt[i]
             sa = 0.0
             for t in range(B):
-                v1 = c1[t]
-                pb[t] += wa * v1
-                sa += fb[t] * v1
+                pb[t] += wa * c1[t]
+            for t in range(B):
+                sa += fb[t] * c1[t]
             acc[qi[i]] += sa
         for q in range(los.size):
             step = 1 << los[q]
@@ -334,11 +335,10 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
                 fs = fb[b0 : b0 + step]
                 bs = bb[b0 + step : b0 + 2 * step]
                 for t in range(step):
-                    bv = bs[t]
-                    ps[t] += w * bv
-                    sq += fs[t] * bv
+                    ps[t] += w * bs[t]
+                for t in range(step):
+                    sq += fs[t] * bs[t]
             acc[lq[q]] += sq
-        sb = 0.0
         if small:
             for i8 in range(0, B, 8):
                 b1 = bb[i8 + 1]
@@ -348,32 +348,37 @@ def _bwd_blocks(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, hb0, hb1, 
                 b5 = bb[i8 + 5]
                 b6 = bb[i8 + 6]
                 b7 = bb[i8 + 7]
+                pb[i8] += w0 * b1 + w1 * b2 + w2 * b4
+                pb[i8 + 1] += w1 * b3 + w2 * b5
+                pb[i8 + 2] += w0 * b3 + w2 * b6
+                pb[i8 + 3] += w2 * b7
+                pb[i8 + 4] += w0 * b5 + w1 * b6
+                pb[i8 + 5] += w1 * b7
+                pb[i8 + 6] += w0 * b7
+            for i8 in range(0, B, 8):
+                b7 = bb[i8 + 7]
                 f0 = fb[i8]
-                f1 = fb[i8 + 1]
-                f2 = fb[i8 + 2]
-                f4 = fb[i8 + 4]
-                p0 = pb[i8] + (w0 * b1 + w1 * b2 + w2 * b4)
-                p1 = pb[i8 + 1] + (w1 * b3 + w2 * b5)
-                p2 = pb[i8 + 2] + (w0 * b3 + w2 * b6)
-                p3 = pb[i8 + 3] + w2 * b7
-                p4 = pb[i8 + 4] + (w0 * b5 + w1 * b6)
-                p5 = pb[i8 + 5] + w1 * b7
-                p6 = pb[i8 + 6] + w0 * b7
-                p7 = pb[i8 + 7]
-                pb[i8] = p0
-                pb[i8 + 1] = p1
-                pb[i8 + 2] = p2
-                pb[i8 + 3] = p3
-                pb[i8 + 4] = p4
-                pb[i8 + 5] = p5
-                pb[i8 + 6] = p6
-                sb += ((p0 + p1) + (p2 + p3)) + ((p4 + p5) + (p6 + p7))
-                a0 += f0 * b1 + f2 * b3 + f4 * b5 + fb[i8 + 6] * b7
-                a1 += f0 * b2 + f1 * b3 + f4 * b6 + fb[i8 + 5] * b7
-                a2 += f0 * b4 + f1 * b5 + f2 * b6 + fb[i8 + 3] * b7
-        else:
-            for t in range(B):
-                sb += pb[t]
+                a0 += (
+                    f0 * bb[i8 + 1]
+                    + fb[i8 + 2] * bb[i8 + 3]
+                    + fb[i8 + 4] * bb[i8 + 5]
+                    + fb[i8 + 6] * b7
+                )
+                a1 += (
+                    f0 * bb[i8 + 2]
+                    + fb[i8 + 1] * bb[i8 + 3]
+                    + fb[i8 + 4] * bb[i8 + 6]
+                    + fb[i8 + 5] * b7
+                )
+                a2 += (
+                    f0 * bb[i8 + 4]
+                    + fb[i8 + 1] * bb[i8 + 5]
+                    + fb[i8 + 2] * bb[i8 + 6]
+                    + fb[i8 + 3] * b7
+                )
+        sb = 0.0
+        for t in range(B):
+            sb += pb[t]
         tot += sb
     if small:
         acc[nq + 2] += a0
@@ -388,13 +393,13 @@ def _leave_fwd(x, y, s, v):
     """Item in slot s leaves: y(S) = v·x(S) + x(S∪s) for S ∌ s, y(S∪s) = 0; returns Σ y."""
     n = x.size
     step = 1 << s
-    tot = 0.0
     for b0 in range(0, n, 2 * step):
         for t in range(step):
-            val = v * x[b0 + t] + x[b0 + step + t]
-            y[b0 + t] = val
+            y[b0 + t] = v * x[b0 + t] + x[b0 + step + t]
             y[b0 + step + t] = 0.0
-            tot += val
+    tot = 0.0
+    for i in range(n):
+        tot += y[i]
     return tot
 
 
@@ -403,13 +408,15 @@ def _leave_bwd(F, b, bp, s, v):
     """Adjoint of :func:`_leave_fwd`; returns (Σ_{S∌s} F(S)·b(S), Σ bp)."""
     n = b.size
     step = 1 << s
-    acc = 0.0
-    tot = 0.0
     for b0 in range(0, n, 2 * step):
         for t in range(step):
             val = b[b0 + t]
             bp[b0 + t] = v * val
             bp[b0 + step + t] = val
-            acc += F[b0 + t] * val
-            tot += val
+    acc = 0.0
+    tot = 0.0
+    for b0 in range(0, n, 2 * step):
+        for t in range(step):
+            acc += F[b0 + t] * b[b0 + t]
+            tot += b[b0 + t]
     return acc, tot * (1.0 + v)
