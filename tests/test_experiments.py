@@ -217,7 +217,7 @@ def test_record_clusters_sees_confirmed_clusters_and_restores():
     from jointtrack.experiments.run import start_truth_tracks
     from jointtrack.trackers import JPDATracker
 
-    original = jpda.marginals
+    original = jpda.budgeted_marginals
     sc = bojilov(1.0, 0, n_scans=41)
     trk = JPDATracker(make_tracker_config(scenario_tracker_settings(sc)))
     start_truth_tracks(trk, sc.truth_states[0], sc.dt)
@@ -225,7 +225,7 @@ def test_record_clusters_sees_confirmed_clusters_and_restores():
     with boj.record_clusters(trk, sink):
         for t, z in zip(sc.times, sc.detections, strict=True):
             trk.step(t, z)
-    assert jpda.marginals is original and "_associate" not in vars(trk)
+    assert jpda.budgeted_marginals is original and "_associate" not in vars(trk)
     assert sink, "the five truth tracks meet in clusters mid-run"
     assert all(2 <= L.shape[0] <= 5 and miss.shape == (L.shape[0],) for L, miss in sink)
 

@@ -63,7 +63,7 @@ STAGES = [
     "clusters",
     "likelihood_ratio_pairs",
     "pda_pair_marginals",
-    "marginals",
+    "budgeted_marginals",
     "pda_pairs_update",
     "existence_update",
     "merge_duplicates",
@@ -123,7 +123,9 @@ def test_keyboard_interrupt_mid_step_is_atomic(monkeypatch):
 
 
 def test_exact_refusal_falls_back_to_the_approximation(monkeypatch):
-    real = jpda_module.marginals
+    import jointtrack.association.budget as budget_module
+
+    real = budget_module.marginals
 
     def refusing(L, miss, method="exact", **kw):
         if method == "exact":
@@ -132,7 +134,7 @@ def test_exact_refusal_falls_back_to_the_approximation(monkeypatch):
 
     trk = JPDATracker(TrackerConfig(clutter_density=1e-4, approximation="lbp"))
     trk.start_tracks(np.array([[0.0, 0, 1, 0], [5.0, 0, 1, 0]]), np.diag([100.0, 100, 1, 1]))
-    monkeypatch.setattr(jpda_module, "marginals", refusing)
+    monkeypatch.setattr(budget_module, "marginals", refusing)
     r = trk.step(1.0, np.array([[1.0, 0], [6.0, 0]]))
     assert r.cluster_methods == ["lbp"]
     assert r.n_fallbacks == 1 and r.cluster_fallbacks[0].startswith("refused: ")
@@ -151,13 +153,13 @@ def test_size_fallback_is_counted():
 
 def test_miss_model_sets_the_no_detection_weight(monkeypatch):
     seen = {}
-    real = jpda_module.marginals
+    real = jpda_module.budgeted_marginals
 
-    def spy(L, miss, method="exact", **kw):
+    def spy(L, miss, **kw):
         seen["miss"] = np.array(miss)
-        return real(L, miss, method=method, **kw)
+        return real(L, miss, **kw)
 
-    monkeypatch.setattr(jpda_module, "marginals", spy)
+    monkeypatch.setattr(jpda_module, "budgeted_marginals", spy)
     x0 = np.array([[0.0, 0, 1, 0], [5.0, 0, 1, 0]])
     for model, expected in (("1-pd*pg", 1 - 0.9 * 0.99), ("1-pd", 1 - 0.9)):
         cfg = TrackerConfig(clutter_density=1e-4, p_d=0.9, p_g=0.99, miss_model=model)

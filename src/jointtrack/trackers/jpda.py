@@ -25,12 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from jointtrack.association import marginals
+from jointtrack.association.budget import budgeted_marginals
 from jointtrack.association.clustering import clusters
 from jointtrack.association.clutter import cluster_heuristic_densities
 from jointtrack.association.gating import gate_pairs, likelihood_ratio_pairs
 from jointtrack.association.pda import pda_pair_marginals
-from jointtrack.errors import ExactLimitError
 from jointtrack.filters import (
     ekf_predict_measurement,
     pda_pairs_update,
@@ -521,43 +520,30 @@ class JPDATracker:
         )
 
     def _cluster_marginals(self, Lc, mc, loud):
-        """β of one multi-track cluster: the configured method, or the approximation
-        when the cluster exceeds ``exact_max_tracks`` or the exact engine refuses it."""
+        """β of one multi-track cluster by the configured method under the exact
+        budget (:func:`~jointtrack.association.budget.budgeted_marginals`), each
+        fallback to the approximation logged."""
         c = self.config
-        method = c.association
-        reason = ""
-        if len(Lc) > c.exact_max_tracks and method in ("exact", "enumerate"):
-            method = c.approximation
-            reason = "exact_max_tracks"
+        t0 = _time.perf_counter()
+        res = budgeted_marginals(
+            Lc,
+            mc,
+            method=c.association,
+            approximation=c.approximation,
+            max_tracks=c.exact_max_tracks,
+            rng=self.rng,
+        )
+        if res.reason:
             (log.warning if loud else log.debug)(
-                "cluster of %d %s tracks and %d measurements exceeds exact_max_tracks=%d: using %s",
+                "exact association of a cluster of %d %s tracks and %d measurements not used "
+                "(%s): used %s",
                 len(Lc),
                 "confirmed" if loud else "tentative",
                 Lc.shape[1],
-                c.exact_max_tracks,
-                method,
+                res.reason,
+                res.method,
             )
-        t0 = _time.perf_counter()
-        try:
-            bc = marginals(Lc, mc, method=method, **self._method_options(method))
-        except ExactLimitError as exc:
-            # within exact_max_tracks but beyond the exact engine's state or
-            # memory budget: the configured approximation, counted per cluster
-            (log.warning if loud else log.debug)(
-                "exact association refused a cluster of %d tracks and %d measurements "
-                "(%s): using %s",
-                len(Lc),
-                Lc.shape[1],
-                exc,
-                c.approximation,
-            )
-            method = c.approximation
-            reason = f"refused: {exc}"
-            bc = marginals(Lc, mc, method=method, **self._method_options(method))
-        return bc, method, reason, _time.perf_counter() - t0
-
-    def _method_options(self, method):
-        return {"rng": self.rng} if method == "mcmc" else {}
+        return res.beta, res.method, res.reason, _time.perf_counter() - t0
 
     def _track_logic(self, hit):
         c = self.config

@@ -1,0 +1,486 @@
+"""Stone Soup drop-in data associators on jointtrack's exact engine, and converters.
+
+For users of Stone Soup (Barr et al., "Stone Soup: announcement of beta release
+of an open-source framework for tracking and state estimation", Proc. SPIE
+11018, 2019): :class:`JPDAExact` and :class:`JPDALBP` are
+:class:`stonesoup.dataassociator.base.DataAssociator` s with the constructor and
+the return value of Stone Soup's ``JPDAwithEHM2``, so a Stone Soup tracker runs
+unchanged with one of them swapped in::
+
+    data_associator=JPDAExact(hypothesiser)   # was JPDAwithEHM2(hypothesiser)
+
+What they compute
+-----------------
+The hypothesiser's weights are the JPDA single-target terms of S. Bojilov,
+K. Alexiev and P. Konstantinova, "One particular program realization of JPDA
+algorithm", *Information & Security* 9, 2002, eq. (7): for track i, ``p_i0``
+for the missed detection and ``p_ij = P_D N(z_j; ẑ_i, S_i)/λ`` for each gated
+detection j (Stone Soup's
+``PDAHypothesiser``; any hypothesiser whose hypotheses carry a ``probability``
+works). The marginal JPDA probabilities are the sum over joint events in which
+each detection goes to at most one track, as ``JPDAwithEHM2`` computes them:
+
+.. math::
+
+    β_{ij} = \\frac{1}{Z} \\sum_{θ:\\,θ(i)=j} \\prod_k p_{kθ(k)},
+    \\qquad Z = \\sum_θ \\prod_k p_{kθ(k)}.
+
+Tracks are split into clusters that share no detection
+(:func:`jointtrack.association.clusters`); each cluster goes to the
+assignment-sum core (:mod:`jointtrack.assignment.core`) through
+:func:`jointtrack.association.budget.budgeted_marginals`.
+
+* The weights are read in log space (``Probability.log_value``). Each track's
+  row is divided by its largest weight, which changes no β: every joint event
+  takes exactly one entry of every row. A weight more than about 1e-308 below
+  its row's largest is then treated as impossible, which moves no probability
+  by more than that ratio.
+* **Budget policy (large clusters).** :class:`JPDAExact` is exact for a cluster
+  of at most ``exact_max_tracks`` tracks whose frontier DP fits ``max_bits``
+  (a state of 2^max_bits subsets) and ``max_memory``. Past either limit it uses
+  ``approximation`` (default ``"lbp"``: the loopy belief propagation of J. L.
+  Williams and R. A. Lau, "Approximate evaluation of marginal association
+  probabilities with belief propagation", IEEE Trans. Aerospace and Electronic
+  Systems 50(4):2942–2959, 2014, with a certified stopping rule,
+  :mod:`jointtrack.association.lbp`).
+  Every such cluster is logged at WARNING and listed in ``last_clusters``.
+  ``approximation="raise"`` raises :class:`jointtrack.errors.ExactLimitError`
+  instead.
+* :class:`JPDALBP` uses that LBP for every cluster of two or more tracks
+  (it is exact for one track).
+
+Converters
+----------
+:func:`scans_from_stonesoup` turns detections into the ``(time, z)`` scans of
+:class:`jointtrack.trackers.JPDATracker`; :func:`truth_from_stonesoup` turns
+ground-truth paths into the ``(time, id, state)`` table of
+:func:`jointtrack.metrics.gospa_series`; :func:`tracks_to_stonesoup` turns a
+:class:`jointtrack.trackers.TrackHistory` into Stone Soup ``Track`` s, so Stone
+Soup's metric generators run on jointtrack's output. jointtrack's states are
+positions first (``[x, y, vx, vy]``); Stone Soup's constant-velocity models
+interleave (``[x, vx, y, vy]``): the converters reorder (``interleave=True``)
+or take an explicit index.
+
+Stone Soup is an optional dependency: ``pip install 'jointtrack[stonesoup]'``.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+import math
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+
+try:
+    from stonesoup.base import Property
+    from stonesoup.dataassociator.base import DataAssociator
+    from stonesoup.hypothesiser import Hypothesiser
+    from stonesoup.types.groundtruth import GroundTruthPath
+    from stonesoup.types.hypothesis import SingleProbabilityHypothesis
+    from stonesoup.types.multihypothesis import MultipleHypothesis
+    from stonesoup.types.numeric import Probability
+    from stonesoup.types.state import GaussianState
+    from stonesoup.types.track import Track
+except ImportError as exc:  # pragma: no cover - exercised only without Stone Soup
+    raise ImportError(
+        "jointtrack.interop.stonesoup needs Stone Soup: pip install 'jointtrack[stonesoup]'"
+    ) from exc
+
+from jointtrack.association.budget import APPROXIMATIONS, budgeted_marginals
+from jointtrack.association.clustering import clusters
+from jointtrack.errors import ExactLimitError, InfeasibleAssignmentError
+
+__all__ = [
+    "JPDAExact",
+    "JPDALBP",
+    "scans_from_stonesoup",
+    "tracks_to_stonesoup",
+    "truth_from_stonesoup",
+]
+
+log = logging.getLogger(__name__)
+
+DEFAULT_MAX_BITS = 22  # 2^22 states · 8 B = 32 MiB per DP array: well under a second
+DEFAULT_MAX_MEMORY = 2**30
+DEFAULT_MAX_TRACKS = 64
+
+
+def _log_weight(hyp, track) -> float:
+    """log of a hypothesis' probability; a clear error for hypotheses without one."""
+    p = getattr(hyp, "probability", None)
+    if p is None:
+        raise TypeError(
+            f"the hypothesiser gave track {track!r} a {type(hyp).__name__} without a "
+            "probability; JPDA needs probability hypotheses (e.g. PDAHypothesiser)"
+        )
+    if isinstance(p, Probability):
+        lw = float(p.log_value)
+    else:
+        if isinstance(p, bool | complex) or not isinstance(p, int | float | np.floating):
+            raise TypeError(f"hypothesis probability must be a real number, got {p!r}")
+        if not p >= 0.0:
+            raise ValueError(f"hypothesis probability must be ≥ 0, got {p!r} for track {track!r}")
+        lw = math.log(p) if p > 0 else -math.inf
+    if math.isnan(lw) or lw == math.inf:
+        raise ValueError(f"hypothesis probability {p!r} of track {track!r} is not finite")
+    return lw
+
+
+class JPDAExact(DataAssociator):
+    """JPDA with exact marginal association probabilities from jointtrack's engine.
+
+    A drop-in for Stone Soup's ``JPDAwithEHM2``: same constructor argument (the
+    hypothesiser), same :meth:`associate` result (a ``MultipleHypothesis`` per
+    track of ``SingleProbabilityHypothesis`` objects, normalised, the
+    missed-detection hypothesis included, in the hypothesiser's order). The
+    budget policy for large clusters is in the module docstring.
+
+    Examples
+    --------
+    >>> import datetime
+    >>> import numpy as np
+    >>> from stonesoup.hypothesiser.probability import PDAHypothesiser
+    >>> from stonesoup.models.measurement.linear import LinearGaussian
+    >>> from stonesoup.models.transition.linear import (
+    ...     CombinedLinearGaussianTransitionModel, ConstantVelocity)
+    >>> from stonesoup.predictor.kalman import KalmanPredictor
+    >>> from stonesoup.types.detection import Detection
+    >>> from stonesoup.types.state import GaussianState
+    >>> from stonesoup.types.track import Track
+    >>> from stonesoup.updater.kalman import KalmanUpdater
+    >>> t0 = datetime.datetime(2025, 1, 1)
+    >>> cv = CombinedLinearGaussianTransitionModel([ConstantVelocity(0.1)] * 2)
+    >>> mm = LinearGaussian(ndim_state=4, mapping=(0, 2), noise_covar=np.eye(2))
+    >>> hyp = PDAHypothesiser(KalmanPredictor(cv), KalmanUpdater(mm),
+    ...                       clutter_spatial_density=1e-3, prob_detect=0.9)
+    >>> tracks = {Track([GaussianState([[x], [1], [0], [0]], np.eye(4), t0)]) for x in (0, 2)}
+    >>> t1 = t0 + datetime.timedelta(seconds=1)
+    >>> dets = {Detection([[x], [0]], timestamp=t1, measurement_model=mm) for x in (1, 3)}
+    >>> out = JPDAExact(hyp).associate(tracks, dets, t1)
+    >>> all(abs(float(sum(h.probability for h in mh)) - 1) < 1e-12 for mh in out.values())
+    True
+    """
+
+    hypothesiser: Hypothesiser = Property(
+        doc="Generates the hypotheses (with probabilities) of each track-detection pair"
+    )
+    exact_max_tracks: int = Property(
+        default=DEFAULT_MAX_TRACKS,
+        doc="Clusters with more tracks use the approximation without trying the exact DP",
+    )
+    max_bits: int = Property(
+        default=DEFAULT_MAX_BITS,
+        doc="Exact budget: the frontier DP's state may hold at most 2^max_bits subsets",
+    )
+    max_memory: int = Property(
+        default=DEFAULT_MAX_MEMORY, doc="Exact budget: bytes the exact DP may allocate"
+    )
+    approximation: str = Property(
+        default="lbp",
+        doc="Method past the budget: 'lbp' (default), 'mcmc', 'kbest', 'pda', or 'raise'",
+    )
+
+    _method = "exact"
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        if self.approximation != "raise" and self.approximation not in APPROXIMATIONS:
+            raise ValueError(
+                f"approximation must be one of {', '.join(APPROXIMATIONS)} or 'raise', "
+                f"got {self.approximation!r}"
+            )
+        for name in ("exact_max_tracks", "max_bits", "max_memory"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+                raise ValueError(f"{name} must be an integer ≥ 0, got {value!r}")
+        #: per cluster of the last call: (n_tracks, n_detections, method, reason)
+        self.last_clusters: list[tuple[int, int, str, str]] = []
+
+    def associate(self, tracks, detections, timestamp, **kwargs):
+        """Associate tracks and detections (Stone Soup's ``DataAssociator`` interface).
+
+        Parameters
+        ----------
+        tracks : set of stonesoup.types.track.Track
+        detections : set of stonesoup.types.detection.Detection
+        timestamp : datetime.datetime
+            time of the detections (the hypothesiser predicts to it).
+
+        Returns
+        -------
+        dict
+            ``Track → MultipleHypothesis`` of ``SingleProbabilityHypothesis``
+            objects whose probabilities are the JPDA marginals, summing to 1.
+        """
+        hypotheses = self.generate_hypotheses(tracks, detections, timestamp, **kwargs)
+        return self.associate_hypotheses(hypotheses)
+
+    def associate_hypotheses(self, hypotheses: Mapping) -> dict:
+        """JPDA marginals for already generated hypotheses ``{track: MultipleHypothesis}``."""
+        track_list = list(hypotheses)
+        N = len(track_list)
+        log_miss = np.full(N, -np.inf)
+        has_miss = np.zeros(N, bool)
+        column: dict[int, int] = {}
+        rows, cols, logw = [], [], []
+        for i, track in enumerate(track_list):
+            seen = set()
+            hyps = list(hypotheses[track])
+            if not hyps:
+                raise ValueError(f"the hypothesiser gave no hypothesis for track {track!r}")
+            for hyp in hyps:
+                lw = _log_weight(hyp, track)
+                if not hyp:  # the missed-detection hypothesis
+                    if has_miss[i]:
+                        raise ValueError(f"track {track!r} has two missed-detection hypotheses")
+                    has_miss[i] = True
+                    log_miss[i] = lw
+                    continue
+                key = id(hyp.measurement)
+                if key in seen:
+                    raise ValueError(f"track {track!r} has two hypotheses for one detection")
+                seen.add(key)
+                rows.append(i)
+                cols.append(column.setdefault(key, len(column)))
+                logw.append(lw)
+        rows = np.asarray(rows, np.int64)
+        cols = np.asarray(cols, np.int64)
+        logw = np.asarray(logw, float)
+        # β of every (track, detection) pair and of every track's missed detection
+        pair_beta = np.zeros(len(rows))
+        miss_beta = np.ones(N)
+        self.last_clusters = []
+        pair_of = {(int(r), int(c)): k for k, (r, c) in enumerate(zip(rows, cols, strict=True))}
+        for cl in clusters((N, len(column), rows, cols)):
+            tr, ms = cl.tracks, cl.measurements
+            k_pairs = [
+                (a, b, pair_of[int(t), int(m)])
+                for a, t in enumerate(tr)
+                for b, m in enumerate(ms)
+                if (int(t), int(m)) in pair_of
+            ]
+            a_idx = np.array([x[0] for x in k_pairs], np.int64)
+            b_idx = np.array([x[1] for x in k_pairs], np.int64)
+            p_idx = np.array([x[2] for x in k_pairs], np.int64)
+            logL = np.full((len(tr), len(ms)), -np.inf)
+            logL[a_idx, b_idx] = logw[p_idx]
+            # divide each row by its largest weight (no β changes; nothing overflows)
+            top = np.maximum(logL.max(axis=1, initial=-np.inf), log_miss[tr])
+            bad = ~np.isfinite(top)
+            if bad.any():
+                raise ValueError(
+                    f"every hypothesis of track {track_list[int(tr[np.argmax(bad)])]!r} "
+                    "has probability 0"
+                )
+            with np.errstate(under="ignore"):
+                L = np.exp(logL - top[:, None])
+                miss = np.exp(log_miss[tr] - top)
+            beta, method, reason = self._cluster_beta(L, miss, tr, track_list)
+            self.last_clusters.append((len(tr), len(ms), method, reason))
+            miss_beta[tr] = beta[:, 0]
+            pair_beta[p_idx] = beta[a_idx, 1 + b_idx]
+        return self._hypotheses_out(hypotheses, track_list, pair_of, pair_beta, miss_beta, column)
+
+    def _cluster_beta(self, L, miss, tr, track_list):
+        approximation = "lbp" if self.approximation == "raise" else self.approximation
+        method = self._method
+        try:
+            res = budgeted_marginals(
+                L,
+                miss,
+                method=method,
+                approximation=approximation,
+                max_tracks=self.exact_max_tracks if method == "exact" else None,
+                exact_options={"max_bits": self.max_bits, "max_memory": self.max_memory},
+            )
+        except InfeasibleAssignmentError:
+            raise InfeasibleAssignmentError(
+                "no joint association of tracks "
+                f"{[track_list[int(t)] for t in tr]!r} has positive probability (every "
+                "track must take a detection, P_D·P_G = 1, and there are too few)"
+            ) from None
+        if res.reason:
+            if self.approximation == "raise":
+                raise ExactLimitError(
+                    f"cluster of {L.shape[0]} tracks and {L.shape[1]} detections is past the "
+                    f"exact budget ({res.reason})"
+                )
+            log.warning(
+                "cluster of %d tracks and %d detections past the exact budget (%s): used %s",
+                L.shape[0],
+                L.shape[1],
+                res.reason,
+                res.method,
+            )
+        return res.beta, res.method, res.reason
+
+    @staticmethod
+    def _hypotheses_out(hypotheses, track_list, pair_of, pair_beta, miss_beta, column):
+        out = {}
+        for i, track in enumerate(track_list):
+            single = []
+            for hyp in hypotheses[track]:
+                if not hyp:
+                    b = miss_beta[i]
+                else:
+                    b = pair_beta[pair_of[i, column[id(hyp.measurement)]]]
+                single.append(
+                    SingleProbabilityHypothesis(
+                        hyp.prediction,
+                        hyp.measurement,
+                        measurement_prediction=hyp.measurement_prediction,
+                        probability=Probability(float(b)),
+                    )
+                )
+            out[track] = MultipleHypothesis(single, True, 1)
+        return out
+
+
+class JPDALBP(JPDAExact):
+    """JPDA with loopy-belief-propagation marginals (Williams & Lau), on jointtrack's LBP.
+
+    Same interface as :class:`JPDAExact` (and Stone Soup's ``JPDAwithLBP``);
+    every cluster uses :func:`jointtrack.association.lbp.lbp_marginals`, whose
+    stopping rule certifies the distance to the BP fixed point when every
+    missed-detection weight is positive. Exact for clusters of one track and for
+    clusters whose gating graph has no cycle.
+    """
+
+    _method = "lbp"
+
+
+# ---------------------------------------------------------------- converters
+def _index(n: int, dim: int, interleave: bool, state_index) -> np.ndarray:
+    """``theirs = ours[index]``: jointtrack's positions-first state to Stone Soup's order."""
+    if state_index is not None:
+        idx = np.asarray(state_index)
+        if idx.dtype.kind not in "iu" or sorted(idx.tolist()) != list(range(n)):
+            raise ValueError(
+                f"state_index must be a permutation of 0..{n - 1}, got {state_index!r}"
+            )
+        return idx.astype(np.int64)
+    if not interleave:
+        return np.arange(n)
+    if isinstance(dim, bool) or not isinstance(dim, int) or dim < 1 or n % dim:
+        raise ValueError(f"dim must be a positive integer dividing the state size {n}, got {dim!r}")
+    order = n // dim
+    # Stone Soup position k, derivative o sits at k·order + o; ours at o·dim + k
+    return np.array([o * dim + k for k in range(dim) for o in range(order)], np.int64)
+
+
+def _naive_utc(t) -> _dt.datetime:
+    if not isinstance(t, _dt.datetime):
+        raise TypeError(f"timestamps must be datetime.datetime, got {type(t).__name__}")
+    if t.tzinfo is not None:
+        return t.astimezone(_dt.UTC).replace(tzinfo=None)
+    return t
+
+
+def scans_from_stonesoup(scans: Iterable) -> list[tuple[_dt.datetime, np.ndarray]]:
+    """Stone Soup detections as jointtrack scans ``[(timestamp, z (M, d)), …]``.
+
+    ``scans`` is what a Stone Soup detector yields: ``(timestamp, detections)``
+    pairs (a set of ``Detection``). ``z`` holds each detection's
+    ``state_vector`` as a row, sorted lexicographically, so the order does not
+    depend on set iteration (which follows object addresses). Pass the scans to
+    :meth:`jointtrack.trackers.JPDATracker.step` as they are: it accepts
+    datetimes.
+    """
+    out = []
+    for item in scans:
+        try:
+            timestamp, detections = item
+        except (TypeError, ValueError):
+            raise TypeError(
+                "scans must be (timestamp, detections) pairs, as a Stone Soup detector yields"
+            ) from None
+        rows = [np.asarray(d.state_vector, float).reshape(-1) for d in detections]
+        dims = {r.size for r in rows}
+        if len(dims) > 1:
+            raise ValueError(f"detections at {timestamp} have different sizes {sorted(dims)}")
+        z = np.array(rows, float).reshape(len(rows), dims.pop() if dims else 0)
+        if z.size and not np.isfinite(z).all():
+            raise ValueError(f"a detection at {timestamp} is not finite")
+        if len(z) > 1:
+            z = z[np.lexsort(z.T[::-1])]
+        out.append((timestamp, z))
+    return out
+
+
+def truth_from_stonesoup(
+    paths: Iterable,
+    *,
+    epoch: _dt.datetime,
+    dim: int = 2,
+    interleave: bool = True,
+    state_index=None,
+):
+    """Ground-truth paths as jointtrack's truth table ``(time, id, x)``.
+
+    ``time`` (R,) seconds after ``epoch``; ``id`` (R,) the path's position in
+    ``paths`` (sorted by Stone Soup ``id`` first, so the numbering is stable);
+    ``x`` (R, n) the states in jointtrack's positions-first order (the inverse
+    of :func:`tracks_to_stonesoup`'s reordering). ``x[:, :dim]`` are the
+    positions :func:`jointtrack.metrics.gospa_series` compares.
+    """
+    epoch = _naive_utc(epoch)
+    paths = sorted(paths, key=lambda p: str(p.id))
+    times, ids, states = [], [], []
+    idx = None
+    for k, path in enumerate(paths):
+        if not isinstance(path, GroundTruthPath):
+            raise TypeError(f"paths must be GroundTruthPath objects, got {type(path).__name__}")
+        for st in path.states:
+            sv = np.asarray(st.state_vector, float).reshape(-1)
+            if idx is None:
+                idx = _index(sv.size, dim, interleave, state_index)
+            if sv.size != idx.size:
+                raise ValueError(f"path {path.id} has states of size {sv.size}, not {idx.size}")
+            ours = np.empty_like(sv)
+            ours[idx] = sv
+            times.append((_naive_utc(st.timestamp) - epoch).total_seconds())
+            ids.append(k)
+            states.append(ours)
+    n = 0 if idx is None else idx.size
+    return (
+        np.asarray(times, float),
+        np.asarray(ids, np.int64),
+        np.asarray(states, float).reshape(len(states), n),
+    )
+
+
+def tracks_to_stonesoup(
+    history,
+    *,
+    epoch: _dt.datetime | None = None,
+    dim: int = 2,
+    interleave: bool = True,
+    state_index=None,
+) -> set:
+    """A :class:`jointtrack.trackers.TrackHistory` as a set of Stone Soup ``Track`` s.
+
+    One ``Track`` per track id (``Track.id`` = ``"jointtrack-<id>"``), one
+    ``GaussianState`` per row, with the state and covariance reordered to Stone
+    Soup's layout (module docstring). Timestamps: ``epoch + time``; without
+    ``epoch`` the history's ``time_origin`` (set when the tracker was given
+    datetimes), as a naive UTC datetime like Stone Soup's own.
+    """
+    if epoch is None:
+        if history.time_origin is None:
+            raise ValueError("the history has no time_origin (the scans were seconds): pass epoch=")
+        stamps = history.datetimes().astype("datetime64[us]").tolist()
+    else:
+        epoch = _naive_utc(epoch)
+        stamps = [epoch + _dt.timedelta(seconds=float(t)) for t in history.time]
+    idx = _index(history.state_dim, dim, interleave, state_index)
+    x = history.x[:, idx]
+    P = history.P[:, idx][:, :, idx]
+    tracks = {}
+    for r, tid in enumerate(history.track_id.tolist()):
+        trk = tracks.get(tid)
+        if trk is None:
+            trk = tracks[tid] = Track(id=f"jointtrack-{tid}")
+        trk.append(GaussianState(x[r].reshape(-1, 1), P[r], timestamp=stamps[r]))
+    return set(tracks.values())

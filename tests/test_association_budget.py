@@ -1,0 +1,54 @@
+"""The one budget policy for a cluster's marginals (jointtrack.association.budget)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jointtrack.association import exact_marginals
+from jointtrack.association.budget import budgeted_marginals
+from jointtrack.association.lbp import lbp_marginals
+
+
+def _cluster(n=6, m=8, seed=0):
+    rng = np.random.default_rng(seed)
+    return rng.random((n, m)) * 5.0, np.full(n, 0.1)
+
+
+def test_within_budget_is_exact():
+    L, miss = _cluster()
+    res = budgeted_marginals(L, miss)
+    assert res.method == "exact" and res.reason == ""
+    np.testing.assert_array_equal(res.beta, exact_marginals(L, miss))
+
+
+def test_past_the_track_limit_or_the_state_budget_is_the_approximation():
+    L, miss = _cluster()
+    lbp, _ = lbp_marginals(L, miss)
+    res = budgeted_marginals(L, miss, max_tracks=5)
+    assert (res.method, res.reason) == ("lbp", "exact_max_tracks")
+    np.testing.assert_array_equal(res.beta, lbp)
+    res = budgeted_marginals(L, miss, exact_options={"max_bits": 3})
+    assert res.method == "lbp" and res.reason.startswith("refused: ")
+    assert "max_bits = 3" in res.reason
+    np.testing.assert_array_equal(res.beta, lbp)
+
+
+def test_mcmc_gets_the_generator_and_approximations_are_not_budgeted():
+    L, miss = _cluster(4, 5)
+    a = budgeted_marginals(
+        L, miss, max_tracks=2, approximation="mcmc", rng=np.random.default_rng(1)
+    )
+    b = budgeted_marginals(
+        L, miss, max_tracks=2, approximation="mcmc", rng=np.random.default_rng(1)
+    )
+    assert a.method == "mcmc"
+    np.testing.assert_array_equal(a.beta, b.beta)
+    res = budgeted_marginals(L, miss, method="lbp", max_tracks=1)
+    assert (res.method, res.reason) == ("lbp", "")
+
+
+def test_bad_approximation_is_named():
+    L, miss = _cluster(2, 2)
+    with pytest.raises(ValueError, match="approximation"):
+        budgeted_marginals(L, miss, approximation="exact")
