@@ -46,8 +46,13 @@ assignment-sum core (:mod:`jointtrack.assignment.core`) through
   Every such cluster is logged at WARNING and listed in ``last_clusters``.
   ``approximation="raise"`` raises :class:`jointtrack.errors.ExactLimitError`
   instead.
-* :class:`JPDALBP` uses that LBP for every cluster of two or more tracks
-  (it is exact for one track).
+* A cluster of one track is PDA (Bojilov eqs. (1)–(3)), exact, for all such
+  tracks at once (:func:`jointtrack.association.pda_pair_marginals`).
+* :class:`JPDALBP` uses that LBP for every cluster of two or more tracks.
+* ``last_clusters`` lists, after each call, every cluster as ``(n_tracks,
+  n_detections, method, reason)``: ``method`` is ``"pda"`` for one-track
+  clusters, else the method used; ``reason`` says why the approximation was
+  used, empty when it was not.
 
 Converters
 ----------
@@ -90,6 +95,7 @@ except ImportError as exc:  # pragma: no cover - exercised only without Stone So
 
 from jointtrack.association.budget import APPROXIMATIONS, budgeted_marginals
 from jointtrack.association.clustering import clusters
+from jointtrack.association.pda import pda_pair_marginals
 from jointtrack.errors import ExactLimitError, InfeasibleAssignmentError
 
 __all__ = [
@@ -248,39 +254,43 @@ class JPDAExact(DataAssociator):
         rows = np.asarray(rows, np.int64)
         cols = np.asarray(cols, np.int64)
         logw = np.asarray(logw, float)
-        # β of every (track, detection) pair and of every track's missed detection
-        pair_beta = np.zeros(len(rows))
-        miss_beta = np.ones(N)
-        self.last_clusters = []
-        pair_of = {(int(r), int(c)): k for k, (r, c) in enumerate(zip(rows, cols, strict=True))}
-        for cl in clusters((N, len(column), rows, cols)):
-            tr, ms = cl.tracks, cl.measurements
-            k_pairs = [
-                (a, b, pair_of[int(t), int(m)])
-                for a, t in enumerate(tr)
-                for b, m in enumerate(ms)
-                if (int(t), int(m)) in pair_of
-            ]
-            a_idx = np.array([x[0] for x in k_pairs], np.int64)
-            b_idx = np.array([x[1] for x in k_pairs], np.int64)
-            p_idx = np.array([x[2] for x in k_pairs], np.int64)
-            logL = np.full((len(tr), len(ms)), -np.inf)
-            logL[a_idx, b_idx] = logw[p_idx]
-            # divide each row by its largest weight (no β changes; nothing overflows)
-            top = np.maximum(logL.max(axis=1, initial=-np.inf), log_miss[tr])
-            bad = ~np.isfinite(top)
-            if bad.any():
-                raise ValueError(
-                    f"every hypothesis of track {track_list[int(tr[np.argmax(bad)])]!r} "
-                    "has probability 0"
-                )
-            with np.errstate(under="ignore"):
-                L = np.exp(logL - top[:, None])
-                miss = np.exp(log_miss[tr] - top)
-            beta, method, reason = self._cluster_beta(L, miss, tr, track_list)
+        # divide each track's weights by its largest (no β changes; nothing overflows)
+        top = log_miss.copy()
+        np.maximum.at(top, rows, logw)
+        if not np.isfinite(top).all():
+            i = int(np.argmin(np.isfinite(top)))
+            raise ValueError(f"every hypothesis of track {track_list[i]!r} has probability 0")
+        with np.errstate(under="ignore"):
+            L_pairs = np.exp(logw - top[rows])
+            miss = np.exp(log_miss - top)
+        groups = clusters((N, len(column), rows, cols))
+        # one-track clusters (most tracks, usually): PDA is exact, all at once
+        size = np.bincount(groups.track_cluster, minlength=len(groups.clusters))
+        alone = size[groups.track_cluster] == 1
+        pair_alone = alone[rows]
+        miss_beta, pair_beta = np.ones(N), np.zeros(len(rows))
+        b0, w = pda_pair_marginals(rows[pair_alone], L_pairs[pair_alone], np.where(alone, miss, 1))
+        miss_beta[alone] = b0[alone]
+        pair_beta[pair_alone] = w
+        n_gated = np.bincount(rows[pair_alone], minlength=N)[alone]
+        self.last_clusters = [(1, int(n), "pda", "") for n in n_gated]
+        # the others, cluster by cluster, under the budget; their pairs made contiguous
+        pair_cluster = groups.track_cluster[rows]
+        order = np.argsort(pair_cluster, kind="stable")
+        multi = np.flatnonzero(size > 1)
+        starts = np.searchsorted(pair_cluster[order], multi, side="left")
+        ends = np.searchsorted(pair_cluster[order], multi, side="right")
+        for k, lo, hi in zip(multi, starts, ends, strict=True):
+            tr, ms = groups.clusters[k].tracks, groups.clusters[k].measurements
+            idx = order[lo:hi]
+            a_idx, b_idx = np.searchsorted(tr, rows[idx]), np.searchsorted(ms, cols[idx])
+            L = np.zeros((len(tr), len(ms)))
+            L[a_idx, b_idx] = L_pairs[idx]
+            beta, method, reason = self._cluster_beta(L, miss[tr], tr, track_list)
             self.last_clusters.append((len(tr), len(ms), method, reason))
             miss_beta[tr] = beta[:, 0]
-            pair_beta[p_idx] = beta[a_idx, 1 + b_idx]
+            pair_beta[idx] = beta[a_idx, 1 + b_idx]
+        pair_of = {(int(r), int(c)): k for k, (r, c) in enumerate(zip(rows, cols, strict=True))}
         return self._hypotheses_out(hypotheses, track_list, pair_of, pair_beta, miss_beta, column)
 
     def _cluster_beta(self, L, miss, tr, track_list):
