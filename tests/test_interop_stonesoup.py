@@ -136,6 +136,8 @@ def test_exact_equals_ehm2_in_the_cases_named():
         ours = JPDAExact(hyp).associate(tracks, scan, T1)
         theirs = JPDAwithEHM2(hyp).associate(tracks, scan, T1)
         _assert_same(_as_table(ours), _as_table(theirs))
+        for trk, mh in theirs.items():
+            assert (ours[trk].normalise, ours[trk].total_weight) == (mh.normalise, mh.total_weight)
     out = JPDAExact(hyp).associate({lonely}, dets, T1)
     assert [float(h.probability) for h in out[lonely]] == [1.0]
 
