@@ -26,10 +26,13 @@ def stonesoup_available() -> bool:
     return True
 
 
-def stonesoup_tracker(sc):
+def stonesoup_tracker(sc, data_associator=None):
     """Stone Soup's tutorial JPDA tracker with the scene's physical settings (module docstring).
 
-    Returns ``(tracker, measurement_model)``.
+    ``data_associator`` is a factory ``hypothesiser → DataAssociator`` for the
+    tracker's JPDA associator (default Stone Soup's ``JPDAwithEHM2``), e.g.
+    :class:`jointtrack.interop.stonesoup.JPDAExact`; the initiator keeps its own
+    ``GNNWith2DAssignment``. Returns ``(tracker, measurement_model)``.
     """
     from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
     from stonesoup.dataassociator.probability import JPDAwithEHM2
@@ -74,7 +77,7 @@ def stonesoup_tracker(sc):
         initiator=initiator,
         deleter=deleter,
         detector=None,
-        data_associator=JPDAwithEHM2(hypothesiser()),
+        data_associator=(data_associator or JPDAwithEHM2)(hypothesiser()),
         updater=updater,
     )
     return tracker, measurement
