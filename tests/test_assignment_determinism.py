@@ -60,3 +60,26 @@ def test_permanent_value_does_not_depend_on_memory_placement():
         assert again.log_normalizer == first.log_normalizer
         assert again.P.tobytes() == first.P.tobytes()
         del junk
+
+
+def test_parallel_results_do_not_depend_on_the_thread_count():
+    import numba
+
+    rng = np.random.default_rng(3)
+    W = rng.random((17, 17))  # a 2^16+ state: the chunked (parallel) kernels run
+    null = rng.random(17) * 0.1
+    threads = numba.get_num_threads()
+    try:
+        results = []
+        for n in sorted({1, threads}):
+            numba.set_num_threads(n)
+            results.append(assignment_sum(W, null, marginals=True, parallel=True))
+    finally:
+        numba.set_num_threads(threads)
+    first = results[0]
+    serial = assignment_sum(W, null, marginals=True)
+    np.testing.assert_allclose(first.P, serial.P, rtol=1e-12, atol=1e-15)
+    for res in results[1:]:
+        assert res.log_normalizer == first.log_normalizer
+        assert res.P.tobytes() == first.P.tobytes()
+    assert first.info["max_frontier"] >= 16

@@ -69,7 +69,6 @@ import math
 import warnings
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
 from jointtrack.assignment import _inclusion_exclusion as _ie
@@ -100,6 +99,10 @@ GLYNN_MIN = 15
 DEFAULT_MAX_BITS = 30
 DEFAULT_MAX_MEMORY = 2 * 1024**3
 _PAR_MIN_BITS = 16  # frontier layers from 2^16 states up may use numba's threads
+# The state is split into this many chunks whatever the thread count: each chunk's
+# partial sum is added in chunk order, so a parallel result has the same bits on
+# every machine and with any NUMBA_NUM_THREADS (a Dask sweep's workers agree).
+_PAR_CHUNKS = 64
 
 _INFEASIBLE = (
     "no feasible assignment: the rows with null weight 0 cannot all be given distinct "
@@ -199,8 +202,8 @@ def _frontier_block(W, u, v, marginals, max_bits, max_memory, parallel):
     for c in np.flatnonzero(isolated):
         log_isolated += math.log(v[c]) if v[c] > 0.0 else -math.inf
     nchunk = 1
-    if parallel and K >= _PAR_MIN_BITS and numba.get_num_threads() > 1:
-        nchunk = 4 * numba.get_num_threads()
+    if parallel and K >= _PAR_MIN_BITS:
+        nchunk = _PAR_CHUNKS
     if not marginals:
         lz = frontier_value(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, nchunk)
         return None, None, None, lz + log_isolated, K, state_bytes
