@@ -52,13 +52,14 @@ TRANSITION = CombinedLinearGaussianTransitionModel([ConstantVelocity(0.05)] * 2)
 MEASUREMENT = LinearGaussian(ndim_state=4, mapping=(0, 2), noise_covar=np.eye(2))
 
 
-def _hypothesiser(p_d=0.9, clutter=1e-3, p_g=0.99):
+def _hypothesiser(p_d=0.9, clutter=1e-3, p_g=0.99, include_all=False):
     return PDAHypothesiser(
         predictor=KalmanPredictor(TRANSITION),
         updater=KalmanUpdater(MEASUREMENT),
         clutter_spatial_density=clutter,
         prob_detect=p_d,
         prob_gate=p_g,
+        include_all=include_all,
     )
 
 
@@ -106,14 +107,15 @@ def scenes(draw):
         dets.append(_detection(-400.0, 300.0))
     p_d = draw(st.sampled_from([0.5, 0.9, 0.999]))
     clutter = draw(st.sampled_from([1e-6, 1e-3, 0.1]))
-    return set(tracks), set(dets), p_d, clutter
+    include_all = draw(st.booleans())  # every pair hypothesised, gated or not
+    return set(tracks), set(dets), p_d, clutter, include_all
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(scenes())
 def test_exact_equals_ehm2_on_random_scenes(scene):
-    tracks, dets, p_d, clutter = scene
-    hyp = _hypothesiser(p_d=p_d, clutter=clutter)
+    tracks, dets, p_d, clutter, include_all = scene
+    hyp = _hypothesiser(p_d=p_d, clutter=clutter, include_all=include_all)
     theirs = JPDAwithEHM2(hyp).associate(tracks, dets, T1)
     ours = JPDAExact(hyp).associate(tracks, dets, T1)
     _assert_same(_as_table(ours), _as_table(theirs))
