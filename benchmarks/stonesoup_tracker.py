@@ -57,6 +57,8 @@ Kalman filter for the tracker's q and R); the scans after scan 0 are fed to
   ``JPDAExact``'s β.
 
 Printed: the tables, Stone Soup's version and the load average before and after.
+With ``--out FILE.json`` the results are also written as JSON and the per-step
+times of the crossing are plotted to ``FILE.png``.
 """
 
 from __future__ import annotations
@@ -644,6 +646,66 @@ def twenty_targets(console, quick: bool, seed: int, results: dict) -> None:
     }
 
 
+def plot(results: dict, path: str) -> None:
+    """Per-step times of the 8-target crossing (both variants), EHM2 vs ours, as a PNG.
+
+    Top row: association proper (associate − hypothesise), log scale; bottom row:
+    the whole ``update_tracker`` step split into association proper, hypothesiser
+    and rest, for each associator.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    variants = [
+        (key, title)
+        for key, title in (("initiator", "tutorial tracker"), ("no_initiator", "initiator off"))
+        if key in results["dense_crossing"]
+    ]
+    fig, axes = plt.subplots(2, len(variants), figsize=(6.5 * len(variants), 7), squeeze=False)
+    for col, (key, title) in enumerate(variants):
+        rows = results["dense_crossing"][key]["per_step"]
+        steps = np.array([r["step"] for r in rows])
+        for name, field, colour in (
+            ("EHM2", "ehm2_ms", "tab:red"),
+            ("ours", "ours_ms", "tab:blue"),
+        ):
+            ms = np.array([r[field] for r in rows], dtype=float)  # step, associate, hypothesise
+            proper = ms[:, 1] - ms[:, 2]
+            axes[0, col].semilogy(steps, proper, "o-", ms=3, color=colour, label=name)
+            rest = ms[:, 0] - ms[:, 1]
+            offset = -0.2 if name == "EHM2" else 0.2
+            bottom = np.zeros_like(proper)
+            for part, alpha, label in (
+                (proper, 1.0, "association"),
+                (ms[:, 2], 0.55, "hypothesiser"),
+                (rest, 0.25, "rest"),
+            ):
+                axes[1, col].bar(
+                    steps + offset,
+                    part,
+                    0.4,
+                    bottom=bottom,
+                    color=colour,
+                    alpha=alpha,
+                    label=f"{name}: {label}",
+                )
+                bottom = bottom + part
+        axes[0, col].set_title(f"8-target crossing, {title}: association proper")
+        axes[0, col].set_ylabel("ms per step")
+        axes[0, col].legend()
+        axes[0, col].grid(alpha=0.3, which="both")
+        axes[1, col].set_title("whole step (left bar EHM2, right bar ours)")
+        axes[1, col].set_xlabel("step")
+        axes[1, col].set_ylabel("ms per step")
+        axes[1, col].legend(fontsize=7, ncol=2)
+        axes[1, col].grid(alpha=0.3, axis="y")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def run(quick: bool = False, seed: int = 0, out: str | None = None) -> dict:
     import stonesoup
 
@@ -674,7 +736,9 @@ def run(quick: bool = False, seed: int = 0, out: str | None = None) -> dict:
     if out:
         with open(out, "w", encoding="utf-8") as fh:
             json.dump(to_jsonable(results, fallback=str), fh, indent=2)
-        console.print(f"results: {out}", markup=False, highlight=False)
+        png = os.path.splitext(out)[0] + ".png"
+        plot(results, png)
+        console.print(f"results: {out}, plot: {png}", markup=False, highlight=False)
     return results
 
 
