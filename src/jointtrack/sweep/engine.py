@@ -306,14 +306,14 @@ def run_sweep(
             pending,
             store,
             outcome,
-            client,
-            workers,
-            scheduler,
-            fail_fast,
-            progress,
-            console,
-            on_row,
-            __version__,
+            client=client,
+            workers=workers,
+            scheduler=scheduler,
+            fail_fast=fail_fast,
+            progress=progress,
+            console=console,
+            on_row=on_row,
+            version=__version__,
         )
     ok = store.run_ids(status="ok") & ids
     present = store.run_ids() & ids
@@ -328,6 +328,7 @@ def _execute(
     pending,
     store,
     outcome,
+    *,
     client,
     workers,
     scheduler,
@@ -337,6 +338,10 @@ def _execute(
     on_row,
     version,
 ) -> None:
+    """Submit ``pending`` to Dask, write each row to ``store`` as it arrives, count in ``outcome``.
+
+    The connection settings and callbacks are :func:`run_sweep`'s, passed by keyword.
+    """
     from distributed import as_completed
 
     own_cluster = None
