@@ -133,6 +133,8 @@ def test_exact_equals_ehm2_in_the_cases_named():
         (set(near) | {lonely}, dets),
         (set(near), set()),  # an empty scan
         (set(), dets),  # no tracks
+        ({}, dets),  # Stone Soup's own tests pass empty dicts
+        (set(near), {}),
         ({lonely}, dets),  # only a track with nothing gated
     ]:
         ours = JPDAExact(hyp).associate(tracks, scan, T1)
