@@ -9,6 +9,7 @@ under a minute on a 2-core machine.
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 
@@ -108,9 +109,9 @@ def test_results_equal_serial_runs(finished):
         want = {f"metric.{k}": v for k, v in serial["metrics"].items() if k not in TIMING_METRICS}
         assert want and set(want) <= set(stored)
         for key, value in want.items():
-            # the tracker's floats can differ in the last bits with the history of earlier
-            # runs in a process (seen: 2e-16 relative), so "same" is to 1e-9 relative
-            assert stored[key] == pytest.approx(value, rel=1e-9, abs=1e-12), key
+            # bit for bit: the runs do not depend on the process's history (the frontier
+            # kernels sum in load-only loops, tests/test_assignment_determinism.py)
+            assert stored[key] == value or (math.isnan(stored[key]) and math.isnan(value)), key
 
 
 def test_report_mean_and_ci_per_cell(finished, tmp_path):
