@@ -107,6 +107,13 @@ def test_make_scenario_checks_keywords():
         make_scenario("crossing", 0, {"speedz": 3})
     with pytest.raises(RunConfigError, match="unknown scenario"):
         make_scenario("nowhere")
+    from jointtrack.scenarios import abreast
+
+    sc = make_scenario("abreast", 2, {"n_targets": 3, "n_scans": 4})
+    ref = abreast(seed=2, n_targets=3, n_scans=4)
+    assert sc.name == "abreast" and all(
+        np.array_equal(a, b) for a, b in zip(sc.detections, ref.detections, strict=True)
+    )
 
 
 def test_steady_state_covariance_is_a_riccati_fixed_point():

@@ -131,7 +131,7 @@ def run_command(
         str | None,
         typer.Option(
             "--scenario",
-            help="Built-in scenario: bojilov (default) | crossing | many | acoustic "
+            help="Built-in scenario: bojilov (default) | crossing | many | abreast | acoustic "
             "(superpositional sensors, see --filter).",
         ),
     ] = None,

@@ -49,8 +49,13 @@ __all__ = [
     "steady_state_covariance",
 ]
 
-SCENARIOS = ("bojilov", "crossing", "many")
-_GENERATOR_NAMES = {"bojilov": "bojilov", "crossing": "crossing", "many": "many_targets"}
+SCENARIOS = ("bojilov", "crossing", "many", "abreast")
+_GENERATOR_NAMES = {
+    "bojilov": "bojilov",
+    "crossing": "crossing",
+    "many": "many_targets",
+    "abreast": "abreast",
+}
 # How a run's tracks start: confirmed at the true states of the first scan, or
 # initiated from the detections by the tracker's own logic.
 STARTS = ("truth", "nothing")
@@ -414,7 +419,7 @@ def make_scenario(
     *,
     source: str | None = None,
 ):
-    """Build a built-in scenario by name (``bojilov | crossing | many``).
+    """Build a built-in scenario by name (``bojilov | crossing | many | abreast``).
 
     ``kwargs`` are passed to the scenario function (:mod:`jointtrack.scenarios`);
     unknown keywords and bad values raise :class:`RunConfigError` naming them.

@@ -60,7 +60,7 @@ Config file (``--config FILE``, TOML)
     #                              # unit range × radian
 
     [scenario]             # built-in scenario (ignored with --detections)
-    name = "crossing"      # bojilov | crossing | many
+    name = "crossing"      # bojilov | crossing | many | abreast
     seed = 3
     start_from = "nothing" # or "truth" (default: truth for bojilov, nothing for the
                            # others); start_from_truth = true|false is the older
@@ -680,7 +680,7 @@ def run_scenario(
     Parameters
     ----------
     scenario : a :class:`~jointtrack.scenarios.Scenario`, or a name
-        (``bojilov | crossing | many``) built with ``seed`` and ``scenario_kwargs``.
+        (``bojilov | crossing | many | abreast``) built with ``seed`` and ``scenario_kwargs``.
     config : a :class:`TrackerConfig` (used as is) or a mapping of overrides on
         the settings derived from the scenario (:func:`scenario_tracker_settings`);
         ``None`` = the derived settings.

@@ -102,15 +102,8 @@ def _run(params: Mapping, seed: int, out_dir: str) -> tuple[str, dict]:
         particle = {k: options[k] for k in ("weights", "particles") if k in options}
     scen = t["scenario"]
     start = {k: scen.pop(k) for k in ("start_from", "start_from_truth") if k in scen}
-    if name == "abreast":
-        # abreast is not a `jointtrack run` scenario name; run_scenario takes the object
-        from jointtrack.scenarios import abreast
-
-        scenario, scen = abreast(seed=seed, **scen), {}
-    else:
-        scenario = name
     metrics = run_scenario(
-        scenario,
+        name,
         tracker,
         out_dir,
         seed=seed,
