@@ -129,6 +129,22 @@ def test_report_mean_and_ci_per_cell(finished, tmp_path):
     assert "gospa_vs_tracker_association.png" in names
 
 
+def test_mixed_int_and_float_axis_values_read_as_one_dataset(tmp_path):
+    import pyarrow.dataset as ds
+
+    store = ResultStore(tmp_path / "results")
+    for i, value in enumerate([1, 0.5, 2]):  # the int first: its file must not set the type
+        params = {"scenario.clutter_density": value, "tracker.existence": i != 1}
+        store.write({"run_id": f"r{i}", "params": json.dumps(params), **params, "status": "ok"})
+    table = ds.dataset(tmp_path / "results").to_table()
+    assert table.num_rows == 3
+    assert str(table.schema.field("scenario.clutter_density").type) == "double"
+    assert sorted(table["scenario.clutter_density"].to_pylist()) == [0.5, 1.0, 2.0]
+    assert str(table.schema.field("tracker.existence").type) == "bool"
+    rows = {r["run_id"]: r for r in store.read_rows()}
+    assert json.loads(rows["r0"]["params"])["scenario.clutter_density"] == 1  # exact, an int
+
+
 def test_killed_worker_loses_nothing(client, tmp_path):
     spec = parse_spec(SPEC)
     pids = client.run(os.getpid)  # worker address -> pid

@@ -84,6 +84,11 @@ class ResultStore:
                 typ = pa.int64()
             elif key in _FLOAT_COLUMNS or key.startswith("metric."):
                 typ = pa.float64()
+            elif isinstance(value, int | float) and not isinstance(value, bool):
+                # a parameter column: an axis like [0.5, 1, 2] mixes int and float
+                # values, and files of one column must agree on its type; the exact
+                # values (1, not 1.0) stay in the row's "params" JSON
+                typ = pa.float64()
             else:
                 typ = pa.array([value]).type
             fields.append(pa.field(key, typ))
