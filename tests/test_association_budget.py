@@ -52,3 +52,15 @@ def test_bad_approximation_is_named():
     L, miss = _cluster(2, 2)
     with pytest.raises(ValueError, match="approximation"):
         budgeted_marginals(L, miss, approximation="exact")
+
+
+def test_no_approximation_raises_past_the_budget():
+    from jointtrack.errors import ExactLimitError
+
+    L, miss = _cluster()
+    with pytest.raises(ExactLimitError, match="max_tracks = 5"):
+        budgeted_marginals(L, miss, max_tracks=5, approximation=None)
+    with pytest.raises(ExactLimitError, match="max_bits"):
+        budgeted_marginals(L, miss, exact_options={"max_bits": 3}, approximation=None)
+    res = budgeted_marginals(L, miss, approximation=None)
+    assert res.method == "exact"

@@ -51,7 +51,7 @@ def budgeted_marginals(
     miss,
     *,
     method: str = "exact",
-    approximation: str = "lbp",
+    approximation: str | None = "lbp",
     max_tracks: int | None = None,
     rng=None,
     exact_options: dict | None = None,
@@ -65,8 +65,9 @@ def budgeted_marginals(
     method : str
         any of :data:`jointtrack.association.METHODS`; only the exact ones
         ("exact", "enumerate") are subject to the budget.
-    approximation : str
-        one of :data:`APPROXIMATIONS`, used past the budget.
+    approximation : str or None
+        one of :data:`APPROXIMATIONS`, used past the budget; None raises
+        :class:`~jointtrack.errors.ExactLimitError` there instead.
     max_tracks : int or None
         clusters with more tracks go straight to ``approximation``.
     rng
@@ -77,22 +78,28 @@ def budgeted_marginals(
 
     Raises
     ------
+    ExactLimitError
+        past the budget with ``approximation=None``.
     ValueError
         an unknown approximation, or bad ``L``/``miss`` (named by the method).
     """
-    if approximation not in APPROXIMATIONS:
+    if approximation is not None and approximation not in APPROXIMATIONS:
         raise ValueError(
             f"approximation must be one of {', '.join(APPROXIMATIONS)}, got {approximation!r}"
         )
     reason = ""
     n_tracks = np.shape(L)[0] if np.ndim(L) == 2 else 0
     if method in EXACT_METHODS and max_tracks is not None and n_tracks > max_tracks:
+        if approximation is None:
+            raise ExactLimitError(
+                f"a cluster of {n_tracks} tracks is above max_tracks = {max_tracks}"
+            )
         method, reason = approximation, "exact_max_tracks"
     try:
         options = dict(exact_options or {}) if method == "exact" else _options(method, rng)
         beta = marginals(L, miss, method=method, **options)
     except ExactLimitError as exc:
-        if method not in EXACT_METHODS:
+        if method not in EXACT_METHODS or approximation is None:
             raise
         method, reason = approximation, f"refused: {exc}"
         beta = marginals(L, miss, method=method, **_options(method, rng))

@@ -294,17 +294,21 @@ class JPDAExact(DataAssociator):
         return self._hypotheses_out(hypotheses, track_list, pair_of, pair_beta, miss_beta, column)
 
     def _cluster_beta(self, L, miss, tr, track_list):
-        approximation = "lbp" if self.approximation == "raise" else self.approximation
         method = self._method
         try:
             res = budgeted_marginals(
                 L,
                 miss,
                 method=method,
-                approximation=approximation,
+                approximation=None if self.approximation == "raise" else self.approximation,
                 max_tracks=self.exact_max_tracks if method == "exact" else None,
                 exact_options={"max_bits": self.max_bits, "max_memory": self.max_memory},
             )
+        except ExactLimitError as exc:
+            raise ExactLimitError(
+                f"cluster of {L.shape[0]} tracks and {L.shape[1]} detections is past the "
+                f"exact budget ({exc})"
+            ) from None
         except InfeasibleAssignmentError:
             raise InfeasibleAssignmentError(
                 "no joint association of tracks "
@@ -312,11 +316,6 @@ class JPDAExact(DataAssociator):
                 "track must take a detection, P_D·P_G = 1, and there are too few)"
             ) from None
         if res.reason:
-            if self.approximation == "raise":
-                raise ExactLimitError(
-                    f"cluster of {L.shape[0]} tracks and {L.shape[1]} detections is past the "
-                    f"exact budget ({res.reason})"
-                )
             log.warning(
                 "cluster of %d tracks and %d detections past the exact budget (%s): used %s",
                 L.shape[0],
