@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from jointtrack.scenarios import GENERATORS
 from jointtrack.trackers import JPDATracker, TrackerConfig
 from jointtrack.trackers.config import check_field
 
@@ -49,13 +50,7 @@ __all__ = [
     "steady_state_covariance",
 ]
 
-SCENARIOS = ("bojilov", "crossing", "many", "abreast")
-_GENERATOR_NAMES = {
-    "bojilov": "bojilov",
-    "crossing": "crossing",
-    "many": "many_targets",
-    "abreast": "abreast",
-}
+SCENARIOS = tuple(GENERATORS)  # bojilov, crossing, many, abreast
 # How a run's tracks start: confirmed at the true states of the first scan, or
 # initiated from the detections by the tracker's own logic.
 STARTS = ("truth", "nothing")
@@ -424,14 +419,13 @@ def make_scenario(
     ``kwargs`` are passed to the scenario function (:mod:`jointtrack.scenarios`);
     unknown keywords and bad values raise :class:`RunConfigError` naming them.
     """
-    from jointtrack import scenarios
 
     where = f"{source}: [scenario]" if source else "scenario"
     if name not in SCENARIOS:
         raise RunConfigError(
             f"{where}: unknown scenario {name!r}; choose one of {', '.join(SCENARIOS)}"
         )
-    fn = getattr(scenarios, _GENERATOR_NAMES[name])
+    fn = GENERATORS[name]
     params = [p for p in inspect.signature(fn).parameters if p != "seed"]
     kwargs = dict(kwargs or {})
     for key in kwargs:

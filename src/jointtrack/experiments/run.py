@@ -133,7 +133,6 @@ from pathlib import Path
 import numpy as np
 
 from jointtrack.experiments.config import (  # noqa: F401 - re-exported
-    _GENERATOR_NAMES,
     _METRIC_KEYS,
     _TABLES,
     SCENARIOS,

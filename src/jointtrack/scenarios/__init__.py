@@ -21,7 +21,16 @@ from jointtrack.scenarios.simulate import (
     simulate_scenario,
 )
 
+#: Detection scenarios by their run/sweep name (``[scenario] name``) → generator.
+GENERATORS = {
+    "bojilov": bojilov,
+    "crossing": crossing,
+    "many": many_targets,
+    "abreast": abreast,
+}
+
 __all__ = [
+    "GENERATORS",
     "AcousticScenario",
     "Scenario",
     "abreast",

@@ -41,16 +41,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from jointtrack.scenarios import GENERATORS
+
 __all__ = ["Run", "SweepSpec", "cell_id", "load_spec", "parse_spec", "run_id"]
 
-#: Scenarios a cell can run: the tracker scenarios of ``jointtrack run`` plus abreast and acoustic.
-SCENARIO_NAMES = ("bojilov", "crossing", "many", "abreast", "acoustic")
-_GENERATORS = {
-    "bojilov": "bojilov",
-    "crossing": "crossing",
-    "many": "many_targets",
-    "abreast": "abreast",
-}
+#: Scenarios a cell can run: the detection scenarios of ``jointtrack run`` plus acoustic.
+SCENARIO_NAMES = (*GENERATORS, "acoustic")
 _TABLES = ("tracker", "scenario", "metrics", "filter")
 #: ``[filter]`` keys of an acoustic cell and the type each must have.
 FILTER_KEYS = {
@@ -328,9 +324,8 @@ def _check_cell(params: Mapping, where: str, axes: Mapping) -> None:
         return
     for k in tables["filter"]:
         raise ValueError(f"{where}{_origin(f'filter.{k}', axes)} applies to scenario acoustic only")
-    from jointtrack import scenarios
 
-    fn = getattr(scenarios, _GENERATORS[name])
+    fn = GENERATORS[name]
     known = [p for p in inspect.signature(fn).parameters if p != "seed"]
     for k in scen:
         if k in ("start_from", "start_from_truth"):
