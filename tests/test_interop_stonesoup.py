@@ -38,6 +38,7 @@ from jointtrack.association.lbp import lbp_marginals  # noqa: E402
 from jointtrack.errors import ExactLimitError  # noqa: E402
 from jointtrack.interop.stonesoup import (  # noqa: E402
     JPDALBP,
+    FastPDAHypothesiser,
     JPDAExact,
     scans_from_stonesoup,
     tracks_to_stonesoup,
@@ -268,7 +269,7 @@ def _scene(seed, n_steps=50):
     return paths, scans
 
 
-def _stonesoup_tracker(associator_class):
+def _stonesoup_tracker(associator_class, hypothesiser_class=PDAHypothesiser):
     from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
     from stonesoup.deleter.time import UpdateTimeStepsDeleter
     from stonesoup.initiator.simple import MultiMeasurementInitiator
@@ -277,7 +278,13 @@ def _stonesoup_tracker(associator_class):
     updater = KalmanUpdater(MEASUREMENT)
 
     def hypothesiser():
-        return _hypothesiser(p_d=0.9, clutter=2 / 80**2)
+        return hypothesiser_class(
+            predictor=KalmanPredictor(TRANSITION),
+            updater=updater,
+            clutter_spatial_density=2 / 80**2,
+            prob_detect=0.9,
+            prob_gate=0.99,
+        )
 
     deleter = UpdateTimeStepsDeleter(3)
     initiator = MultiMeasurementInitiator(
@@ -405,3 +412,84 @@ def test_tracks_to_stonesoup_needs_a_time_origin_or_epoch():
     out = tracks_to_stonesoup(h, epoch=T0)
     stamps = sorted(s.timestamp for t in out for s in t.states)
     assert stamps == sorted(T0 + datetime.timedelta(seconds=float(t)) for t in h.time)
+
+
+# ------------------------------------------------------------- the hypothesiser
+def _fast(**kw):
+    base = _hypothesiser(**kw)
+    return FastPDAHypothesiser(
+        predictor=base.predictor,
+        updater=base.updater,
+        clutter_spatial_density=base.clutter_spatial_density,
+        prob_detect=base.prob_detect,
+        prob_gate=base.prob_gate,
+        include_all=base.include_all,
+    )
+
+
+def _assert_same_hypotheses(ours, theirs):
+    assert [h.measurement for h in ours if h] == [h.measurement for h in theirs if h]
+    assert len(ours) == len(theirs)
+    for a, b in zip(ours, theirs, strict=True):
+        assert abs(float(a.probability) - float(b.probability)) <= 1e-12
+        np.testing.assert_allclose(a.prediction.state_vector, b.prediction.state_vector, 1e-13)
+        if b:
+            mp_a, mp_b = a.measurement_prediction, b.measurement_prediction
+            np.testing.assert_allclose(mp_a.state_vector, mp_b.state_vector, rtol=1e-13)
+            np.testing.assert_allclose(mp_a.covar, mp_b.covar, rtol=1e-13)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(scenes(), st.booleans())
+def test_fast_hypothesiser_equals_pda_hypothesiser(scene, estimate_clutter):
+    tracks, dets, p_d, clutter, include_all = scene
+    if estimate_clutter:  # Stone Soup's validation-region form (needs include_all off)
+        clutter, include_all = None, False
+    kw = {"p_d": p_d, "clutter": clutter, "include_all": include_all}
+    fast, slow = _fast(**kw), _hypothesiser(**kw)
+    for trk in tracks:
+        _assert_same_hypotheses(fast.hypothesise(trk, dets, T1), slow.hypothesise(trk, dets, T1))
+
+
+def test_fast_hypothesiser_falls_back_for_nonlinear_models():
+    from stonesoup.models.measurement.nonlinear import CartesianToBearingRange
+
+    radar = CartesianToBearingRange(
+        ndim_state=4, mapping=(0, 2), noise_covar=np.diag([1e-4, 1.0]), translation_offset=None
+    )
+    trk = _track(10.0, 5.0)
+    dets = {
+        Detection(
+            radar.function(_track(x, y).state, noise=False), timestamp=T1, measurement_model=radar
+        )
+        for x, y in [(11.0, 5.2), (9.0, 4.0), (40.0, -3.0)]
+    }
+    from stonesoup.updater.kalman import ExtendedKalmanUpdater
+
+    base = PDAHypothesiser(
+        KalmanPredictor(TRANSITION), ExtendedKalmanUpdater(radar), clutter_spatial_density=1e-3
+    )
+    fast = FastPDAHypothesiser(
+        KalmanPredictor(TRANSITION), ExtendedKalmanUpdater(radar), clutter_spatial_density=1e-3
+    )
+    a, b = fast.hypothesise(trk, dets, T1), base.hypothesise(trk, dets, T1)
+    assert [float(h.probability) for h in a] == [float(h.probability) for h in b]
+    assert len(a) >= 2
+
+
+def test_stonesoup_tracker_with_fast_hypothesiser_and_ours_tracks_as_ehm2():
+    _, scans = _scene(seed=4)
+    theirs = _stonesoup_tracker(JPDAwithEHM2)
+    ours = _stonesoup_tracker(JPDAExact, hypothesiser_class=FastPDAHypothesiser)
+    assert isinstance(ours.data_associator.hypothesiser, FastPDAHypothesiser)
+    for t, dets in scans:
+        _, a = theirs.update_tracker(t, dets)
+        _, b = ours.update_tracker(t, dets)
+        assert len(a) == len(b)
+        np.testing.assert_allclose(
+            np.array(_states(b)).reshape(len(b), 4),
+            np.array(_states(a)).reshape(len(a), 4),
+            rtol=0,
+            atol=1e-5,
+        )
+    assert len(b) >= 3

@@ -1,110 +1,33 @@
-"""Stone Soup drop-in data associators on jointtrack's exact engine, and converters.
+"""``JPDAExact`` and ``JPDALBP``: Stone Soup data associators on the assignment-sum core.
 
-For users of Stone Soup (Barr et al., "Stone Soup: announcement of beta release
-of an open-source framework for tracking and state estimation", Proc. SPIE
-11018, 2019): :class:`JPDAExact` and :class:`JPDALBP` are
-:class:`stonesoup.dataassociator.base.DataAssociator` s with the constructor and
-the return value of Stone Soup's ``JPDAwithEHM2``, so a Stone Soup tracker runs
-unchanged with one of them swapped in::
-
-    data_associator=JPDAExact(hypothesiser)   # was JPDAwithEHM2(hypothesiser)
-
-What they compute
------------------
-The hypothesiser's weights are the JPDA single-target terms of S. Bojilov,
-K. Alexiev and P. Konstantinova, "One particular program realization of JPDA
-algorithm", *Information & Security* 9, 2002, eq. (7): for track i, ``p_i0``
-for the missed detection and ``p_ij = P_D N(z_j; ẑ_i, S_i)/λ`` for each gated
-detection j (Stone Soup's
-``PDAHypothesiser``; any hypothesiser whose hypotheses carry a ``probability``
-works). The marginal JPDA probabilities are the sum over joint events in which
-each detection goes to at most one track, as ``JPDAwithEHM2`` computes them:
-
-.. math::
-
-    β_{ij} = \\frac{1}{Z} \\sum_{θ:\\,θ(i)=j} \\prod_k p_{kθ(k)},
-    \\qquad Z = \\sum_θ \\prod_k p_{kθ(k)}.
-
-Tracks are split into clusters that share no detection
-(:func:`jointtrack.association.clusters`); each cluster goes to the
-assignment-sum core (:mod:`jointtrack.assignment.core`) through
-:func:`jointtrack.association.budget.budgeted_marginals`.
-
-* The weights are read in log space (``Probability.log_value``). Each track's
-  row is divided by its largest weight, which changes no β: every joint event
-  takes exactly one entry of every row. A weight more than about 1e-308 below
-  its row's largest is then treated as impossible, which moves no probability
-  by more than that ratio.
-* **Budget policy (large clusters).** :class:`JPDAExact` is exact for a cluster
-  of at most ``exact_max_tracks`` tracks whose frontier DP fits ``max_bits``
-  (a state of 2^max_bits subsets) and ``max_memory``. Past either limit it uses
-  ``approximation`` (default ``"lbp"``: the loopy belief propagation of J. L.
-  Williams and R. A. Lau, "Approximate evaluation of marginal association
-  probabilities with belief propagation", IEEE Trans. Aerospace and Electronic
-  Systems 50(4):2942–2959, 2014, with a certified stopping rule,
-  :mod:`jointtrack.association.lbp`).
-  Every such cluster is logged at WARNING and listed in ``last_clusters``.
-  ``approximation="raise"`` raises :class:`jointtrack.errors.ExactLimitError`
-  instead.
-* A cluster of one track is PDA (Bojilov eqs. (1)–(3)), exact, for all such
-  tracks at once (:func:`jointtrack.association.pda_pair_marginals`).
-* :class:`JPDALBP` uses that LBP for every cluster of two or more tracks.
-* ``last_clusters`` lists, after each call, every cluster as ``(n_tracks,
-  n_detections, method, reason)``: ``method`` is ``"pda"`` for one-track
-  clusters, else the method used; ``reason`` says why the approximation was
-  used, empty when it was not.
-
-Converters
-----------
-:func:`scans_from_stonesoup` turns detections into the ``(time, z)`` scans of
-:class:`jointtrack.trackers.JPDATracker`; :func:`truth_from_stonesoup` turns
-ground-truth paths into the ``(time, id, state)`` table of
-:func:`jointtrack.metrics.gospa_series`; :func:`tracks_to_stonesoup` turns a
-:class:`jointtrack.trackers.TrackHistory` into Stone Soup ``Track`` s, so Stone
-Soup's metric generators run on jointtrack's output. jointtrack's states are
-positions first (``[x, y, vx, vy]``); Stone Soup's constant-velocity models
-interleave (``[x, vx, y, vy]``): the converters reorder (``interleave=True``)
-or take an explicit index.
-
-Stone Soup is an optional dependency: ``pip install 'jointtrack[stonesoup]'``.
+What they compute, the log-space row scaling and the budget policy are described
+in :mod:`jointtrack.interop.stonesoup` (S. Bojilov, K. Alexiev and P.
+Konstantinova, "One particular program realization of JPDA algorithm",
+*Information & Security* 9, 2002; J. L. Williams and R. A. Lau, "Approximate
+evaluation of marginal association probabilities with belief propagation", IEEE
+Trans. Aerospace and Electronic Systems 50(4):2942–2959, 2014).
 """
 
 from __future__ import annotations
 
-import datetime as _dt
 import logging
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 
 import numpy as np
-
-try:
-    from stonesoup.base import Property
-    from stonesoup.dataassociator.base import DataAssociator
-    from stonesoup.hypothesiser import Hypothesiser
-    from stonesoup.types.groundtruth import GroundTruthPath
-    from stonesoup.types.hypothesis import SingleProbabilityHypothesis
-    from stonesoup.types.multihypothesis import MultipleHypothesis
-    from stonesoup.types.numeric import Probability
-    from stonesoup.types.state import GaussianState
-    from stonesoup.types.track import Track
-except ImportError as exc:  # pragma: no cover - exercised only without Stone Soup
-    raise ImportError(
-        "jointtrack.interop.stonesoup needs Stone Soup: pip install 'jointtrack[stonesoup]'"
-    ) from exc
+from stonesoup.base import Property
+from stonesoup.dataassociator.base import DataAssociator
+from stonesoup.hypothesiser import Hypothesiser
+from stonesoup.types.hypothesis import SingleProbabilityHypothesis
+from stonesoup.types.multihypothesis import MultipleHypothesis
+from stonesoup.types.numeric import Probability
 
 from jointtrack.association.budget import APPROXIMATIONS, budgeted_marginals
 from jointtrack.association.clustering import clusters
 from jointtrack.association.pda import pda_pair_marginals
 from jointtrack.errors import ExactLimitError, InfeasibleAssignmentError
 
-__all__ = [
-    "JPDAExact",
-    "JPDALBP",
-    "scans_from_stonesoup",
-    "tracks_to_stonesoup",
-    "truth_from_stonesoup",
-]
+__all__ = ["JPDAExact", "JPDALBP"]
 
 log = logging.getLogger(__name__)
 
@@ -362,138 +285,3 @@ class JPDALBP(JPDAExact):
     """
 
     _method = "lbp"
-
-
-# ---------------------------------------------------------------- converters
-def _index(n: int, dim: int, interleave: bool, state_index) -> np.ndarray:
-    """``theirs = ours[index]``: jointtrack's positions-first state to Stone Soup's order."""
-    if state_index is not None:
-        idx = np.asarray(state_index)
-        if idx.dtype.kind not in "iu" or sorted(idx.tolist()) != list(range(n)):
-            raise ValueError(
-                f"state_index must be a permutation of 0..{n - 1}, got {state_index!r}"
-            )
-        return idx.astype(np.int64)
-    if not interleave:
-        return np.arange(n)
-    if isinstance(dim, bool) or not isinstance(dim, int) or dim < 1 or n % dim:
-        raise ValueError(f"dim must be a positive integer dividing the state size {n}, got {dim!r}")
-    order = n // dim
-    # Stone Soup position k, derivative o sits at k·order + o; ours at o·dim + k
-    return np.array([o * dim + k for k in range(dim) for o in range(order)], np.int64)
-
-
-def _naive_utc(t) -> _dt.datetime:
-    if not isinstance(t, _dt.datetime):
-        raise TypeError(f"timestamps must be datetime.datetime, got {type(t).__name__}")
-    if t.tzinfo is not None:
-        return t.astimezone(_dt.UTC).replace(tzinfo=None)
-    return t
-
-
-def scans_from_stonesoup(scans: Iterable) -> list[tuple[_dt.datetime, np.ndarray]]:
-    """Stone Soup detections as jointtrack scans ``[(timestamp, z (M, d)), …]``.
-
-    ``scans`` is what a Stone Soup detector yields: ``(timestamp, detections)``
-    pairs (a set of ``Detection``). ``z`` holds each detection's
-    ``state_vector`` as a row, sorted lexicographically, so the order does not
-    depend on set iteration (which follows object addresses). Pass the scans to
-    :meth:`jointtrack.trackers.JPDATracker.step` as they are: it accepts
-    datetimes.
-    """
-    out = []
-    for item in scans:
-        try:
-            timestamp, detections = item
-        except (TypeError, ValueError):
-            raise TypeError(
-                "scans must be (timestamp, detections) pairs, as a Stone Soup detector yields"
-            ) from None
-        rows = [np.asarray(d.state_vector, float).reshape(-1) for d in detections]
-        dims = {r.size for r in rows}
-        if len(dims) > 1:
-            raise ValueError(f"detections at {timestamp} have different sizes {sorted(dims)}")
-        z = np.array(rows, float).reshape(len(rows), dims.pop() if dims else 0)
-        if z.size and not np.isfinite(z).all():
-            raise ValueError(f"a detection at {timestamp} is not finite")
-        if len(z) > 1:
-            z = z[np.lexsort(z.T[::-1])]
-        out.append((timestamp, z))
-    return out
-
-
-def truth_from_stonesoup(
-    paths: Iterable,
-    *,
-    epoch: _dt.datetime,
-    dim: int = 2,
-    interleave: bool = True,
-    state_index=None,
-):
-    """Ground-truth paths as jointtrack's truth table ``(time, id, x)``.
-
-    ``time`` (R,) seconds after ``epoch``; ``id`` (R,) the path's position in
-    ``paths`` (sorted by Stone Soup ``id`` first, so the numbering is stable);
-    ``x`` (R, n) the states in jointtrack's positions-first order (the inverse
-    of :func:`tracks_to_stonesoup`'s reordering). ``x[:, :dim]`` are the
-    positions :func:`jointtrack.metrics.gospa_series` compares.
-    """
-    epoch = _naive_utc(epoch)
-    paths = sorted(paths, key=lambda p: str(p.id))
-    times, ids, states = [], [], []
-    idx = None
-    for k, path in enumerate(paths):
-        if not isinstance(path, GroundTruthPath):
-            raise TypeError(f"paths must be GroundTruthPath objects, got {type(path).__name__}")
-        for st in path.states:
-            sv = np.asarray(st.state_vector, float).reshape(-1)
-            if idx is None:
-                idx = _index(sv.size, dim, interleave, state_index)
-            if sv.size != idx.size:
-                raise ValueError(f"path {path.id} has states of size {sv.size}, not {idx.size}")
-            ours = np.empty_like(sv)
-            ours[idx] = sv
-            times.append((_naive_utc(st.timestamp) - epoch).total_seconds())
-            ids.append(k)
-            states.append(ours)
-    n = 0 if idx is None else idx.size
-    return (
-        np.asarray(times, float),
-        np.asarray(ids, np.int64),
-        np.asarray(states, float).reshape(len(states), n),
-    )
-
-
-def tracks_to_stonesoup(
-    history,
-    *,
-    epoch: _dt.datetime | None = None,
-    dim: int = 2,
-    interleave: bool = True,
-    state_index=None,
-) -> set:
-    """A :class:`jointtrack.trackers.TrackHistory` as a set of Stone Soup ``Track`` s.
-
-    One ``Track`` per track id (``Track.id`` = ``"jointtrack-<id>"``), one
-    ``GaussianState`` per row, with the state and covariance reordered to Stone
-    Soup's layout (module docstring). Timestamps: ``epoch + time``; without
-    ``epoch`` the history's ``time_origin`` (set when the tracker was given
-    datetimes), as a naive UTC datetime like Stone Soup's own.
-    """
-    if epoch is None:
-        if history.time_origin is None:
-            raise ValueError("the history has no time_origin (the scans were seconds): pass epoch=")
-        stamps = history.datetimes().astype("datetime64[us]").tolist()
-    else:
-        epoch = _naive_utc(epoch)
-        stamps = [epoch + _dt.timedelta(seconds=float(t)) for t in history.time]
-    idx = _index(history.state_dim, dim, interleave, state_index)
-    x = history.x[:, idx]
-    P = history.P[:, idx][:, :, idx]
-    tracks = {}
-    for r, tid in enumerate(history.track_id.tolist()):
-        trk = tracks.get(tid)
-        if trk is None:
-            trk = tracks[tid] = Track(id=f"jointtrack-{tid}")
-        trk.append(GaussianState(x[r].reshape(-1, 1), P[r], timestamp=stamps[r]))
-    return set(tracks.values())
