@@ -40,6 +40,10 @@ Kalman filter for the tracker's q and R); the scans after scan 0 are fed to
   smallest step time is kept with its parts. Median and total per quantity,
   shares of the step time, and the ratios EHM2 / ours; a per-step table in
   the full run. Largest cluster from ``JPDAExact.last_clusters``.
+  A third configuration swaps Stone Soup's ``PDAHypothesiser`` (of the
+  associator and of the initiator's GNN) for jointtrack's
+  ``FastPDAHypothesiser`` (same hypotheses, detections taken at once) with
+  ``JPDAExact``: its own table, total time per part and the ratio EHM2 / it.
   The runs' tracks are compared after every step: same number, and state
   vectors equal to 1e-9·max(1, |x|) after matching the tracks (minimum-cost
   assignment on the state distance: the clutter-born tracks have random ids).
@@ -200,7 +204,16 @@ def _no_initiator():
 
 
 def run_tracker(
-    sc, name: str, stamps, scans, *, budget=None, options=None, steps=None, initiator=True
+    sc,
+    name: str,
+    stamps,
+    scans,
+    *,
+    budget=None,
+    options=None,
+    steps=None,
+    initiator=True,
+    fast_hypothesiser=False,
 ) -> dict:
     """Stone Soup's tutorial tracker with associator ``name`` from the true tracks at scan 0.
 
@@ -208,9 +221,16 @@ def run_tracker(
     associator's and hypothesiser's share of it; records each step's tracks and
     (for jointtrack's associators) clusters. ``initiator=False`` replaces the
     tutorial initiator by one that starts nothing. With ``budget`` seconds the
-    run stops there (``finished`` False).
+    run stops there (``finished`` False). ``fast_hypothesiser``: jointtrack's
+    ``FastPDAHypothesiser`` instead of Stone Soup's ``PDAHypothesiser``.
     """
-    tracker, _ = stonesoup_tracker(sc, associator_factory(name, **(options or {})))
+    from jointtrack.interop.stonesoup import FastPDAHypothesiser
+
+    tracker, _ = stonesoup_tracker(
+        sc,
+        associator_factory(name, **(options or {})),
+        hypothesiser_class=FastPDAHypothesiser if fast_hypothesiser else None,
+    )
     if not initiator:
         tracker.initiator = _no_initiator()
     assoc = tracker.data_associator
@@ -334,8 +354,12 @@ def _ratio(a, b):
 # ------------------------------------------------------------------ sections
 def _crossing_variant(console, sc, stamps, scans, *, initiator, quick, repeats, label) -> dict:
     budget = 20.0 if quick else 120.0
-    runs = {"ehm2": [], "ours": []}
+    runs = {"ehm2": [], "ours": [], "fast": []}
     for rep in range(repeats):
+        console.print(f"   {label}: JPDAExact + FastPDAHypothesiser (repeat {rep + 1}/{repeats}) …")
+        runs["fast"].append(
+            run_tracker(sc, "ours", stamps, scans, initiator=initiator, fast_hypothesiser=True)
+        )
         for name in ("ehm2", "ours"):
             if runs["ehm2"] and not runs["ehm2"][-1]["finished"] and name == "ehm2":
                 continue  # EHM2 ran out of time once: do not spend the budget again
@@ -348,7 +372,7 @@ def _crossing_variant(console, sc, stamps, scans, *, initiator, quick, repeats, 
             kw = {"budget": budget} if name == "ehm2" else {}
             runs[name].append(run_tracker(sc, name, stamps, scans, initiator=initiator, **kw))
     same = [compare_tracks(e, o) for e in runs["ehm2"] for o in runs["ours"]]
-    same += [compare_tracks(runs["ours"][0], o) for o in runs["ours"][1:]]
+    same += [compare_tracks(runs["ours"][0], o) for o in runs["ours"][1:] + runs["fast"]]
     worst_same = max(same, key=lambda s: (not s["same"], s["max_rel_state_diff"]))
     ehm2, ours = best_of(runs["ehm2"]), best_of(runs["ours"])
     (cn, cm, cmethod, cstep), methods = largest_cluster(ours)
@@ -383,6 +407,22 @@ def _crossing_variant(console, sc, stamps, scans, *, initiator, quick, repeats, 
             f"{rows[key]['ratio_total']:.1f}×",
             f"{100 * share_e:.0f} %",
             f"{100 * share_o:.0f} %",
+        )
+    console.print(t)
+    fast = best_of(runs["fast"])
+    s_f = summary(fast)
+    t = Table(title=f"{label}: both with jointtrack's FastPDAHypothesiser in place of Stone Soup's")
+    for col in ("per step", "ours + fast hyp. median ms", "total s", "EHM2 total / this"):
+        t.add_column(col, justify="right" if col != "per step" else "left")
+    fast_rows = {}
+    for key in ("step", "association", "hypothesiser", "rest"):
+        f = s_f[key]
+        fast_rows[key] = {"ratio_total_vs_ehm2": _ratio(s_e[key]["total_s"], f["total_s"])}
+        t.add_row(
+            key if key != "association" else "association proper",
+            _fmt_ms(f["median_ms"]),
+            f"{f['total_s']:.3f}",
+            f"{fast_rows[key]['ratio_total_vs_ehm2']:.1f}×",
         )
     console.print(t)
     n_common = min(len(ehm2["step"]), len(ours["step"]))
@@ -451,6 +491,8 @@ def _crossing_variant(console, sc, stamps, scans, *, initiator, quick, repeats, 
         "ehm2": s_e,
         "ours": s_o,
         "ratios": rows,
+        "ours_fast_hypothesiser": s_f,
+        "ratios_fast_hypothesiser": fast_rows,
         "ehm2_budget_s": budget,
         "ehm2_finished": ehm2["finished"],
         "largest_cluster": {"tracks": cn, "detections": cm, "method": cmethod, "step": cstep},

@@ -26,13 +26,16 @@ def stonesoup_available() -> bool:
     return True
 
 
-def stonesoup_tracker(sc, data_associator=None):
+def stonesoup_tracker(sc, data_associator=None, hypothesiser_class=None):
     """Stone Soup's tutorial JPDA tracker with the scene's physical settings (module docstring).
 
     ``data_associator`` is a factory ``hypothesiser → DataAssociator`` for the
     tracker's JPDA associator (default Stone Soup's ``JPDAwithEHM2``), e.g.
     :class:`jointtrack.interop.stonesoup.JPDAExact`; the initiator keeps its own
-    ``GNNWith2DAssignment``. Returns ``(tracker, measurement_model)``.
+    ``GNNWith2DAssignment``. ``hypothesiser_class`` replaces Stone Soup's
+    ``PDAHypothesiser`` for both (e.g.
+    :class:`jointtrack.interop.stonesoup.FastPDAHypothesiser`). Returns
+    ``(tracker, measurement_model)``.
     """
     from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
     from stonesoup.dataassociator.probability import JPDAwithEHM2
@@ -56,7 +59,7 @@ def stonesoup_tracker(sc, data_associator=None):
     updater = KalmanUpdater(measurement)
 
     def hypothesiser():
-        return PDAHypothesiser(
+        return (hypothesiser_class or PDAHypothesiser)(
             predictor=predictor,
             updater=updater,
             clutter_spatial_density=float(sc.clutter_density),
