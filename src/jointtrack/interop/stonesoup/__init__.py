@@ -49,6 +49,10 @@ assignment-sum core (:mod:`jointtrack.assignment.core`) through
 * A cluster of one track is PDA (Bojilov eqs. (1)–(3)), exact, for all such
   tracks at once (:func:`jointtrack.association.pda_pair_marginals`).
 * :class:`JPDALBP` uses that LBP for every cluster of two or more tracks.
+* :class:`FastPDAHypothesiser` is Stone Soup's ``PDAHypothesiser`` with the
+  same hypotheses, computed with one prediction per track and the gate and
+  likelihoods of all (linear-model) detections at once; in Stone Soup's
+  tracker the hypothesiser is the larger cost once association is fast.
 * ``last_clusters`` lists, after each call, every cluster as ``(n_tracks,
   n_detections, method, reason)``: ``method`` is ``"pda"`` for one-track
   clusters, else the method used; ``reason`` says why the approximation was
