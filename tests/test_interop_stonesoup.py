@@ -493,3 +493,27 @@ def test_stonesoup_tracker_with_fast_hypothesiser_and_ours_tracks_as_ehm2():
             atol=1e-5,
         )
     assert len(b) >= 3
+
+
+# ------------------------------------------------------------- YAML configurations
+def test_stonesoup_yaml_configuration_with_our_components_round_trips():
+    from ruamel.yaml.constructor import ConstructorError
+    from stonesoup.serialise import YAML
+
+    yaml = YAML()
+    original = _stonesoup_tracker(JPDAExact, hypothesiser_class=FastPDAHypothesiser)
+    original.data_associator.max_bits = 20
+    text = yaml.dumps(original)
+    assert "!jointtrack.interop.stonesoup.associators.JPDAExact" in text
+    loaded = yaml.load(text)
+    assert type(loaded.data_associator) is JPDAExact and loaded.data_associator.max_bits == 20
+    assert type(loaded.data_associator.hypothesiser) is FastPDAHypothesiser
+    _, scans = _scene(seed=5, n_steps=12)
+    for t, dets in scans:
+        _, a = original.update_tracker(t, dets)
+        _, b = loaded.update_tracker(t, dets)
+        assert _states(a) == _states(b)
+    with pytest.raises(ConstructorError, match="not a jointtrack Stone Soup component"):
+        yaml.load("!jointtrack.errors.ExactLimitError\n- x: 1\n")
+    with pytest.raises(ConstructorError, match="not a jointtrack Stone Soup component"):
+        yaml.load("!jointtrack.nowhere.Thing\n- x: 1\n")

@@ -72,7 +72,8 @@ or take an explicit index.
 
 Stone Soup is an optional dependency: ``pip install 'jointtrack[stonesoup]'``.
 Modules: :mod:`.associators` (``JPDAExact``, ``JPDALBP``), :mod:`.hypothesiser`
-(``FastPDAHypothesiser``), :mod:`.converters`.
+(``FastPDAHypothesiser``), :mod:`.converters`, :mod:`.serialise` (Stone Soup's
+YAML reads configurations that name these components).
 """
 
 from __future__ import annotations
@@ -91,6 +92,7 @@ from jointtrack.interop.stonesoup.converters import (
     truth_from_stonesoup,
 )
 from jointtrack.interop.stonesoup.hypothesiser import FastPDAHypothesiser
+from jointtrack.interop.stonesoup.serialise import TAG_PREFIX as _TAG_PREFIX  # noqa: F401 - registers the YAML reader
 
 __all__ = [
     "FastPDAHypothesiser",
