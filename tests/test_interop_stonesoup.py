@@ -336,6 +336,10 @@ def test_scans_from_stonesoup_sorts_and_keeps_everything():
     assert scans_from_stonesoup([(T0, set())])[0][1].shape == (0, 0)
     with pytest.raises(TypeError, match="pairs"):
         scans_from_stonesoup([1, 2])
+    with pytest.raises(TypeError, match="not a Stone Soup detection"):
+        scans_from_stonesoup([(T0, {"a"})])
+    with pytest.raises(TypeError, match="TrackHistory"):
+        tracks_to_stonesoup([1, 2, 3], epoch=T0)
 
 
 def test_truth_round_trip_and_reordering():

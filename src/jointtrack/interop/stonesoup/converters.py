@@ -62,7 +62,13 @@ def scans_from_stonesoup(scans: Iterable) -> list[tuple[_dt.datetime, np.ndarray
             raise TypeError(
                 "scans must be (timestamp, detections) pairs, as a Stone Soup detector yields"
             ) from None
-        rows = [np.asarray(d.state_vector, float).reshape(-1) for d in detections]
+        rows = []
+        for d in detections:
+            if getattr(d, "state_vector", None) is None:
+                raise TypeError(
+                    f"scans at {timestamp}: a {type(d).__name__} is not a Stone Soup detection"
+                )
+            rows.append(np.asarray(d.state_vector, float).reshape(-1))
         dims = {r.size for r in rows}
         if len(dims) > 1:
             raise ValueError(f"detections at {timestamp} have different sizes {sorted(dims)}")
@@ -133,6 +139,13 @@ def tracks_to_stonesoup(
     ``epoch`` the history's ``time_origin`` (set when the tracker was given
     datetimes), as a naive UTC datetime like Stone Soup's own.
     """
+    from jointtrack.trackers import TrackHistory
+
+    if not isinstance(history, TrackHistory):
+        raise TypeError(
+            f"history must be a jointtrack TrackHistory (tracker.history()), got "
+            f"{type(history).__name__}"
+        )
     if epoch is None:
         if history.time_origin is None:
             raise ValueError("the history has no time_origin (the scans were seconds): pass epoch=")
