@@ -23,7 +23,11 @@ def progress_bar(
     transient: bool = False,
 ):
     """The progress bar of every long command: description, bar, done/total [unit], elapsed
-    [, remaining]; ``enabled=False`` draws nothing (the work runs the same)."""
+    [, ETA remaining]; ``enabled=False`` draws nothing (the work runs the same).
+
+    ``unit`` is a rich ``TextColumn`` template, so it may name task fields
+    (the sweep's ``"failed {task.fields[failed]}"``).
+    """
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -39,5 +43,5 @@ def progress_bar(
         columns.append(TextColumn(unit))
     columns.append(TimeElapsedColumn())
     if remaining:
-        columns.append(TimeRemainingColumn())
+        columns += [TextColumn("ETA"), TimeRemainingColumn()]
     return Progress(*columns, console=console, disable=not enabled, transient=transient)

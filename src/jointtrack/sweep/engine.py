@@ -34,6 +34,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from jointtrack._console import progress_bar
 from jointtrack.sweep.cell import method_label, run_cell
 from jointtrack.sweep.spec import SweepSpec
 from jointtrack.sweep.store import ResultStore
@@ -162,25 +163,7 @@ def _failed_result(exc: BaseException) -> dict:
 
 
 def _progress(console, total: int, done: int):
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
-    bar = Progress(
-        TextColumn("sweep"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("failed {task.fields[failed]}"),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        console=console,
-    )
+    bar = progress_bar(console, unit="failed {task.fields[failed]}", remaining=True)
     task = bar.add_task("sweep", total=total, completed=done, failed=0)
     return bar, task
 
