@@ -105,6 +105,21 @@ def metric_value_ok(key: str, value) -> bool:
     return {"c": value > 0, "p": value >= 1, "switch_penalty": value >= 0}[key]
 
 
+def read_toml(path: Path, what: str, error: type[ValueError] = ValueError) -> dict:
+    """The parsed TOML file at ``path``; ``error`` with a one-line message naming the
+    file when it is missing, unreadable or not TOML (``what``: "config", "sweep spec")."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise error(f"{path}: no such {what} file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise error(f"{path}: cannot read the {what} file ({exc})") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{path}: not valid TOML: {_one_line(exc)}") from None
+
+
 def load_config(path) -> RunConfig:
     """Read a TOML run configuration (format: :mod:`jointtrack.experiments.run`).
 
@@ -113,16 +128,7 @@ def load_config(path) -> RunConfig:
     scenario function when the scenario is made (:func:`make_scenario`).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise RunConfigError(f"{path}: no such config file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RunConfigError(f"{path}: cannot read config file ({exc})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise RunConfigError(f"{path}: not valid TOML: {_one_line(exc)}") from None
+    data = read_toml(path, "config", RunConfigError)
     for key, value in data.items():
         if key not in _TABLES:
             raise RunConfigError(

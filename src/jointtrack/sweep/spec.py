@@ -36,7 +36,6 @@ import inspect
 import itertools
 import json
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -139,18 +138,10 @@ def run_id(params: Mapping, seed: int) -> str:
 
 def load_spec(path) -> SweepSpec:
     """Read and check a sweep spec TOML file (format: module docstring)."""
+    from jointtrack.experiments.config import read_toml
+
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no such sweep spec file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read the sweep spec ({exc})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not valid TOML: {' '.join(str(exc).split())}") from None
-    return parse_spec(data, source=str(path))
+    return parse_spec(read_toml(path, "sweep spec"), source=str(path))
 
 
 def parse_spec(data: Mapping, *, source: str | None = None) -> SweepSpec:
