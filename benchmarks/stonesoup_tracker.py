@@ -695,10 +695,7 @@ def plot(results: dict, path: str) -> None:
     the whole ``update_tracker`` step split into association proper, hypothesiser
     and rest, for each associator.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from jointtrack.experiments.plots import plt, save_figure  # the Agg backend
 
     variants = [
         (key, title)
@@ -744,8 +741,7 @@ def plot(results: dict, path: str) -> None:
         axes[1, col].legend(fontsize=7, ncol=2)
         axes[1, col].grid(alpha=0.3, axis="y")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def run(quick: bool = False, seed: int = 0, out: str | None = None) -> dict:

@@ -272,7 +272,7 @@ def _diagnostics(filt) -> dict:
 
 def _plot(path, sc, rows, ospa_per_scan, filter_name, likelihood, stop) -> Path:
     """Sensors, truth lines and estimate dots coloured by track; OSPA per scan below."""
-    from jointtrack.experiments.plots import _save, plt
+    from jointtrack.experiments.plots import plt, save_figure
 
     fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7.5, 9.5), gridspec_kw={"height_ratios": [3, 1]})
     ax.plot(sc.sensors[:, 0], sc.sensors[:, 1], "^", c="0.55", ms=7, label="sensors")
@@ -310,7 +310,7 @@ def _plot(path, sc, rows, ospa_per_scan, filter_name, likelihood, stop) -> Path:
     ax2.set_ylim(0, OSPA_C * 1.05)
     ax2.grid(alpha=0.2)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def print_acoustic_summary(metrics: dict, console) -> None:

@@ -20,17 +20,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from jointtrack.experiments.plots import save_figure  # noqa: E402
+
 __all__ = ["plot_bins", "plot_histograms"]
 
 HIST_BINS = 1000
-
-
-def _save(fig, path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+_DPI = 110
 
 
 def plot_histograms(path, hists: list[dict], title: str) -> Path:
@@ -59,7 +54,7 @@ def plot_histograms(path, hists: list[dict], title: str) -> Path:
         fontsize=10,
     )
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=_DPI)
 
 
 def plot_bins(path, bins: dict, title: str) -> Path:
@@ -77,4 +72,4 @@ def plot_bins(path, bins: dict, title: str) -> Path:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=_DPI)

@@ -19,15 +19,16 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-__all__ = ["plot_bojilov", "plot_gospa", "plot_scene", "plot_schaub"]
+__all__ = ["plot_bojilov", "plot_gospa", "plot_scene", "plot_schaub", "save_figure"]
 
 _MAX_LABELLED_TRACKS = 60
 
 
-def _save(fig, path) -> Path:
+def save_figure(fig, path, dpi: int = 120) -> Path:
+    """Write ``fig`` to ``path`` (its directory made), close it, return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
 
@@ -148,7 +149,7 @@ def plot_scene(
         ax.legend(loc="upper left", fontsize=8, markerscale=3, framealpha=0.85)
     ax.grid(alpha=0.2)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_gospa(path, series, title: str = "") -> Path:
@@ -175,7 +176,7 @@ def plot_gospa(path, series, title: str = "") -> Path:
     ax2.legend(loc="upper left", fontsize=8)
     ax2.grid(alpha=0.3)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 _METHOD_STYLE = {
@@ -271,7 +272,7 @@ def plot_bojilov(path, result: dict) -> Path:
         fontsize=11,
     )
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _key(beta) -> str:
@@ -347,4 +348,4 @@ def plot_schaub(path, res: dict, paper: dict) -> Path:
     )
     ax.legend(fontsize=8)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)

@@ -25,15 +25,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from jointtrack.experiments.plots import save_figure  # noqa: E402
+
 __all__ = ["plot_cost", "plot_figure1", "plot_figure3", "plot_figure4"]
-
-
-def _save(fig, path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
 
 
 def plot_figure1(path, fig1: dict, n_theta: int = 2001) -> Path:
@@ -60,7 +54,7 @@ def plot_figure1(path, fig1: dict, n_theta: int = 2001) -> Path:
         fontsize=10,
     )
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_figure3(path, result: dict) -> Path:
@@ -113,7 +107,7 @@ def plot_figure3(path, result: dict) -> Path:
         fontsize=10,
     )
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_figure4(path, result: dict) -> Path:
@@ -131,7 +125,7 @@ def plot_figure4(path, result: dict) -> Path:
     )
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 _STYLE = {
@@ -239,4 +233,4 @@ def plot_cost(path, result: dict) -> Path:
         fontsize=10,
     )
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
