@@ -64,3 +64,26 @@ def test_no_approximation_raises_past_the_budget():
         budgeted_marginals(L, miss, exact_options={"max_bits": 3}, approximation=None)
     res = budgeted_marginals(L, miss, approximation=None)
     assert res.method == "exact"
+
+
+def test_cluster_pair_marginals_equal_the_dense_exact_marginals():
+    from jointtrack.association import exact_marginals
+    from jointtrack.association.clustering import cluster_pair_marginals, clusters
+
+    rng = np.random.default_rng(0)  # gating: clusters of 5, 1 and 1 tracks
+    L = rng.random((7, 9)) * (rng.random((7, 9)) < 0.25)
+    miss = rng.random(7) * 0.5 + 0.01
+    rows, cols = np.nonzero(L)
+    groups = clusters((7, 9, rows, cols))
+    seen = []
+
+    def solve(k, tr, ms, Lc, mc):
+        seen.append(len(tr))
+        return exact_marginals(Lc, mc)
+
+    beta0, pair_beta = cluster_pair_marginals(groups, rows, cols, L[rows, cols], miss, solve)
+    dense = exact_marginals(L, miss)
+    np.testing.assert_allclose(beta0, dense[:, 0], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(pair_beta, dense[rows, 1 + cols], rtol=1e-12, atol=1e-15)
+    assert seen and all(n > 1 for n in seen)  # only multi-track clusters reach solve
+    assert len(seen) < len(groups)  # and some tracks were alone (PDA)

@@ -62,7 +62,7 @@ STAGES = [
     "gate_pairs",
     "clusters",
     "likelihood_ratio_pairs",
-    "pda_pair_marginals",
+    "cluster_pair_marginals",
     "budgeted_marginals",
     "pda_pairs_update",
     "existence_update",

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-__all__ = ["Cluster", "Clustering", "clusters", "has_feasible_event"]
+__all__ = ["Cluster", "Clustering", "cluster_pair_marginals", "clusters", "has_feasible_event"]
 
 
 @dataclass(frozen=True)
@@ -228,6 +228,54 @@ def _clustering_from_pairs(n: int, m: int, rows: np.ndarray, cols: np.ndarray) -
         track_cluster=track_cluster,
         measurement_cluster=measurement_cluster,
     )
+
+
+def cluster_pair_marginals(groups: Clustering, rows, cols, L_pairs, miss, solve):
+    """β of every track's missed detection and of every gated pair, cluster by cluster.
+
+    ``rows``/``cols`` (P,) are the gated pairs (track, measurement) that
+    ``groups`` was built from, ``L_pairs`` (P,) their likelihood ratios,
+    ``miss`` (N,) the miss weights. One-track clusters (usually most tracks) get
+    PDA, exact for one track, all at once
+    (:func:`~jointtrack.association.pda.pda_pair_marginals`). Each multi-track
+    cluster ``k`` is handed to ``solve(k, tracks, measurements, L, miss_k)`` as
+    its dense ``L`` (n_k × m_k) and ``miss_k``; ``solve`` returns its β
+    (n_k × (m_k + 1)), column 0 = no measurement.
+
+    Returns ``(beta0 (N,), pair_beta (P,))``.
+    """
+    from jointtrack.association.pda import pda_pair_marginals
+
+    rows = np.asarray(rows, np.int64)
+    cols = np.asarray(cols, np.int64)
+    size = np.bincount(groups.track_cluster, minlength=len(groups.clusters))
+    alone = size[groups.track_cluster] == 1
+    pair_alone = alone[rows]
+    beta0 = np.ones(len(miss))
+    pair_beta = np.zeros(len(rows))
+    # tracks of larger clusters have no pairs in this call: a dummy miss of 1 keeps
+    # a zero miss weight there from reading as "no way to explain this track"
+    b0, w = pda_pair_marginals(rows[pair_alone], L_pairs[pair_alone], np.where(alone, miss, 1.0))
+    beta0[alone] = b0[alone]
+    pair_beta[pair_alone] = w
+    multi = np.flatnonzero(size > 1)
+    if multi.size == 0:
+        return beta0, pair_beta
+    # the gated pairs of each multi-track cluster, contiguous
+    pair_cluster = groups.track_cluster[rows]
+    order = np.argsort(pair_cluster, kind="stable")
+    starts = np.searchsorted(pair_cluster[order], multi, side="left")
+    ends = np.searchsorted(pair_cluster[order], multi, side="right")
+    for k, lo, hi in zip(multi, starts, ends, strict=True):
+        tr, ms = groups.clusters[k].tracks, groups.clusters[k].measurements
+        idx = order[lo:hi]
+        a, b = np.searchsorted(tr, rows[idx]), np.searchsorted(ms, cols[idx])
+        L = np.zeros((len(tr), len(ms)))
+        L[a, b] = L_pairs[idx]
+        beta = solve(int(k), tr, ms, L, miss[tr])
+        beta0[tr] = beta[:, 0]
+        pair_beta[idx] = beta[a, 1 + b]
+    return beta0, pair_beta
 
 
 def has_feasible_event(L, miss) -> bool:

@@ -26,10 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from jointtrack.association.budget import budgeted_marginals
-from jointtrack.association.clustering import clusters
+from jointtrack.association.clustering import cluster_pair_marginals, clusters
 from jointtrack.association.clutter import cluster_heuristic_densities
 from jointtrack.association.gating import gate_pairs, likelihood_ratio_pairs
-from jointtrack.association.pda import pda_pair_marginals
 from jointtrack.filters import (
     ekf_predict_measurement,
     pda_pairs_update,
@@ -468,44 +467,19 @@ class JPDATracker:
         pdg = c.detection_in_gate(self._p_d)
         miss = 1.0 - r * pdg
         rows, cols = g.rows, g.cols
-        # single-track clusters (most of a scan): PDA, vectorised over all of them
-        size = np.bincount(groups.track_cluster, minlength=len(groups.clusters))
-        alone = size[groups.track_cluster] == 1
-        pair_alone = alone[rows]
-        beta0 = np.ones(n)
-        weights = np.zeros(len(rows))
-        b0, w = pda_pair_marginals(rows[pair_alone], L_pairs[pair_alone], miss)
-        beta0[alone] = b0[alone]
-        weights[pair_alone] = w
         sizes, seconds, methods, fallbacks = [], [], [], []
-        multi = np.flatnonzero(size > 1)
-        if multi.size:
-            # the gated pairs of each multi-track cluster, contiguous
-            pair_cluster = groups.track_cluster[rows]
-            order = np.argsort(pair_cluster, kind="stable")
-            starts = np.searchsorted(pair_cluster[order], multi, side="left")
-            ends = np.searchsorted(pair_cluster[order], multi, side="right")
-            for k, lo, hi in zip(multi, starts, ends, strict=True):
-                cl = groups.clusters[k]
-                tr, ms = cl.tracks, cl.measurements
-                idx = order[lo:hi]
-                if len(ms) == 0:
-                    continue
-                Lc = np.zeros((len(tr), len(ms)))
-                Lc[np.searchsorted(tr, rows[idx]), np.searchsorted(ms, cols[idx])] = L_pairs[idx]
-                bc, method, reason, dt_s = self._cluster_marginals(Lc, miss[tr], loud)
-                fallbacks.append(reason)
-                seconds.append(dt_s)
-                sizes.append((len(tr), len(ms)))
-                methods.append(method)
-                beta0[tr] = bc[:, 0]
-                weights[idx] = bc[
-                    np.searchsorted(tr, rows[idx]), 1 + np.searchsorted(ms, cols[idx])
-                ]
-                if self.on_cluster is not None:
-                    self.on_cluster(
-                        ClusterRecord(self.ids[tracks[tr]], Lc, miss[tr], bc, dt_s, method, loud)
-                    )
+
+        def solve(k, tr, ms, Lc, mc):
+            bc, method, reason, dt_s = self._cluster_marginals(Lc, mc, loud)
+            fallbacks.append(reason)
+            seconds.append(dt_s)
+            sizes.append((len(tr), len(ms)))
+            methods.append(method)
+            if self.on_cluster is not None:
+                self.on_cluster(ClusterRecord(self.ids[tracks[tr]], Lc, mc, bc, dt_s, method, loud))
+            return bc
+
+        beta0, weights = cluster_pair_marginals(groups, rows, cols, L_pairs, miss, solve)
         used = None
         if c.existence:
             used = weights.copy()  # unconditional: how much each pair explains its return

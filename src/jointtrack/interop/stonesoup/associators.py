@@ -23,8 +23,7 @@ from stonesoup.types.multihypothesis import MultipleHypothesis
 from stonesoup.types.numeric import Probability
 
 from jointtrack.association.budget import APPROXIMATIONS, budgeted_marginals
-from jointtrack.association.clustering import clusters
-from jointtrack.association.pda import pda_pair_marginals
+from jointtrack.association.clustering import cluster_pair_marginals, clusters
 from jointtrack.errors import ExactLimitError, InfeasibleAssignmentError
 
 __all__ = ["JPDAExact", "JPDALBP"]
@@ -187,32 +186,17 @@ class JPDAExact(DataAssociator):
             L_pairs = np.exp(logw - top[rows])
             miss = np.exp(log_miss - top)
         groups = clusters((N, len(column), rows, cols))
-        # one-track clusters (most tracks, usually): PDA is exact, all at once
-        size = np.bincount(groups.track_cluster, minlength=len(groups.clusters))
-        alone = size[groups.track_cluster] == 1
-        pair_alone = alone[rows]
-        miss_beta, pair_beta = np.ones(N), np.zeros(len(rows))
-        b0, w = pda_pair_marginals(rows[pair_alone], L_pairs[pair_alone], np.where(alone, miss, 1))
-        miss_beta[alone] = b0[alone]
-        pair_beta[pair_alone] = w
-        n_gated = np.bincount(rows[pair_alone], minlength=N)[alone]
-        self.last_clusters = [(1, int(n), "pda", "") for n in n_gated]
-        # the others, cluster by cluster, under the budget; their pairs made contiguous
-        pair_cluster = groups.track_cluster[rows]
-        order = np.argsort(pair_cluster, kind="stable")
-        multi = np.flatnonzero(size > 1)
-        starts = np.searchsorted(pair_cluster[order], multi, side="left")
-        ends = np.searchsorted(pair_cluster[order], multi, side="right")
-        for k, lo, hi in zip(multi, starts, ends, strict=True):
-            tr, ms = groups.clusters[k].tracks, groups.clusters[k].measurements
-            idx = order[lo:hi]
-            a_idx, b_idx = np.searchsorted(tr, rows[idx]), np.searchsorted(ms, cols[idx])
-            L = np.zeros((len(tr), len(ms)))
-            L[a_idx, b_idx] = L_pairs[idx]
-            beta, method, reason = self._cluster_beta(L, miss[tr], tr, track_list)
+        # one-track clusters: PDA (exact); the others under the budget
+        self.last_clusters = [
+            (1, int(len(cl.measurements)), "pda", "") for cl in groups if len(cl.tracks) == 1
+        ]
+
+        def solve(k, tr, ms, L, miss_k):
+            beta, method, reason = self._cluster_beta(L, miss_k, tr, track_list)
             self.last_clusters.append((len(tr), len(ms), method, reason))
-            miss_beta[tr] = beta[:, 0]
-            pair_beta[idx] = beta[a_idx, 1 + b_idx]
+            return beta
+
+        miss_beta, pair_beta = cluster_pair_marginals(groups, rows, cols, L_pairs, miss, solve)
         pair_of = {(int(r), int(c)): k for k, (r, c) in enumerate(zip(rows, cols, strict=True))}
         return self._hypotheses_out(hypotheses, track_list, pair_of, pair_beta, miss_beta, column)
 
