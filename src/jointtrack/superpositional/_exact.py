@@ -61,11 +61,14 @@ _LOG_2PI = math.log(2.0 * math.pi)
 
 @numba.njit(cache=True)
 def _compositions(n, K):
-    """All compositions of n into K non-negative parts, (C(n+K−1, K−1), K) int16."""
+    """All compositions of n into K non-negative parts, (C(n+K−1, K−1), K) int64.
+
+    int64, not a narrower type: a Poisson cardinality near a mean of 1e5 exceeds 2^15.
+    """
     count = 1
     for j in range(1, K):
         count = count * (n + j) // j
-    out = np.zeros((count, K), np.int16)
+    out = np.zeros((count, K), np.int64)
     a = np.zeros(K, np.int64)
     a[0] = n
     for row in range(count):
@@ -197,7 +200,7 @@ def _terms(model, m) -> _Terms:
         bmean = model.means @ H.T
         bcov = H @ model.covs @ H.T
         n = frac.size
-        bits = ((np.arange(2**n)[:, None] >> np.arange(n)[None]) & 1).astype(np.int16)
+        bits = ((np.arange(2**n)[:, None] >> np.arange(n)[None]) & 1).astype(np.int64)
         lr, l1r = np.log(r[frac]), np.log1p(-r[frac])
         log_coef = bits @ (lr - l1r) + l1r.sum()
         return _Terms(
@@ -222,7 +225,7 @@ def _terms(model, m) -> _Terms:
             lc = math.log(pmf[n]) + gammaln(n + 1.0) - gammaln(comp + 1.0).sum(axis=1) + comp @ lw
             blocks.append(comp)
             coefs.append(lc)
-        counts = np.concatenate(blocks, axis=0) if blocks else np.zeros((1, K), np.int16)
+        counts = np.concatenate(blocks, axis=0) if blocks else np.zeros((1, K), np.int64)
         log_coef = np.concatenate(coefs) if coefs else np.array([-np.inf])
         return _Terms(
             counts,
