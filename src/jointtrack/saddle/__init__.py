@@ -13,6 +13,7 @@ International Conference on Information Fusion* (FUSION), 2015.
 
 from jointtrack.saddle.derivative import (
     METHODS,
+    ExactRangeError,
     SaddlePoint,
     SaddlePointError,
     jpda_log_weights,
@@ -23,6 +24,7 @@ from jointtrack.saddle.generating import check_coefficients, jpda_coefficients, 
 
 __all__ = [
     "METHODS",
+    "ExactRangeError",
     "SaddlePoint",
     "SaddlePointError",
     "check_coefficients",

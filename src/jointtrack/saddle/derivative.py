@@ -98,6 +98,7 @@ from jointtrack.saddle.generating import check_coefficients
 
 __all__ = [
     "METHODS",
+    "ExactRangeError",
     "SaddlePoint",
     "SaddlePointError",
     "jpda_log_weights",
@@ -115,52 +116,139 @@ class SaddlePointError(ValueError):
 
 # --------------------------------------------------------------------------- exact
 
+# a row whose log weights span at most this keeps its largest weight at 1 (nothing it
+# holds goes below e^-700, a normal float); wider rows are centred instead
+_ROW_SPAN = 700.0
+# the widest span of weights that can matter which one row can hold, centred: e^±650
+# keeps every weight, and a row sum of many of them, finite and normal
+_MAX_SPAN = 1300.0
+# an entry whose reduced cost (from the best assignment's dual) is above log N + this
+# changes I by less than e^-45 ≈ 3e-20 relative (N: the number of assignments)
+_NEGLIGIBLE = 45.0
 
-def _exact_one(a0: float, log_a: np.ndarray, F: np.ndarray) -> float:
-    """log I for one (K, M+1) problem by the assignment-sum core."""
-    K, M1 = F.shape
+
+class ExactRangeError(ValueError):
+    """``method="exact"``: weights that matter span more than the float range within one factor."""
+
+
+def _core_problem(log_a: np.ndarray, F: np.ndarray):
+    """The core's (W, null, log scale) for one (K, M+1) problem, or None when I = 0.
+
+    The core weighs an unused column 1, so column m is divided by a_m (a free
+    factor Π a_m) and only row scalings remain free: a row scale multiplies
+    every term once. A row whose ratios f_km/a_m, f_k0 span ≤ e^700 is scaled to
+    largest weight 1. A wider row is scaled by its best-assignment dual
+    (:func:`jointtrack.assignment.scaling.group_log_scales`): an entry whose
+    reduced cost exceeds log N + 45 (N assignments) changes I by < 3e-20
+    relative and is dropped; the rest is centred in e^±650. If what remains
+    still spans more than e^1300 no float problem holds it, and
+    :class:`ExactRangeError` says so (never a silent flush to 0).
+    """
+    K = F.shape[0]
     with np.errstate(divide="ignore"):
         logW = np.log(F[:, 1:]) - log_a[None, :]
         lognull = np.log(F[:, 0])
-    # a row scale multiplies every term once (the row is used or null): bring each
-    # row's largest weight to 1 so nothing overflows, and add the scales back
-    shift = np.maximum(logW.max(axis=1, initial=-np.inf), lognull)
-    dead = shift == -np.inf  # a factor with no way to be satisfied: Ψ ≡ 0
-    if dead.any():
-        return -math.inf
+    top = np.maximum(logW.max(axis=1, initial=-np.inf), lognull)
+    if (top == -np.inf).any():  # a factor with no way to be satisfied: Ψ ≡ 0
+        return None
+    if (top - _row_low(logW, lognull) <= _ROW_SPAN).all():
+        shift = top
+    else:
+        logW, lognull, shift = _centre_wide_rows(logW, lognull)
+        if shift is None:
+            return None
     W = np.exp(logW - shift[:, None])
     null = np.exp(lognull - shift)
+    return np.ascontiguousarray(W), null, float(shift.sum()), K
+
+
+def _row_low(logW, lognull):
+    """Each row's smallest positive weight (log), null included."""
+    low = np.where(np.isfinite(logW), logW, np.inf).min(axis=1, initial=np.inf)
+    return np.minimum(low, np.where(np.isfinite(lognull), lognull, np.inf))
+
+
+def _centre_wide_rows(logW, lognull):
+    """Row shifts for rows wider than e^700: drop what cannot matter, centre the rest."""
+    from jointtrack.assignment.scaling import group_log_scales
+
+    K, M = logW.shape
+    alpha, gamma, ok = group_log_scales(logW, lognull, np.ones(K, np.int64), np.ones(M, np.int64))
+    if not ok:
+        return logW, lognull, None
+    cut = K * math.log(M + 1.0) + _NEGLIGIBLE  # log N ≤ K log(M + 1)
+    with np.errstate(invalid="ignore"):
+        keepW = -(logW + alpha[:, None] + gamma[None, :]) <= cut
+        keep0 = -(lognull + alpha) <= cut
+    logW = np.where(keepW, logW, -np.inf)
+    lognull = np.where(keep0, lognull, -np.inf)
+    top = np.maximum(logW.max(axis=1, initial=-np.inf), lognull)
+    low = _row_low(logW, lognull)
+    wide = top - low > _MAX_SPAN
+    if wide.any():
+        k = int(np.flatnonzero(wide)[0])
+        raise ExactRangeError(
+            f"method='exact': within factor F[{k}] the ratios f_km/a_m and f_k0 that can "
+            f"matter span e^{top[k] - low[k]:.0f}, more than a float problem can hold "
+            f"(e^{_MAX_SPAN:.0f}); rescaling the whole problem does not help (only the "
+            "spread within one factor counts)"
+        )
+    shift = np.where(top - low <= _ROW_SPAN, top, 0.5 * (top + low))
+    return logW, lognull, shift
+
+
+def _log_sum(log_a: np.ndarray, F: np.ndarray, marginals: bool = False):
+    """``(log(I e^{-a0}), core result)`` for one (K, M+1) problem; ``(-inf, None)`` when I = 0."""
+    prob = _core_problem(log_a, F)
+    if prob is None:
+        return -math.inf, None
+    W, null, scale, K = prob
     try:
         res = solve_checked(
-            np.ascontiguousarray(W),
+            W,
             null,
             np.ones(K, np.int64),
-            np.ones(M1 - 1, np.int64),
-            False,
+            np.ones(W.shape[1], np.int64),
+            marginals,
             "auto",
             DEFAULT_MAX_BITS,
             DEFAULT_MAX_MEMORY,
             False,
         )
     except InfeasibleAssignmentError:
-        return -math.inf
-    return a0 + float(log_a.sum()) + res.log_normalizer + float(shift.sum())
+        return -math.inf, None
+    if res.log_normalizer == -math.inf:
+        return -math.inf, None
+    return float(log_a.sum()) + res.log_normalizer + scale, res
+
+
+def _exact_one(a0: float, log_a: np.ndarray, F: np.ndarray) -> float:
+    """log I for one (K, M+1) problem by the assignment-sum core."""
+    return a0 + _log_sum(log_a, F)[0]
+
+
+# a measurement the other targets leave unused with probability below this gets its
+# unused mass from a leave-one-out sum: 1 − Σ_k P_km would lose its digits
+_UNUSED_DIRECT = 1.0 / 16.0
 
 
 def jpda_log_weights(a0, a, b, C) -> np.ndarray:
     """Exact log particle weights of one target, batched: one core call for all particles.
 
     ``b`` (L, M+1): the particles' own factor; ``C`` (K−1, M+1): the other
-    targets' factors (shared). With Z' the assignment sum of the other factors
-    and u_m the probability that measurement m is clutter there,
+    targets' factors (shared). With I' the mixed derivative of the other
+    factors alone and I'_{−m} the same without measurement m,
 
-        I_l = T · (b_l0 + Σ_m b_lm u_m / a_m),   T = e^{a0} Π a_m Z',
+        I_l = e^{a0} (b_l0 I' + Σ_m b_lm I'_{−m}),
 
-    because fixing measurement m to the particle removes it from the others'
-    problem: Z'_{−m} = Z' u_m / a_m. Cost: one forward–backward pass of the core
-    plus O(L M). u_m carries the core's absolute error (~1e-16), so a weight
-    dominated by a measurement another target holds almost surely is accurate
-    to that absolute level relative to the largest weight.
+    since a particle that takes measurement m leaves the others the problem
+    without it. One forward–backward pass of the core gives I' and the
+    probability u_m that the others leave m unused, I'_{−m} = I' u_m / a_m;
+    u_m = 1 − Σ_k P_km is accurate only while it is not small, so a
+    measurement the others use with probability above 15/16 gets I'_{−m} from
+    its own core call instead (no cancellation: every weight is accurate
+    relative to itself, not merely to the largest). Cost: one pass plus O(L M),
+    plus one value-only core call per such measurement.
     """
     a0, a, b, _ = check_coefficients(a0, a, b)
     _, _, C, _ = check_coefficients(a0, a, C)
@@ -169,36 +257,22 @@ def jpda_log_weights(a0, a, b, C) -> np.ndarray:
         with np.errstate(divide="ignore"):
             return a0 + np.log(C[:, 0]).sum() + np.log(b[:, 0])
     if C.shape[0]:
+        log_rest, res = _log_sum(log_a, C, marginals=True)
+        if res is None:  # I' = 0, and with a measurement fewer too
+            return np.full(b.shape[0], -np.inf)
+        used = res.P.sum(axis=0)
         with np.errstate(divide="ignore"):
-            logW = np.log(C[:, 1:]) - log_a[None, :]
-            lognull = np.log(C[:, 0])
-        shift = np.maximum(logW.max(axis=1, initial=-np.inf), lognull)
-        if (shift == -np.inf).any():
-            return np.full(b.shape[0], -np.inf)
-        try:
-            res = solve_checked(
-                np.ascontiguousarray(np.exp(logW - shift[:, None])),
-                np.exp(lognull - shift),
-                np.ones(C.shape[0], np.int64),
-                np.ones(a.size, np.int64),
-                True,
-                "auto",
-                DEFAULT_MAX_BITS,
-                DEFAULT_MAX_MEMORY,
-                False,
-            )
-        except InfeasibleAssignmentError:
-            return np.full(b.shape[0], -np.inf)
-        log_T = a0 + float(log_a.sum()) + res.log_normalizer + float(shift.sum())
-        unused = np.clip(1.0 - res.P.sum(axis=0), 0.0, 1.0)
+            log_without = log_rest + np.log(np.clip(1.0 - used, 0.0, 1.0)) - log_a
+        for m in np.flatnonzero(1.0 - used < _UNUSED_DIRECT):
+            log_without[m] = _log_sum(np.delete(log_a, m), np.delete(C, m + 1, axis=1))[0]
     else:
-        log_T = a0 + float(log_a.sum())
-        unused = np.ones(a.size)
+        log_rest = float(log_a.sum())
+        log_without = log_rest - log_a
     with np.errstate(divide="ignore"):
         terms = np.concatenate(
-            [np.log(b[:, :1]), np.log(b[:, 1:]) + np.log(unused) - log_a], axis=1
+            [np.log(b[:, :1]) + log_rest, np.log(b[:, 1:]) + log_without[None, :]], axis=1
         )
-    return log_T + logsumexp(terms, axis=1)
+    return a0 + logsumexp(terms, axis=1)
 
 
 # --------------------------------------------------------------------------- saddle point

@@ -1,0 +1,198 @@
+"""Issue 22 (saddle, superpositional): exact paths against rational references at any magnitude.
+
+The property tests draw the magnitudes that found the defects: coefficients from
+subnormal to 1e300 and exact zeros, Poisson means up to 1e6.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
+from scipy.special import logsumexp
+from scipy.stats import norm, poisson
+
+from brute import log_fraction
+from jointtrack.saddle import ExactRangeError, jpda_log_weights, log_mixed_derivative
+from jointtrack.superpositional import Poisson, likelihood
+
+SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+# --------------------------------------------------------------------------- strategies
+
+#: a positive float anywhere from the smallest subnormal to 1e300, log-uniformly
+positive = st.builds(
+    lambda m, e: float(m * 10.0**e),
+    st.floats(1.0, 9.99),
+    st.integers(-323, 299),
+).filter(lambda x: 0.0 < x < math.inf)
+#: a coefficient: those magnitudes, exact zeros, and plain values
+coefficient = st.one_of(st.just(0.0), st.just(1.0), st.floats(0.0, 1.0), positive)
+
+
+@st.composite
+def problems(draw, max_k=3, max_m=3):
+    M = draw(st.integers(1, max_m))
+    K = draw(st.integers(1, max_k))
+    a = draw(st.lists(st.one_of(positive, st.floats(1e-3, 1.0)), min_size=M, max_size=M))
+    F = draw(
+        st.lists(st.lists(coefficient, min_size=M + 1, max_size=M + 1), min_size=K, max_size=K)
+    )
+    return np.array(a), np.array(F, dtype=float)
+
+
+# --------------------------------------------------------------------------- references
+
+
+def brute_I(a, F) -> Fraction:
+    """∂^M Ψ/∂β_1…∂β_M (0) at a0 = 0 in exact rationals: every assignment of measurements."""
+    a = [Fraction(float(x)) for x in a]
+    F = [[Fraction(float(x)) for x in row] for row in np.asarray(F, float)]
+    M = len(a)
+    total = Fraction(0)
+    for choice in itertools.product(range(M + 1), repeat=len(F)):  # 0 = none
+        taken = [j for j in choice if j]
+        if len(taken) != len(set(taken)):
+            continue
+        w = Fraction(1)
+        for k, j in enumerate(choice):
+            w *= F[k][j]
+        for m in range(M):
+            if m + 1 not in taken:
+                w *= a[m]
+        total += w
+    return total
+
+
+def _span(a, F) -> float:
+    """Widest spread (nats) of the ratios f_km/a_m and f_k0 within one factor."""
+    with np.errstate(divide="ignore"):
+        L = np.concatenate([np.log(F[:, :1]), np.log(F[:, 1:]) - np.log(a)[None]], axis=1)
+    L = np.where(np.isfinite(L), L, np.nan)
+    with np.errstate(invalid="ignore"):
+        spans = np.nanmax(L, axis=1) - np.nanmin(L, axis=1)
+    return float(np.nanmax(spans, initial=0.0))
+
+
+# --------------------------------------------------------------------------- item 5
+
+
+def test_jpda_weight_of_a_measurement_another_target_holds_almost_surely():
+    # issue 22 item 5: 1 − P.sum(0) cancelled to 0, then was divided by a tiny a_m
+    got = jpda_log_weights(0.0, [1e-20], [[1e-30, 1.0], [0.5, 0.5]], [[1.0, 1.0]])
+    np.testing.assert_allclose(got, [0.0, 0.0], atol=1e-15)
+
+
+@st.composite
+def jpda_problems(draw):
+    """(a, b, C): clutter terms, L particles' own factors, the other targets' factors."""
+    M = draw(st.integers(1, 3))
+    row = st.lists(coefficient, min_size=M + 1, max_size=M + 1)
+    a = draw(st.lists(st.one_of(positive, st.floats(1e-3, 1.0)), min_size=M, max_size=M))
+    b = draw(st.lists(row, min_size=1, max_size=3))
+    C = draw(st.lists(row, min_size=0, max_size=2))
+    return np.array(a), np.array(b, dtype=float), np.array(C, dtype=float).reshape(-1, M + 1)
+
+
+@SETTINGS
+@example(problem=(np.array([1e-20]), np.array([[1e-30, 1.0], [0.5, 0.5]]), np.array([[1.0, 1.0]])))
+@given(jpda_problems())
+def test_jpda_log_weights_equal_rational_enumeration(problem):
+    a, b, C = problem
+    exact = [brute_I(a, np.vstack([bl[None], C])) for bl in b]
+    top = max(exact)
+    try:
+        got = jpda_log_weights(0.0, a, b, C)
+    except ExactRangeError:
+        assert C.shape[0] and _span(a, C) > 1300.0
+        return
+    assert got.shape == (b.shape[0],) and not np.isnan(got).any()
+    if top == 0:
+        assert (got == -np.inf).all()
+        return
+    log_top = log_fraction(top)
+    for g, e in zip(got, exact, strict=True):
+        rel = float(e / top)  # the exact weight relative to the largest
+        assert abs(math.exp(g - log_top) - rel) <= 1e-12, (g, log_fraction(e))
+        if e == 0:
+            assert g == -np.inf
+        elif rel > 1e-250:
+            # and each weight relative to itself (not merely to the largest)
+            le = log_fraction(e)
+            assert abs(g - le) <= 1e-12 * max(1.0, abs(le)), (g, le)
+
+
+# --------------------------------------------------------------------------- item 6
+
+
+def test_exact_derivative_when_one_factor_spans_beyond_the_float_range():
+    # issue 22 item 6: f_01/a_1 = 1e200 and f_02/a_2 = 1e-200 in one factor flushed to 0
+    assert log_mixed_derivative(0.0, [1e-200, 1e200], [[0, 1, 1], [0, 1, 0]]) == 0.0
+
+
+def test_exact_refuses_what_no_float_problem_holds():
+    # 1e-600 against 1e600 in one factor, both needed: a clear error, never −inf
+    with pytest.raises(ExactRangeError, match=r"F\[0\].*span"):
+        log_mixed_derivative(0.0, [1e-300, 1e300], [[0, 1e300, 1e-300], [0, 1, 0]])
+
+
+@SETTINGS
+@example(problem=(np.array([1e-200, 1e200]), np.array([[0.0, 1, 1], [0, 1, 0]])))
+@given(problems())
+def test_exact_derivative_equals_rational_enumeration_at_any_magnitude(problem):
+    a, F = problem
+    exact = brute_I(a, F)
+    try:
+        got = log_mixed_derivative(0.0, a, F)
+    except ExactRangeError:
+        assert _span(a, F) > 1300.0
+        return
+    if exact == 0:
+        assert got == -math.inf
+        return
+    ref = log_fraction(exact)
+    assert abs(got - ref) <= 1e-12 * max(1.0, abs(ref)), (got, ref)
+
+
+# --------------------------------------------------------------------------- item 7
+
+
+def _poisson_reference(lam, m, P, s0, y):
+    """log Σ_n Poisson(n; λ) N(y; n m, s0 + n P) by scipy, summed over λ ± 40√λ."""
+    half = 40.0 * math.sqrt(lam) + 40.0
+    n = np.arange(max(0, int(lam - half)), int(lam + half) + 1)
+    return float(logsumexp(poisson.logpmf(n, lam) + norm.logpdf(y, n * m, np.sqrt(s0 + n * P))))
+
+
+def _exact_poisson(lam, m, P, s0, y):
+    model = Poisson(lam, [1.0], [[m]], [[[P]]])
+    return likelihood(np.array([y]), model, np.array([[1.0]]), np.array([[s0]]), method="exact")
+
+
+@pytest.mark.parametrize("lam", [40_000.0, 70_000.0])
+def test_exact_poisson_likelihood_counts_beyond_int16(lam):
+    # issue 22 item 7: counts stored as int16 wrapped at 32 768 (−707.9, +683 421)
+    y = lam * 1.0 + 3.0
+    got = _exact_poisson(lam, 1.0, 0.5, 0.3, y).log_value
+    assert got == pytest.approx(_poisson_reference(lam, 1.0, 0.5, 0.3, y), abs=1e-9)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@example(lam=40_000.0, z=0.3, m=1.0)
+@example(lam=1e6, z=-1.0, m=0.01)
+@given(
+    lam=st.one_of(st.just(0.0), st.floats(0.0, 1e6)),
+    z=st.floats(-3.0, 3.0),
+    m=st.floats(1e-3, 10.0),
+)
+def test_exact_poisson_likelihood_equals_scipy_for_means_up_to_1e6(lam, z, m):
+    P, s0 = 0.25 * m * m, 0.3
+    y = lam * m + z * math.sqrt(s0 + lam * (m * m + P))  # within a few sd of the mean
+    got = _exact_poisson(lam, m, P, s0, y).log_value
+    ref = _poisson_reference(lam, m, P, s0, y)
+    assert got == pytest.approx(ref, abs=1e-8 * max(1.0, abs(ref)))
