@@ -18,7 +18,13 @@ from scipy.special import logsumexp
 from scipy.stats import norm, poisson
 
 from brute import log_fraction
-from jointtrack.saddle import ExactRangeError, jpda_log_weights, log_mixed_derivative
+from jointtrack.saddle import (
+    ExactRangeError,
+    jpda_coefficients,
+    jpda_log_weights,
+    log_mixed_derivative,
+    saddle_point,
+)
 from jointtrack.superpositional import Poisson, likelihood
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -196,3 +202,40 @@ def test_exact_poisson_likelihood_equals_scipy_for_means_up_to_1e6(lam, z, m):
     got = _exact_poisson(lam, m, P, s0, y).log_value
     ref = _poisson_reference(lam, m, P, s0, y)
     assert got == pytest.approx(ref, abs=1e-8 * max(1.0, abs(ref)))
+
+
+# --------------------------------------------------------------------------- item 15
+
+_A, _F = [0.5, 0.7], [[1.0, 0.5, 0.2], [1.0, 0.3, 0.9]]
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "match"),
+    [
+        ("tol", 0, "tol must be > 0"),
+        ("tol", 0.0, "tol must be > 0"),
+        ("tol", -1e-12, "tol must be > 0"),
+        ("tol", float("nan"), "tol must be finite"),
+        ("tol", float("inf"), "tol must be finite"),
+        ("tol", True, "tol must be a real number"),
+        ("tol", 1e-12 + 0j, "tol must be a real number"),
+        ("tol", "1e-12", "tol must be a real number"),
+        ("max_iter", 0, "max_iter must be ≥ 1"),
+        ("max_iter", -3, "max_iter must be ≥ 1"),
+        ("max_iter", 2.5, "max_iter must be a whole number"),
+        ("max_iter", True, "max_iter must be an integer"),
+        ("max_iter", 10 + 0j, "max_iter must be a whole number"),
+        ("max_iter", float("inf"), "max_iter must be a whole number"),
+        ("raise_on_failure", "no", "raise_on_failure must be True or False"),
+        ("raise_on_failure", 0, "raise_on_failure must be True or False"),
+    ],
+)
+def test_saddle_point_options_are_checked(option, value, match):
+    with pytest.raises(ValueError, match=match):
+        saddle_point(0.0, _A, _F, **{option: value})
+
+
+@pytest.mark.parametrize("value", [True, 1 + 0j, "3", -1.0, float("nan"), 10**400])
+def test_expected_clutter_is_checked(value):
+    with pytest.raises(ValueError, match="expected_clutter"):
+        jpda_coefficients([1.0], [0.9], [[0.5]], [], [], expected_clutter=value)

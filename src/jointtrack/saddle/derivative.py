@@ -89,7 +89,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import logsumexp
 
-from jointtrack.assignment._checks import _as_real_array
+from jointtrack.assignment._checks import _as_real_array, as_float, as_int
 from jointtrack.assignment.core import DEFAULT_MAX_BITS, DEFAULT_MAX_MEMORY, solve_checked
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.saddle._newton import newton_batch
@@ -348,9 +348,16 @@ def saddle_point(
     the minimum, where the decrease of a Newton step is below that rounding,
     the full step is taken and the iteration does not stall short of ``tol``.
     Raises :class:`SaddlePointError` (unless ``raise_on_failure=False``) when a
-    problem has ‖∇φ‖∞ > max(tol, 1e-9) after ``max_iter`` steps.
+    problem has ‖∇φ‖∞ > max(tol, 1e-9) after ``max_iter`` steps; ValueError
+    naming the argument for a ``tol`` that is not a finite number > 0, a
+    ``max_iter`` that is not a whole number ≥ 1, or a ``raise_on_failure``
+    that is not a bool.
     """
     a0, a, F, _ = check_coefficients(a0, a, F)
+    tol = as_float(tol, "tol", minimum=0.0, open_min=True)
+    max_iter = as_int(max_iter, "max_iter", minimum=1)
+    if not isinstance(raise_on_failure, bool | np.bool_):
+        raise ValueError(f"raise_on_failure must be True or False, got {raise_on_failure!r}")
     M = a.size
     if counts is None:
         n = np.ones(M)

@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointtrack.assignment._checks import _as_real_array
+from jointtrack.assignment._checks import _as_real_array, as_float
 
 __all__ = ["check_coefficients", "jpda_coefficients", "log_psi"]
 
@@ -166,5 +166,7 @@ def jpda_coefficients(
         C[j, 0] = np.mean(1.0 - pj)
         C[j, 1:] = np.mean(pj[:, None] * lj, axis=0)
     F = np.concatenate([b[:, None, :], np.broadcast_to(C, (L, *C.shape))], axis=1)
-    a0 = -float(expected_clutter) if expected_clutter is not None else 0.0
+    a0 = 0.0
+    if expected_clutter is not None:
+        a0 = -as_float(expected_clutter, "expected_clutter", minimum=0.0)
     return a0, a, np.ascontiguousarray(F)
