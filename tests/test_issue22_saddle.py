@@ -19,7 +19,9 @@ from scipy.stats import norm, poisson
 
 from brute import log_fraction
 from jointtrack.saddle import (
+    ERROR_BOUNDS,
     ExactRangeError,
+    SaddlePointError,
     jpda_coefficients,
     jpda_log_weights,
     log_mixed_derivative,
@@ -239,3 +241,76 @@ def test_saddle_point_options_are_checked(option, value, match):
 def test_expected_clutter_is_checked(value):
     with pytest.raises(ValueError, match="expected_clutter"):
         jpda_coefficients([1.0], [0.9], [[0.5]], [], [], expected_clutter=value)
+
+
+# --------------------------------------------------------------------------- item 10
+
+_STIRLING = 1.0 - 0.5 * math.log(2.0 * math.pi)  # eq. (30)'s known bias per measurement
+_OUTSIDE = [
+    (np.array([1e-10]), np.array([[1.0, 1.0]])),  # eq. (30) was 89× off
+    (np.full(3, 1e-6), np.ones((3, 4))),  # the corrected method was 5.9× off
+]
+
+
+def _error(method, value, exact, M):
+    return value - exact - (M * _STIRLING if method == "saddle" else 0.0)
+
+
+@pytest.mark.parametrize("method", ["saddle", "saddle-corrected"])
+@pytest.mark.parametrize(("a", "F"), _OUTSIDE)
+def test_small_clutter_against_tight_factors_is_exact_or_flagged(method, a, F):
+    exact = log_mixed_derivative(0.0, a, F)
+    res = log_mixed_derivative(0.0, a, F, method, full_output=True)
+    assert res.method == method and res.converged
+    assert res.info["exact"] and res.info["bound_holds"]
+    assert res.log_normalizer == pytest.approx(exact, abs=1e-12)
+    assert log_mixed_derivative(0.0, a, F, method) == res.log_normalizer
+    flagged = log_mixed_derivative(0.0, a, F, method, exact_fallback=False, full_output=True)
+    assert not flagged.info["exact"] and not flagged.info["bound_holds"]
+
+
+@pytest.mark.parametrize("method", ["saddle", "saddle-corrected"])
+def test_batched_flags_are_per_problem(method):
+    rng = np.random.default_rng(5)
+    a = np.full(3, 1e-6)
+    inside = np.concatenate([np.ones((3, 1)), 1e-6 * rng.random((3, 3))], axis=1)
+    tight = np.ones((3, 4))
+    F = np.stack([inside, tight])
+    res = log_mixed_derivative(0.0, a, F, method, exact_fallback=False, full_output=True)
+    assert res.info["bound_holds"].tolist() == [True, False]
+    exact = log_mixed_derivative(0.0, a, F)
+    res = log_mixed_derivative(0.0, a, F, method, full_output=True)
+    assert res.info["exact"].tolist() == [False, True]
+    assert res.log_normalizer[1] == pytest.approx(exact[1], abs=1e-12)
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@example(problem=_OUTSIDE[0])
+@example(problem=_OUTSIDE[1])
+@given(problems(max_k=3, max_m=3))
+def test_the_flag_is_set_whenever_the_stated_bound_fails(problem):
+    """The bound's honesty: error above ERROR_BOUNDS ⇒ info["bound_holds"] is False."""
+    a, F = problem
+    try:
+        exact = log_mixed_derivative(0.0, a, F)
+    except ExactRangeError:
+        return
+    M = a.size
+    for method in ("saddle", "saddle-corrected"):
+        try:
+            res = log_mixed_derivative(0.0, a, F, method, exact_fallback=False, full_output=True)
+            cheap = log_mixed_derivative(0.0, a, F, method, full_output=True)
+        except SaddlePointError:
+            continue  # reported, not a silent wrong value
+        bound = ERROR_BOUNDS[method]
+        if exact == -math.inf:
+            assert res.log_normalizer == cheap.log_normalizer == -math.inf
+            continue
+        if abs(_error(method, res.log_normalizer, exact, M)) > bound:
+            assert not res.info["bound_holds"], (method, res.log_normalizer, exact)
+        # with the exact fallback (every problem here is cheap) the bound always holds
+        assert cheap.info["bound_holds"]
+        if cheap.info["exact"]:
+            assert cheap.log_normalizer == pytest.approx(exact, abs=1e-9 * max(1.0, abs(exact)))
+        else:
+            assert abs(_error(method, cheap.log_normalizer, exact, M)) <= bound

@@ -12,8 +12,10 @@ International Conference on Information Fusion* (FUSION), 2015.
 """
 
 from jointtrack.saddle.derivative import (
+    ERROR_BOUNDS,
     METHODS,
     ExactRangeError,
+    MixedDerivative,
     SaddlePoint,
     SaddlePointError,
     jpda_log_weights,
@@ -23,8 +25,10 @@ from jointtrack.saddle.derivative import (
 from jointtrack.saddle.generating import check_coefficients, jpda_coefficients, log_psi
 
 __all__ = [
+    "ERROR_BOUNDS",
     "METHODS",
     "ExactRangeError",
+    "MixedDerivative",
     "SaddlePoint",
     "SaddlePointError",
     "check_coefficients",
