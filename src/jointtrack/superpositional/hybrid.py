@@ -201,8 +201,10 @@ class _Tree:
                     continue
                 # Campbell moments of components j.. (suffix sums) plus the later parts
                 cm = (r[:, None] * m)[::-1].cumsum(axis=0)[::-1]
-                mm = m[:, :, None] * m[:, None, :]
-                cS = (r[:, None, None] * C + (r * (1.0 - r))[:, None, None] * mm)[::-1]
+                # r(1 − r) m mᵀ as the outer product of √(r(1 − r)) m: m mᵀ alone
+                # overflows for a mean of 1e155 even when r = 1e-300 makes the share small
+                v = np.sqrt(r * (1.0 - r))[:, None] * m
+                cS = (r[:, None, None] * C + v[:, :, None] * v[:, None, :])[::-1]
                 blocks.append(
                     self._block(
                         n,

@@ -79,11 +79,11 @@ def _moments(model, m) -> tuple[np.ndarray, np.ndarray]:
     if isinstance(model, MultiBernoulli):
         if model.n_components == 0:
             return np.zeros(m.dy), np.zeros((m.dy, m.dy))
-        m1, m2 = _mb_component_moments(model, m)
+        m1, C = _mb_component_moments(model, m)
         r = model.r
         mean = r @ m1
-        cov = np.einsum("i,ijk->jk", r, m2) - np.einsum("i,ij,ik->jk", r * r, m1, m1)
-        return mean, _sym(cov)
+        own = _own_cov(r, m1, C)
+        return mean, _sym(own.sum(axis=0))
     if isinstance(model, IIDC | Poisson):
         m1, m2 = model.spatial.g_moments(m)
         nbar, g2 = model.mean_cardinality, model.second_factorial_moment
@@ -97,13 +97,24 @@ def _moments(model, m) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _mb_component_moments(model, m):
-    """``(m1 (n, dy), m2 (n, dy, dy))``: E[g], E[g gᵀ] under each component's density."""
+    """``(m1 (n, dy), C (n, dy, dy))``: E[g] and Cov[g] under each component's density.
+
+    The covariance, not E[g gᵀ]: with a mean of 1e155 E[g gᵀ] overflows, while a
+    component's contribution r(1 − r) m mᵀ is finite when r is small (1e-300).
+    """
     if model.means is not None and hasattr(m, "H"):
         H = m.H
-        m1 = model.means @ H.T
-        return m1, H @ model.covs @ H.T + m1[:, :, None] * m1[:, None, :]
+        return model.means @ H.T, H @ model.covs @ H.T
     pairs = [c.g_moments(m) for c in model.components]
-    return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
+    m1 = np.array([p[0] for p in pairs])
+    return m1, np.array([p[1] for p in pairs]) - m1[:, :, None] * m1[:, None, :]
+
+
+def _own_cov(r, m1, C):
+    """Each component's share r C + r(1 − r) m mᵀ of Σ_Q, the outer product of
+    √(r(1 − r)) m with itself so that it overflows only when the share does."""
+    v = np.sqrt(r * (1.0 - r))[:, None] * m1
+    return r[:, None, None] * C + v[:, :, None] * v[:, None, :]
 
 
 def _sym(c: np.ndarray) -> np.ndarray:
@@ -157,10 +168,10 @@ def leave_one_out_moments(model, measurement) -> tuple[np.ndarray, np.ndarray]:
     n = model.n_components
     if n == 0:
         return np.zeros((0, m.dy)), np.zeros((0, m.dy, m.dy))
-    m1, m2 = _mb_component_moments(model, m)
+    m1, C = _mb_component_moments(model, m)
     r = model.r
     mean_all = r @ m1
-    own_cov = r[:, None, None] * m2 - (r * r)[:, None, None] * m1[:, :, None] * m1[:, None, :]
+    own_cov = _own_cov(r, m1, C)
     cov_all = own_cov.sum(axis=0)
     return mean_all[None] - r[:, None] * m1, _sym(cov_all[None] - own_cov)
 
