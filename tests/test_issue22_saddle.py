@@ -27,7 +27,7 @@ from jointtrack.saddle import (
     log_mixed_derivative,
     saddle_point,
 )
-from jointtrack.superpositional import Poisson, likelihood
+from jointtrack.superpositional import MultiBernoulli, Poisson, likelihood
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -314,3 +314,53 @@ def test_the_flag_is_set_whenever_the_stated_bound_fails(problem):
             assert cheap.log_normalizer == pytest.approx(exact, abs=1e-9 * max(1.0, abs(exact)))
         else:
             assert abs(_error(method, cheap.log_normalizer, exact, M)) <= bound
+
+
+# --------------------------------------------------------------------------- item 10, hybrid
+
+_H3 = np.array([[0.1, 0.7], [0.5, 0.5], [0.8, 0.2]])
+_S0 = 0.25 * np.eye(3)
+
+
+@pytest.mark.parametrize("mu", [1e155, 1e200])
+@pytest.mark.parametrize("method", ["hybrid", "gaussian"])
+def test_a_far_component_of_tiny_existence_probability_keeps_the_likelihood_finite(mu, method):
+    # issue 22 item 10: r(1 − r) m mᵀ overflowed (m mᵀ first): −inf, or a wrong "exact" value
+    mb = MultiBernoulli([1e-300, 0.5], [[mu, mu], [1.0, 2.0]], [np.eye(2)] * 2)
+    y0 = np.zeros(3)
+    exact = likelihood(y0, mb, _H3, _S0, method="exact").log_value
+    if method == "hybrid":
+        res = likelihood(y0, mb, _H3, _S0, method=method)
+        # the whole mixture fits the budget: the exact value (a node whose every leaf
+        # weighs e^-1e300 may stay unrefined, so info["exact"] need not say so)
+        assert res.log_value == pytest.approx(exact, abs=1e-12)
+        return
+    # the Gaussian approximation (9): finite, or a clear error where Σ0 + Σ_Q is singular
+    # in float (a rank-one 1e100 term beside 0.25), never −inf
+    try:
+        assert math.isfinite(likelihood(y0, mb, _H3, _S0, method=method).log_value)
+    except ValueError as exc:
+        assert "not positive definite" in str(exc)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    r=st.lists(
+        st.one_of(st.sampled_from([5e-324, 1e-300, 1e-100, 1.0 - 1e-16, 1.0]), st.floats(0.0, 1.0)),
+        min_size=1,
+        max_size=4,
+    ),
+    scale=st.sampled_from([1.0, 1e50, 1e100, 1e150]),
+    data=st.data(),
+)
+def test_hybrid_with_the_whole_mixture_in_budget_is_the_exact_mixture(r, scale, data):
+    n = len(r)
+    means = np.array(
+        data.draw(st.lists(st.tuples(st.floats(-1, 1), st.floats(-1, 1)), min_size=n, max_size=n))
+    )
+    mb = MultiBernoulli(r, scale * means, [np.eye(2)] * n)
+    pick = np.array(data.draw(st.lists(st.booleans(), min_size=n, max_size=n)))
+    y0 = _H3 @ (scale * means[pick]).sum(axis=0) if pick.any() else np.zeros(3)
+    exact = likelihood(y0, mb, _H3, _S0, method="exact").log_value
+    res = likelihood(y0, mb, _H3, _S0, method="hybrid")
+    assert res.log_value == pytest.approx(exact, abs=1e-9 * max(1.0, abs(exact)))

@@ -674,8 +674,11 @@ def _refine_kernel(
             for p in range(P):
                 rel[p] += math.exp(term[j, p] - ref[p])
                 best = max(best, term[j, p] - ref[p])
-            if dep[j] < D and np.isfinite(best):
-                hsize = _heap_push(hk, hi, hsize, best, j)
+            # a node whose Gaussian term underflows at every point (a far or singular
+            # remainder) can still hold leaves that matter: with the whole mixture in
+            # the budget it is refined too (last), so the result is the exact mixture
+            if dep[j] < D and (np.isfinite(best) or exact_fit):
+                hsize = _heap_push(hk, hi, hsize, best if np.isfinite(best) else -np.inf, j)
         n_nodes += c
         frontier += c - 1
         expansions += 1
