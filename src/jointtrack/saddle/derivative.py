@@ -16,10 +16,12 @@ a_m makes an unused column weigh 1, the convention of the assignment-sum core
     log I = a_0 + Σ_m log a_m + log Z(W = f_km / a_m, null = f_k0).
 
 Rows are scaled in log space first (a row's scale multiplies every term
-once), so coefficients anywhere in the float range are fine as long as,
-within one factor, the ratios f_km/a_m and f_k0 lie within ~1e308 of the
-factor's largest (only row scalings are free: the core's unused column
-weighs 1); a smaller one flushes to 0 in the float core.
+once), so coefficients anywhere in the float range are fine; only row
+scalings are free (the core's unused column weighs 1). A factor whose ratios
+f_km/a_m and f_k0 span more than e^700 is scaled by the best assignment's
+dual instead: what cannot change I by 3e-20 relative is dropped and the rest
+centred in e^±650 (no silent flush to 0); what still spans more than e^1300
+raises :class:`ExactRangeError`.
 
 Saddle point (``method="saddle"``, eqs. 24, 30, 31)
 ----------------------------------------------------
