@@ -27,7 +27,13 @@ from jointtrack.saddle import (
     log_mixed_derivative,
     saddle_point,
 )
-from jointtrack.superpositional import MultiBernoulli, Poisson, likelihood
+from jointtrack.superpositional import (
+    MultiBernoulli,
+    Poisson,
+    Union,
+    likelihood,
+    log_likelihood_ratio,
+)
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -364,3 +370,19 @@ def test_hybrid_with_the_whole_mixture_in_budget_is_the_exact_mixture(r, scale, 
     exact = likelihood(y0, mb, _H3, _S0, method="exact").log_value
     res = likelihood(y0, mb, _H3, _S0, method="hybrid")
     assert res.log_value == pytest.approx(exact, abs=1e-9 * max(1.0, abs(exact)))
+
+
+@pytest.mark.parametrize("method", ["gaussian", "exact", "hybrid", "saddlepoint"])
+@pytest.mark.parametrize("part", [True, -1, 2, 1.5, 1 + 0j, "0"])
+def test_ratio_part_is_checked_for_every_method(method, part):
+    mb = MultiBernoulli([0.5], [[0.0, 0.0]], [np.eye(2)])
+    model, x = Union(mb, mb), np.zeros((1, 2))
+    with pytest.raises(ValueError, match="part"):
+        log_likelihood_ratio(np.zeros(3), x, model, _H3, _S0, method, part=part)
+
+
+@pytest.mark.parametrize("value", [np.array(["gaussian"]), ["gaussian"], 1, None])
+def test_hybrid_remainder_must_be_a_name(value):
+    mb = MultiBernoulli([0.5], [[0.0, 0.0]], [np.eye(2)])
+    with pytest.raises(ValueError, match="remainder must be"):
+        likelihood(np.zeros(3), mb, _H3, _S0, method="hybrid", remainder=value)

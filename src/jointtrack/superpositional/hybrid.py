@@ -742,7 +742,7 @@ def _box_saddlepoint_terms(tree, fr, terms, Y, noise_cov, options):
 
 def _check_options(budget, remainder, max_iter, tol, quadrature_points):
     budget = None if budget is None else as_int(budget, "budget", minimum=1)
-    if remainder not in ("gaussian", "saddlepoint"):
+    if not isinstance(remainder, str) or remainder not in ("gaussian", "saddlepoint"):
         raise ValueError(f"remainder must be 'gaussian' or 'saddlepoint', got {remainder!r}")
     max_iter = as_int(max_iter, "max_iter", minimum=1)
     tol = as_float(tol, "tol", minimum=0.0, open_min=True)

@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from jointtrack.assignment._checks import _as_real_array
+from jointtrack.assignment._checks import _as_real_array, as_int
 from jointtrack.superpositional.measurement import as_measurement
 from jointtrack.superpositional.models import IIDC, Poisson, Union, check_covariance, check_model
 from jointtrack.superpositional.moments import _reduced, campbell_moments, check_states
@@ -178,7 +178,7 @@ def log_gauss_one(d: np.ndarray, cov: np.ndarray) -> float:
 
 def _gaussian_model(model, options):
     """The model the Gaussian method takes its moments from (the N_v estimator: particles)."""
-    from jointtrack.assignment._checks import as_int, as_rng
+    from jointtrack.assignment._checks import as_rng
 
     n = options.pop("moment_particles", None)
     rng = options.pop("rng", None)
@@ -270,8 +270,12 @@ def log_likelihood_ratio(
     y0, model, m, noise_cov = _validate(y0, model, H, noise_cov)
     x = check_states(x, model.dx)
     part = options.get("part")
-    if part is not None and not hasattr(model, "parts"):
-        raise ValueError("part is only meaningful for a Union model")
+    if part is not None:
+        if not hasattr(model, "parts"):
+            raise ValueError("part is only meaningful for a Union model")
+        # checked here for every method (the Gaussian path indexed with it unchecked:
+        # part=True, −1 accepted, 5 an IndexError)
+        part = options["part"] = as_int(part, "part", 0, len(model.parts) - 1)
     if method == "gaussian":
         opts = dict(options)
         opts.pop("part", None)
