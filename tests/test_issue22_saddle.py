@@ -364,9 +364,12 @@ def test_hybrid_with_the_whole_mixture_in_budget_is_the_exact_mixture(r, scale, 
     means = np.array(
         data.draw(st.lists(st.tuples(st.floats(-1, 1), st.floats(-1, 1)), min_size=n, max_size=n))
     )
-    mb = MultiBernoulli(r, scale * means, [np.eye(2)] * n)
     pick = np.array(data.draw(st.lists(st.booleans(), min_size=n, max_size=n)))
-    y0 = _H3 @ (scale * means[pick]).sum(axis=0) if pick.any() else np.zeros(3)
+    # the components the reading is made of near the origin, the others up to `scale`
+    # away (far ones at 1e150 are what overflowed): y0 − mean stays well conditioned
+    means = np.where(pick[:, None], means, scale * means)
+    mb = MultiBernoulli(r, means, [np.eye(2)] * n)
+    y0 = _H3 @ means[pick].sum(axis=0) if pick.any() else np.zeros(3)
     exact = likelihood(y0, mb, _H3, _S0, method="exact").log_value
     res = likelihood(y0, mb, _H3, _S0, method="hybrid")
     assert res.log_value == pytest.approx(exact, abs=1e-9 * max(1.0, abs(exact)))
@@ -386,3 +389,30 @@ def test_hybrid_remainder_must_be_a_name(value):
     mb = MultiBernoulli([0.5], [[0.0, 0.0]], [np.eye(2)])
     with pytest.raises(ValueError, match="remainder must be"):
         likelihood(np.zeros(3), mb, _H3, _S0, method="hybrid", remainder=value)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@example(r=[5e-324, 5e-324, 5e-324, 0.5], scale=1e50, budget=2, far=3)
+@given(
+    r=st.lists(
+        st.one_of(st.sampled_from([5e-324, 1e-300, 1.0 - 1e-16]), st.floats(0.0, 1.0)),
+        min_size=1,
+        max_size=4,
+    ),
+    scale=st.sampled_from([1.0, 1e50, 1e150]),
+    budget=st.integers(1, 16),
+    far=st.integers(0, 3),
+)
+def test_a_hybrid_zero_where_the_likelihood_is_positive_is_flagged(r, scale, budget, far):
+    """−inf (or any value) below the exact one by an underflowed stand-in is reported."""
+    n = len(r)
+    means = np.zeros((n, 2))
+    means[min(far, n - 1)] = [0.0, 0.005 * scale]
+    mb = MultiBernoulli(r, means, [np.eye(2)] * n)
+    exact = likelihood(np.zeros(3), mb, _H3, _S0, method="exact").log_value
+    res = likelihood(np.zeros(3), mb, _H3, _S0, method="hybrid", budget=budget)
+    assert not math.isnan(res.log_value)
+    if res.log_value == -math.inf and exact > -math.inf:
+        assert res.info["underflowed_terms"] > 0 and not res.info["exact"]
+    if res.info["exact"]:
+        assert res.log_value == pytest.approx(exact, abs=1e-9 * max(1.0, abs(exact)))

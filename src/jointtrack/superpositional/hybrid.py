@@ -760,8 +760,13 @@ def _evaluate(model, measurement, noise_cov, Y, budget, remainder, sp_options, q
         terms = _box_saddlepoint_terms(tree, fr, terms, Y, noise_cov, sp_options)
     leaves = fr.depth == tree.depth
     exact = bool(leaves.all()) and not tree.box_laws
+    # frontier nodes left unrefined whose Gaussian stand-in underflowed at every point
+    # (a singular or far remainder) though they carry weight: the mixture below them may
+    # not be 0, so the value is then only a lower bound (−inf possibly where I > 0)
+    underflowed = ~leaves & np.isfinite(fr.lw) & ~np.isfinite(terms).any(axis=1)
     info = {
         "terms": int(fr.lw.size),
+        "underflowed_terms": int(underflowed.sum()),
         "leaf_terms": int(leaves.sum()),
         "full_mixture_terms": tree.full_size,
         "exact": exact,
@@ -807,7 +812,10 @@ def log_likelihood(
     log_value : float
     info : dict
         ``terms`` (frontier size), ``leaf_terms`` (exact mixture terms among them),
-        ``full_mixture_terms``, ``exact`` (the result is the exact mixture),
+        ``underflowed_terms`` (unrefined nodes whose Gaussian term underflowed
+        to 0 though they carry weight: when > 0 the value is only a lower bound,
+        raise ``budget``), ``full_mixture_terms``, ``exact`` (the result is the
+        exact mixture),
         ``expansions`` (nodes refined), ``budget``, ``box_quadrature`` (a
         uniform-box part integrated by quadrature).
 
