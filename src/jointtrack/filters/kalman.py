@@ -403,21 +403,26 @@ def _ensure_pd(P):
 
 
 def _pd_with_margin(P, tau):
-    """(K,) bool: which matrices of P (K, n, n) have correlation matrices with C − τI ≻ 0."""
-    d = np.diagonal(P, axis1=-2, axis2=-1)
-    pos = (d > 0).all(axis=1)
-    s = np.sqrt(np.where(d > 0, d, 1.0))
-    C = P / (s[:, :, None] * s[:, None, :]) - tau * np.eye(P.shape[-1])
+    """(K,) bool: which matrices of P (K, n, n) have correlation matrices with C − τI ≻ 0.
+
+    Tested as a Cholesky factorisation of ``P − τ diag(P)`` = ``D^{1/2} (C − τ I) D^{1/2}``:
+    diagonal scaling changes neither the signs of the pivots nor (to first order)
+    the componentwise backward error of Cholesky, so this is the scale-free test
+    without forming C. A zero or negative variance fails.
+    """
+    n = P.shape[-1]
+    M = P.copy()  # C-contiguous: the diagonal of every matrix is a stride-(n+1) slice
+    M.reshape(P.shape[0], n * n)[:, :: n + 1] *= 1.0 - tau
     try:
-        np.linalg.cholesky(C)
-        return pos
+        np.linalg.cholesky(M)
+        return np.ones(P.shape[0], bool)
     except np.linalg.LinAlgError:
         pass
     ok = np.zeros(P.shape[0], bool)
-    for i in np.flatnonzero(pos):
+    for k in range(P.shape[0]):
         try:
-            np.linalg.cholesky(C[i])
-            ok[i] = True
+            np.linalg.cholesky(M[k])
+            ok[k] = True
         except np.linalg.LinAlgError:
             pass
     return ok
