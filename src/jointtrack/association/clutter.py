@@ -153,7 +153,8 @@ def cluster_heuristic_densities(n_gated, gate_volume, track_cluster) -> np.ndarr
 
     ``track_cluster`` (N,) gives each track's cluster label 0…K−1 (e.g.
     ``Clustering.track_cluster``); returns the (K,) densities in one pass, so a
-    scan with thousands of clusters costs O(N).
+    scan with thousands of clusters costs O(N). Raises ValueError, like
+    :func:`cluster_heuristic_density`, if a density exceeds the float range.
     """
     m, V = _counts_volumes(n_gated, gate_volume)
     lab = np.asarray(track_cluster)
@@ -223,7 +224,7 @@ def union_gate_volume(
     centers : (N, d) gate centres ẑ_i
     S : (N, d, d) symmetric positive definite innovation covariances
     P_G, gamma : give one — gate probability, or the threshold γ = χ²_d⁻¹(P_G)
-    n_samples : number of Monte Carlo points (≥ 2)
+    n_samples : number of Monte Carlo points, a whole number ≥ 2
     rng : numpy Generator, int seed or None
 
     Returns

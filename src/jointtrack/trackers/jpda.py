@@ -636,6 +636,12 @@ class JPDATracker:
         be at the states' time and nothing is predicted); a tracker that has a
         clock requires ``time`` to equal it (predict states from other times
         yourself). Returns the new track ids.
+
+        Raises ValueError (TypeError for a non-bool ``confirmed``) naming the
+        argument for anything a saved state could not hold — complex, boolean,
+        string or non-finite ``x0``/``P0``, a ``P0`` that is not symmetric
+        positive definite, ``existence`` outside [0, 1] — so every state this
+        accepts can be saved and loaded; nothing is changed then.
         """
         t0 = None
         if time is not None:
@@ -791,7 +797,9 @@ class JPDATracker:
         ValueError
             (:class:`~jointtrack.trackers.state_io.StateFileError`) for a missing,
             damaged, truncated, foreign, wrong-version or pickle file, or values
-            that a tracker cannot hold; the message names the file and the problem.
+            that a tracker cannot hold (including a configuration with missing
+            settings: they are never filled with defaults); the message names the
+            file and the problem.
         """
         arrays, config, scalars, rng = read_state(path)
         try:  # complete: a missing setting is damage, not a default
