@@ -27,18 +27,24 @@ from jointtrack.trackers import JPDATracker, StateFileError, TrackerConfig, stat
 
 
 def _exact_pd(A: np.ndarray) -> bool:
-    """Whether the float matrix A is positive definite in exact rational arithmetic (LDLᵀ)."""
-    n = len(A)
-    M = [[Fraction(float(v)) for v in row] for row in A]
+    """Whether the float matrix A is positive definite in exact arithmetic.
+
+    Sylvester's criterion on the exact integers ``A · 2^k`` (every float is a dyadic
+    rational): fraction-free Bareiss elimination, whose k-th pivot is the k-th
+    leading principal minor; all must be positive.
+    """
+    fr = [[Fraction(float(v)) for v in row] for row in A]
+    den = max(f.denominator for row in fr for f in row)
+    M = [[f.numerator * (den // f.denominator) for f in row] for row in fr]
+    n, prev = len(M), 1
     for k in range(n):
         p = M[k][k]
         if p <= 0:
             return False
         for i in range(k + 1, n):
-            f = M[i][k] / p
-            if f:
-                for j in range(k + 1, n):
-                    M[i][j] -= f * M[k][j]
+            for j in range(k + 1, n):
+                M[i][j] = (M[i][j] * p - M[i][k] * M[k][j]) // prev  # exact (Bareiss)
+        prev = p
     return True
 
 
@@ -65,12 +71,14 @@ exponents = st.floats(-6.0, 12.0)
 
 
 @st.composite
-def _covariance(draw, n):
-    """A symmetric positive definite n × n matrix from drawn entries and scales."""
-    entries = draw(st.lists(st.floats(-1.0, 1.0), min_size=n * n, max_size=n * n))
+def _covariance(draw, n, min_log_ridge=-17.0):
+    """A symmetric positive definite n × n matrix from drawn entries, rank, ridge and scales."""
+    rank = draw(st.integers(1, n))
+    entries = draw(st.lists(st.floats(-1.0, 1.0), min_size=n * rank, max_size=n * rank))
     logs = draw(st.lists(st.floats(-3.0, 6.0), min_size=n, max_size=n))
-    A = np.array(entries).reshape(n, n)
-    C = A @ A.T + 1e-3 * np.eye(n)
+    ridge = 10.0 ** draw(st.floats(min_log_ridge, -3.0))  # down to singular in working precision
+    A = np.array(entries).reshape(n, rank)
+    C = A @ A.T + ridge * np.eye(n)
     s = 10.0 ** np.array(logs)
     P = s[:, None] * C * s[None, :]
     return 0.5 * (P + P.T)
@@ -116,33 +124,33 @@ def test_covariance_stays_positive_definite_through_a_gap(problem):
             _assert_pd(P, "pda_update")
 
 
-def test_gap_sweep_regression():
-    """A seeded sweep over gaps 1e-6 … 1e12 (CV and CA, q from 1e-6 to 1e3): at ebb8dbc
-    some predicted and updated covariances here were indefinite in exact arithmetic."""
-    rng = np.random.default_rng(1)
-    for _ in range(300):
+def test_near_singular_sweep_regression():
+    """Seeded sweep of covariances whose correlation matrix is singular to working
+    precision (what a long gap leaves behind), through one predict (dt 1e-6 … 1e12),
+    update and PDA update each. At ebb8dbc trials 41 and 154 (predict), 72 (update)
+    and 236 (PDA update) returned matrices that passed Cholesky but were indefinite
+    in exact arithmetic."""
+    for trial in range(250):
+        rng = np.random.default_rng(trial)
         dim = int(rng.integers(1, 4))
         ca = rng.random() < 0.5
-        q = 10 ** rng.uniform(-6, 3)
+        q = 0.0 if rng.random() < 0.3 else 10 ** rng.uniform(-6, 3)
         motion = (ConstantAcceleration if ca else ConstantVelocity)(dim=dim, q=q)
         n = motion.state_dim
-        A = rng.normal(size=(n, n))
-        P = A @ A.T * 10 ** rng.uniform(-3, 3) + np.eye(n) * 1e-3
+        U = rng.normal(size=(n, int(rng.integers(1, n))))
+        C = U @ U.T + 10 ** rng.uniform(-17, -12) * np.eye(n)
+        s = 10 ** rng.uniform(-3, 6, size=n)
+        P = s[:, None] * C * s[None, :]
         P = 0.5 * (P + P.T)
         x = rng.normal(size=n)
+        dt = min(10 ** rng.uniform(-6, 12), motion.max_dt)
         sensor = LinearPosition(dim, 10 ** rng.uniform(-2, 2), state_dim=n)
-        for k in range(5):
-            dt = min(10 ** rng.uniform(-6, 12) if k == 1 else 1.0, motion.max_dt)
-            x, P = predict(x, P, motion.transition(dt), motion.noise(dt))
-            _assert_pd(P, "predict")
-            z = x[:dim] + rng.normal(size=dim)
-            Z = np.vstack([z, z + rng.normal(size=dim)])
-            beta = rng.dirichlet([1, 1, 1])
-            if rng.random() < 0.5:
-                x, P = update(x, P, z, sensor.H, sensor.R)
-            else:
-                x, P = pda_update(x, P, Z, sensor.H, sensor.R, beta)
-            _assert_pd(P, "update")
+        z = x[:dim] + rng.normal(size=dim)
+        beta = rng.dirichlet([1, 1, 1])
+        _assert_pd(predict(x, P, motion.transition(dt), motion.noise(dt))[1], f"predict {trial}")
+        _assert_pd(update(x, P, z, sensor.H, sensor.R)[1], f"update {trial}")
+        Z = np.vstack([z, z + 1.0])
+        _assert_pd(pda_update(x, P, Z, sensor.H, sensor.R, beta)[1], f"pda_update {trial}")
 
 
 @pytest.mark.parametrize("motion", ["cv", "ca"])
@@ -208,7 +216,7 @@ def test_start_tracks_refuses_what_load_would_refuse(kwargs, exc, match):
 @settings(max_examples=25, deadline=None)
 @given(
     existence=st.one_of(st.floats(0.0, 1.0), st.sampled_from([0, 1])),
-    P0=_covariance(4),
+    P0=_covariance(4, min_log_ridge=-3.0),
     x0=st.lists(st.floats(-1e300, 1e300), min_size=4, max_size=4),
     confirmed=st.booleans(),
 )
