@@ -356,6 +356,11 @@ BAD_NUMERIC_CALLS = [
         lambda: cluster_heuristic_densities([1, 0], [1e-320, 1.0], [0, 1]),
         "overflows",
     ),
+    (
+        "heuristic volume sum overflow",
+        lambda: cluster_heuristic_density([1, 1], [1e308, 1e308]),
+        "sum beyond the float range",
+    ),
     ("heuristic complex", lambda: cluster_heuristic_density([1], [1 + 1j]), "complex"),
     ("heuristic bool counts", lambda: cluster_heuristic_density([True], [1.0]), "boolean"),
 ]

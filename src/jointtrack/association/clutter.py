@@ -140,7 +140,8 @@ def cluster_heuristic_density(n_gated, gate_volume) -> float:
 
     Raises ValueError on empty input, negative/non-integer counts,
     non-positive volumes, or volumes so small that λ exceeds the float range
-    (e.g. one return in a gate of volume 1e-320): λ is never returned as inf.
+    (e.g. one return in a gate of volume 1e-320) or so large that their sum
+    does: λ is never returned as inf, nor silently as 0.
     """
     m, V = _counts_volumes(n_gated, gate_volume)
     if m.size == 0:
@@ -164,6 +165,9 @@ def cluster_heuristic_densities(n_gated, gate_volume, track_cluster) -> np.ndarr
     vol = np.bincount(lab, weights=V, minlength=k)
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
         lam = np.bincount(lab, weights=m, minlength=k) / vol
+    if k and not (vol > 0).all():
+        c = int(np.argmax(~(vol > 0)))
+        raise ValueError(f"track_cluster has no track with label {c}: labels must be 0…K−1")
     if not np.isfinite(lam).all():
         # m / ΣV beyond the float range: refuse rather than return λ = inf (which
         # would silently zero every likelihood ratio of the cluster)
@@ -171,6 +175,12 @@ def cluster_heuristic_densities(n_gated, gate_volume, track_cluster) -> np.ndarr
         raise ValueError(
             f"clutter density of cluster {c} overflows: its gate volumes sum to {vol[c]:.3g}, "
             "too small for a finite density Σ m_i / Σ V_i (gate_volume)"
+        )
+    if not np.isfinite(vol).all():  # ΣV overflowed: λ would silently underflow to 0
+        c = int(np.argmax(~np.isfinite(vol)))
+        raise ValueError(
+            f"the gate volumes of cluster {c} sum beyond the float range (gate_volume); "
+            "its clutter density Σ m_i / Σ V_i would underflow"
         )
     return lam
 
