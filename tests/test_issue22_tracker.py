@@ -9,7 +9,7 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from hypothesis import example, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from jointtrack.association.clutter import (
@@ -115,13 +115,18 @@ def test_covariance_stays_positive_definite_through_a_gap(problem):
         x, P = predict(x, P, motion.transition(step), motion.noise(step))
         _assert_pd(P, f"predict dt={step}")
         z = x[:dim] + sd * noise[k]
-        if k % 2 == 0:
-            x, P = update(x, P, z, sensor.H, sensor.R)
-            _assert_pd(P, "update")
-        else:
-            Z = np.stack([z, x[:dim] + sd * noise[3]])
-            x, P = pda_update(x, P, Z, sensor.H, sensor.R, beta)
-            _assert_pd(P, "pda_update")
+        try:
+            if k % 2 == 0:
+                x, P = update(x, P, z, sensor.H, sensor.R)
+            else:
+                Z = np.stack([z, x[:dim] + sd * noise[3]])
+                x, P = pda_update(x, P, Z, sensor.H, sensor.R, beta)
+        except ValueError as exc:
+            # axes whose variances differ by > 1/ε after the gap (q = 0, drawn scales):
+            # the filter declines the singular-to-working-precision S by name
+            assert "innovation covariance S" in str(exc) and "singular" in str(exc)
+            assume(False)
+        _assert_pd(P, "update" if k % 2 == 0 else "pda_update")
 
 
 def test_near_singular_sweep_regression():
