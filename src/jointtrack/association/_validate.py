@@ -66,6 +66,29 @@ def check_integer(value, name: str, minimum: int = 1) -> int:
     return as_int(value, name, minimum)
 
 
+def check_indices(value, name: str) -> np.ndarray:
+    """``value`` as an int64 index array; ValueError unless its entries are integers.
+
+    Floats (``0.5`` would be truncated to 0), booleans (a mask, not indices),
+    complex numbers and strings are refused; range checks are the caller's.
+    """
+    if isinstance(value, (str, bytes)):
+        raise ValueError(f"{name} must be integer indices, got a string")
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ValueError(f"{name} must be integer indices: {exc}") from None
+    if a.size == 0:
+        return a.astype(np.int64)
+    if a.dtype.kind == "O":  # e.g. Python ints beyond int64
+        raise ValueError(f"{name} must be integer indices that fit in int64")
+    if a.dtype.kind not in "iu":
+        raise ValueError(f"{name} must be integer indices, got dtype {a.dtype}")
+    if a.dtype.kind == "u" and a.size and a.max() > np.iinfo(np.int64).max:
+        raise ValueError(f"{name} has an index too large for int64")
+    return a.astype(np.int64, copy=False)
+
+
 def require_feasible_event(L, miss) -> None:
     """Raise :class:`InfeasibleAssignmentError` if no joint event has positive weight."""
     if not has_feasible_event(L, miss):

@@ -35,6 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from jointtrack.assignment._checks import _as_real_array
+from jointtrack.association._validate import check_indices, check_integer
 from jointtrack.association.gating import Gating, _cholesky_checked, unit_ball_log_volume
 
 __all__ = [
@@ -79,10 +81,8 @@ class ClutterEstimate:
 
 
 def _float_array(x, name: str) -> np.ndarray:
-    try:
-        return np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be numeric: {exc}") from None
+    """A real float64 array (the shared check: no complex, bool, string or huge int)."""
+    return _as_real_array(x, name)
 
 
 def _counts_volumes(m, V) -> tuple[np.ndarray, np.ndarray]:
@@ -138,8 +138,10 @@ def cluster_heuristic_density(n_gated, gate_volume) -> float:
     volume once per gate that covers it. See the module docstring for its exact
     relation to the union density.
 
-    Raises ValueError on empty input, negative/non-integer counts or
-    non-positive volumes.
+    Raises ValueError on empty input, negative/non-integer counts,
+    non-positive volumes, or volumes so small that λ exceeds the float range
+    (e.g. one return in a gate of volume 1e-320) or so large that their sum
+    does: λ is never returned as inf, nor silently as 0.
     """
     m, V = _counts_volumes(n_gated, gate_volume)
     if m.size == 0:
@@ -152,14 +154,35 @@ def cluster_heuristic_densities(n_gated, gate_volume, track_cluster) -> np.ndarr
 
     ``track_cluster`` (N,) gives each track's cluster label 0…K−1 (e.g.
     ``Clustering.track_cluster``); returns the (K,) densities in one pass, so a
-    scan with thousands of clusters costs O(N).
+    scan with thousands of clusters costs O(N). Raises ValueError, like
+    :func:`cluster_heuristic_density`, if a density exceeds the float range.
     """
     m, V = _counts_volumes(n_gated, gate_volume)
     lab = np.asarray(track_cluster)
     if lab.shape != m.shape or (lab.size and (lab.min() < 0 or lab.dtype.kind not in "iu")):
         raise ValueError("track_cluster must hold one non-negative integer label per track")
     k = int(lab.max()) + 1 if lab.size else 0
-    return np.bincount(lab, weights=m, minlength=k) / np.bincount(lab, weights=V, minlength=k)
+    vol = np.bincount(lab, weights=V, minlength=k)
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        lam = np.bincount(lab, weights=m, minlength=k) / vol
+    if k and not (vol > 0).all():
+        c = int(np.argmax(~(vol > 0)))
+        raise ValueError(f"track_cluster has no track with label {c}: labels must be 0…K−1")
+    if not np.isfinite(lam).all():
+        # m / ΣV beyond the float range: refuse rather than return λ = inf (which
+        # would silently zero every likelihood ratio of the cluster)
+        c = int(np.argmax(~np.isfinite(lam)))
+        raise ValueError(
+            f"clutter density of cluster {c} overflows: its gate volumes sum to {vol[c]:.3g}, "
+            "too small for a finite density Σ m_i / Σ V_i (gate_volume)"
+        )
+    if not np.isfinite(vol).all():  # ΣV overflowed: λ would silently underflow to 0
+        c = int(np.argmax(~np.isfinite(vol)))
+        raise ValueError(
+            f"the gate volumes of cluster {c} sum beyond the float range (gate_volume); "
+            "its clutter density Σ m_i / Σ V_i would underflow"
+        )
+    return lam
 
 
 def _gates(centers, S, P_G, gamma):
@@ -211,7 +234,7 @@ def union_gate_volume(
     centers : (N, d) gate centres ẑ_i
     S : (N, d, d) symmetric positive definite innovation covariances
     P_G, gamma : give one — gate probability, or the threshold γ = χ²_d⁻¹(P_G)
-    n_samples : number of Monte Carlo points (≥ 2)
+    n_samples : number of Monte Carlo points, a whole number ≥ 2
     rng : numpy Generator, int seed or None
 
     Returns
@@ -219,9 +242,7 @@ def union_gate_volume(
     UnionVolume (volume, one standard error, ΣV_i, n_samples)
     """
     c, chol, gamma = _gates(centers, S, P_G, gamma)
-    n_samples = int(n_samples)
-    if n_samples < 2:
-        raise ValueError(f"n_samples must be at least 2, got {n_samples}")
+    n_samples = check_integer(n_samples, "n_samples", minimum=2)
     rng = np.random.default_rng(rng)
     n, d = c.shape
     half_logdet = np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1)
@@ -308,7 +329,7 @@ def cluster_clutter_density(
     """
     if not isinstance(gating, Gating):
         raise ValueError("gating must be a Gating result from gate_measurements")
-    idx = np.arange(gating.n_tracks) if tracks is None else np.asarray(tracks, dtype=np.int64)
+    idx = np.arange(gating.n_tracks) if tracks is None else check_indices(tracks, "tracks")
     if idx.ndim != 1 or idx.size == 0:
         raise ValueError("tracks must be a non-empty 1-D index array")
     if np.any((idx < 0) | (idx >= gating.n_tracks)):

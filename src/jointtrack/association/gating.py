@@ -36,6 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special, stats
 
+from jointtrack.assignment._checks import _as_real_array, as_float
+
 __all__ = [
     "Gating",
     "PairGating",
@@ -123,10 +125,8 @@ class Gating:
 
 
 def _as_float(x, name: str) -> np.ndarray:
-    try:
-        return np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a numeric array: {exc}") from None
+    """A real float64 array (the shared check: no complex, bool, string or huge int)."""
+    return _as_real_array(x, name)
 
 
 def _gate_volumes(d: int, gamma: float, half_logdet: np.ndarray):
@@ -138,13 +138,7 @@ def _gate_volumes(d: int, gamma: float, half_logdet: np.ndarray):
 
 def _check_prob(p, name: str, *, open_left: bool = True) -> float:
     """A gate probability in (0, 1]; 1 is the infinite gate (γ = ∞, everything gated)."""
-    try:
-        p = float(p)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number in (0, 1], got {p!r}") from None
-    if not np.isfinite(p) or not (0.0 < p <= 1.0 if open_left else 0.0 <= p <= 1.0):
-        raise ValueError(f"{name} must lie in (0, 1], got {p}")
-    return p
+    return as_float(p, name, minimum=0.0, maximum=1.0, open_min=open_left)
 
 
 def _cholesky_checked(S: np.ndarray) -> np.ndarray:

@@ -28,11 +28,16 @@ Numerics
   ``[(I − K H) L, K L_R]``, so neither can cancel into an indefinite matrix; for a
   measurement matrix with orthonormal rows (position measurements) the measured
   rows of ``I − K H`` are ``R S⁻¹ H``, not ``1 − (1 − R/S)``. Every covariance
-  returned by ``predict``, ``update``, ``ekf_update`` and the PDA updates
-  factorises by Cholesky: where the exact matrix is singular to working precision
-  (e.g. ``F P Fᵀ`` with ``q = 0`` and a long gap) its variances are raised by a
-  few units in the last place (``_ensure_pd``). A prediction that overflows
-  raises ``ValueError`` asking for a smaller ``dt``.
+  returned by ``predict``, ``update``, ``ekf_update`` and the PDA updates, for
+  every finite ``dt``, is exactly symmetric and positive definite with margin: its
+  correlation matrix ``D^{-1/2} P D^{-1/2}`` minus ``4 n² ε I`` factorises by
+  Cholesky, which certifies that the stored floats form a positive definite matrix
+  in exact arithmetic (a bare Cholesky success does not: after a long gap it can
+  succeed on a matrix that is indefinite in its last bits). Where the exact result
+  is singular to working precision (e.g. ``F P Fᵀ`` with ``q = 0`` and a long gap)
+  only its near-null correlation eigenvalues are raised to that margin
+  (``_ensure_pd``); every other covariance is returned bit for bit. A prediction
+  that overflows raises ``ValueError`` asking for a smaller ``dt``.
 * The innovation covariance ``S`` is factorised once by Cholesky, ``S = L Lᵀ``;
   the gain and the log-likelihood use triangular solves with ``L``. No matrix is
   inverted and no determinant is formed.
@@ -341,54 +346,86 @@ def _factor(P):
     return W
 
 
-def _ensure_pd(P):
-    """Return the symmetric stack P (K, n, n) with every matrix Cholesky-factorisable.
+def _pd_margin(n: int) -> float:
+    """Smallest eigenvalue kept in a returned covariance's correlation matrix.
 
-    A covariance that is positive definite in exact arithmetic can fail Cholesky in
-    floating point when its correlation matrix is singular to working precision —
-    e.g. ``F P Fᵀ`` after a long gap without process noise, whose position-velocity
-    correlation is 1 − O(1/Δt²). Such a matrix gets the smallest diagonal loading
-    ``P + τ diag(P)``, ``τ = n·ε·4^k``, that factorises (a few units in the last
-    place of each variance: the filter's own rounding); a matrix whose correlation
-    matrix is indefinite beyond rounding is first projected onto the PD cone in
-    correlation coordinates. Matrices with a zero variance (legitimately singular,
-    e.g. a component known exactly) and matrices that already factorise are
-    returned unchanged, so this costs one batched Cholesky in the common case.
+    ``4 n² ε`` bounds the rounding of forming ``D^{-1/2} P D^{-1/2}`` and of its
+    Cholesky factorisation (backward error ≤ n(n + 1) ε in the 2-norm for a
+    unit-diagonal matrix), so a correlation matrix whose Cholesky factorisation
+    succeeds after this shift is positive definite in exact arithmetic — and so is
+    the stored float matrix ``P``.
+    """
+    return 4.0 * n * n * _EPS
+
+
+def _ensure_pd(P):
+    """Return the symmetric stack P (K, n, n) with every matrix positive definite with margin.
+
+    A covariance that is positive definite in exact arithmetic can come out of the
+    filter's rounding indefinite, or positive definite only by luck of the last
+    bits, when its correlation matrix ``C = D^{-1/2} P D^{-1/2}`` is singular to
+    working precision — e.g. ``F P Fᵀ`` after a long gap (position-velocity
+    correlation 1 − O(1/Δt²)), or its updates in the scans after the gap. The test
+    is scale-free: ``C − τ I`` must factorise by Cholesky, ``τ = 4 n² ε``
+    (:func:`_pd_margin`), which certifies that the stored float matrix is positive
+    definite in exact arithmetic (so every later Cholesky, triangular solve and
+    determinant of it is well defined, whatever the units or the gap). A matrix
+    that fails gets the eigenvalues of ``C`` below ``2τ`` raised to ``2τ`` (the
+    nearest such matrix in the Frobenius norm; only the near-null directions,
+    i.e. changes of relative size ~1e-14, move), retried with a 4× larger floor
+    until the test passes. Matrices with a zero variance (legitimately singular,
+    e.g. a component known exactly) and matrices that pass are returned
+    unchanged, so the common case costs one scaling and one batched Cholesky.
     """
     if P.shape[0] == 0:
         return P
-    try:
-        np.linalg.cholesky(P)
+    tau = _pd_margin(P.shape[-1])
+    ok = _pd_with_margin(P, tau)
+    if ok.all():
         return P
-    except np.linalg.LinAlgError:
-        pass
     P = P.copy()
     n = P.shape[-1]
-    for i in range(P.shape[0]):
-        try:
-            np.linalg.cholesky(P[i])
-            continue
-        except np.linalg.LinAlgError:
-            pass
+    for i in np.flatnonzero(~ok):
         d = np.diagonal(P[i]).copy()
         if not (d > 0).all():
             continue  # a zero variance: positive semi-definite by construction
         s = np.sqrt(d)
-        C = _sym(P[i] / (s[:, None] * s[None, :]))
-        w, V = np.linalg.eigh(C)
-        floor = n * _EPS
-        if w[0] < -floor:  # indefinite beyond rounding: nearest PD correlation-space matrix
-            C = _sym((V * np.maximum(w, floor)) @ V.T)
-        tau = n * _EPS
+        w, V = np.linalg.eigh(_sym(P[i] / (s[:, None] * s[None, :])))
+        floor = 2.0 * tau
         while True:
-            Ci = C + tau * np.eye(n)
-            try:
-                np.linalg.cholesky(Ci)
+            C = (V * np.maximum(w, floor)) @ V.T
+            Pi = _sym(s[:, None] * C * s[None, :])
+            if _pd_with_margin(Pi[None], tau)[0] or floor > n:
                 break
-            except np.linalg.LinAlgError:
-                tau *= 4.0
-        P[i] = _sym(s[:, None] * Ci * s[None, :])
+            floor *= 4.0
+        P[i] = Pi
     return P
+
+
+def _pd_with_margin(P, tau):
+    """(K,) bool: which matrices of P (K, n, n) have correlation matrices with C − τI ≻ 0.
+
+    Tested as a Cholesky factorisation of ``P − τ diag(P)`` = ``D^{1/2} (C − τ I) D^{1/2}``:
+    diagonal scaling changes neither the signs of the pivots nor (to first order)
+    the componentwise backward error of Cholesky, so this is the scale-free test
+    without forming C. A zero or negative variance fails.
+    """
+    n = P.shape[-1]
+    M = P.copy()  # C-contiguous: the diagonal of every matrix is a stride-(n+1) slice
+    M.reshape(P.shape[0], n * n)[:, :: n + 1] *= 1.0 - tau
+    try:
+        np.linalg.cholesky(M)
+        return np.ones(P.shape[0], bool)
+    except np.linalg.LinAlgError:
+        pass
+    ok = np.zeros(P.shape[0], bool)
+    for k in range(P.shape[0]):
+        try:
+            np.linalg.cholesky(M[k])
+            ok[k] = True
+        except np.linalg.LinAlgError:
+            pass
+    return ok
 
 
 def _complement(K, H, R, L):

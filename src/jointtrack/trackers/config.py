@@ -14,14 +14,22 @@ __all__ = ["MISS_MODELS", "TrackerConfig", "check_field", "config_from_dict"]
 MISS_MODELS = ("1-pd*pg", "1-pd")
 
 
-def config_from_dict(cls, d: dict, noun: str):
-    """``cls(**d)`` for a config dataclass; unknown keys are an error naming them."""
+def config_from_dict(cls, d: dict, noun: str, *, complete: bool = False):
+    """``cls(**d)`` for a config dataclass; unknown keys are an error naming them.
+
+    ``complete=True`` (a saved configuration, e.g. in a tracker state file): every
+    field must be present — a missing key is an error naming it, never a default,
+    since a default would silently change the run that continues from the file.
+    """
     known = {f.name for f in fields(cls)}
     unknown = sorted(set(d) - known)
     if unknown:
         raise ValueError(
             f"unknown {noun} setting(s): {', '.join(unknown)}; known: {', '.join(sorted(known))}"
         )
+    missing = sorted(known - set(d)) if complete else []
+    if missing:
+        raise ValueError(f"missing {noun} setting(s): {', '.join(missing)}")
     return cls(**d)
 
 
@@ -181,9 +189,13 @@ class TrackerConfig:
         return R.copy()
 
     @classmethod
-    def from_dict(cls, d: dict) -> TrackerConfig:
-        """Build from a (TOML) mapping; unknown keys are an error naming them."""
-        return config_from_dict(cls, d, "tracker")
+    def from_dict(cls, d: dict, *, complete: bool = False) -> TrackerConfig:
+        """Build from a (TOML) mapping; unknown keys are an error naming them.
+
+        Missing keys take their defaults, unless ``complete=True`` (a saved
+        configuration, e.g. :meth:`JPDATracker.load`): then they are an error.
+        """
+        return config_from_dict(cls, d, "tracker", complete=complete)
 
     def to_dict(self) -> dict:
         return asdict(self)

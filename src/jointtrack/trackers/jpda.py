@@ -18,13 +18,14 @@ one association call per multi-track cluster — no per-track Python objects.
 from __future__ import annotations
 
 import logging
-import math
+import numbers
 import time as _time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from jointtrack.assignment._checks import _as_real_array, as_float
 from jointtrack.association.budget import budgeted_marginals
 from jointtrack.association.clustering import cluster_pair_marginals, clusters
 from jointtrack.association.clutter import cluster_heuristic_densities
@@ -54,6 +55,7 @@ from jointtrack.trackers.initiation import pair_returns
 from jointtrack.trackers.sensors import Sensor
 from jointtrack.trackers.state_io import (
     StateFileError,
+    covariance_problem,
     read_state,
     validate_tracker_arrays,
     write_state,
@@ -309,20 +311,18 @@ class JPDATracker:
                 f"(time_origin {self.time_origin}); one run takes either numbers (seconds) "
                 "or datetimes, not both"
             )
-        try:
-            return float(t)
-        except TypeError:
+        if not isinstance(t, numbers.Number | np.ndarray):  # str, None, date, …
             raise TypeError(
-                "scan time must be a number (seconds), a datetime.datetime or a "
+                "scan time t must be a number (seconds), a datetime.datetime or a "
                 f"numpy.datetime64, got {type(t).__name__}"
-            ) from None
+            )
+        # bools, complex numbers, ints beyond the float range, NaN/inf: ValueError naming t
+        return as_float(t, "scan time t")
 
     def _step(self, t, z, same_time_ok=False) -> ScanResult:
         c = self.config
         t = self._scan_time(t)
-        if not math.isfinite(t):
-            raise ValueError(f"scan time must be finite, got {t}")
-        z = np.asarray(z, dtype=float)
+        z = _as_real_array(z, "measurements z")  # no complex, bool, string or huge-int z
         mdim = self._mdim
         if z.size == 0:
             z = z.reshape(0, mdim)
@@ -636,6 +636,12 @@ class JPDATracker:
         be at the states' time and nothing is predicted); a tracker that has a
         clock requires ``time`` to equal it (predict states from other times
         yourself). Returns the new track ids.
+
+        Raises ValueError (TypeError for a non-bool ``confirmed``) naming the
+        argument for anything a saved state could not hold — complex, boolean,
+        string or non-finite ``x0``/``P0``, a ``P0`` that is not symmetric
+        positive definite, ``existence`` outside [0, 1] — so every state this
+        accepts can be saved and loaded; nothing is changed then.
         """
         t0 = None
         if time is not None:
@@ -645,24 +651,32 @@ class JPDATracker:
             finally:
                 if self.time is None:  # nothing is changed until the tracks are valid
                     self.time_origin = origin
-            if not math.isfinite(t0):
-                raise ValueError(f"time must be finite, got {time!r}")
             if self.time is not None and t0 != self.time:
                 raise ValueError(
                     f"time = {t0} differs from the tracker's clock ({self.time}); start tracks "
                     "at the current time or predict their states to it first"
                 )
+        # Everything accepted here must survive save() and load(): the same checks.
         n = self._motion.state_dim
-        x0 = np.atleast_2d(np.asarray(x0, dtype=float))
+        x0 = np.atleast_2d(_as_real_array(x0, "x0"))
         if x0.ndim != 2 or x0.shape[1] != n:
             raise ValueError(f"x0 must have shape (K, {n}), got {x0.shape}")
-        P0 = np.asarray(P0, dtype=float)
-        P0 = np.broadcast_to(P0, (len(x0), n, n)).copy()
-        if not (np.all(np.isfinite(x0)) and np.all(np.isfinite(P0))):
-            raise ValueError("x0 and P0 must be finite")
-        if np.any(np.linalg.eigvalsh(0.5 * (P0 + P0.transpose(0, 2, 1))) <= 0):
-            raise ValueError("every P0 must be symmetric positive definite")
-        ids = self._append(x0, P0, confirmed=confirmed, existence=existence)
+        if not np.all(np.isfinite(x0)):
+            raise ValueError("x0 must be finite")
+        P0 = _as_real_array(P0, "P0")
+        if P0.shape not in ((n, n), (len(x0), n, n)):
+            raise ValueError(
+                f"P0 must have shape ({n}, {n}) or ({len(x0)}, {n}, {n}), got {P0.shape}"
+            )
+        P0 = np.broadcast_to(P0, (len(x0), n, n))
+        problem = covariance_problem(P0)
+        if problem:
+            raise ValueError(f"P0 {problem}; every P0 must be symmetric positive definite")
+        P0 = 0.5 * (P0 + P0.transpose(0, 2, 1))  # exactly symmetric, as the filters keep it
+        existence = as_float(existence, "existence", minimum=0.0, maximum=1.0)
+        if not isinstance(confirmed, bool | np.bool_):
+            raise TypeError(f"confirmed must be True or False, got {confirmed!r}")
+        ids = self._append(x0, P0, confirmed=bool(confirmed), existence=existence)
         if t0 is not None and self.time is None:
             if is_datetime(time):
                 self._scan_time(time)  # fixes time_origin, validated above
@@ -783,12 +797,14 @@ class JPDATracker:
         ValueError
             (:class:`~jointtrack.trackers.state_io.StateFileError`) for a missing,
             damaged, truncated, foreign, wrong-version or pickle file, or values
-            that a tracker cannot hold; the message names the file and the problem.
+            that a tracker cannot hold (including a configuration with missing
+            settings: they are never filled with defaults); the message names the
+            file and the problem.
         """
         arrays, config, scalars, rng = read_state(path)
-        try:
-            cfg = TrackerConfig.from_dict(config)
-        except (TypeError, ValueError) as exc:
+        try:  # complete: a missing setting is damage, not a default
+            cfg = TrackerConfig.from_dict(config, complete=True)
+        except (TypeError, ValueError, OverflowError, RecursionError) as exc:
             raise StateFileError(f"{path}: invalid tracker configuration ({exc})") from None
         trk = cls(cfg, keep_history=keep_history)
         validate_tracker_arrays(path, arrays, scalars, trk._motion.state_dim, cfg.dim)
@@ -806,6 +822,6 @@ class JPDATracker:
         trk.n_scans = scalars["n_scans"]
         try:
             trk.rng.bit_generator.state = rng
-        except (TypeError, ValueError, KeyError) as exc:
+        except (TypeError, ValueError, KeyError, OverflowError) as exc:
             raise StateFileError(f"{path}: invalid random-generator state ({exc})") from None
         return trk

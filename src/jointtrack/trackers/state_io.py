@@ -38,6 +38,9 @@ _PICKLE_MAGIC = b"\x80"
 _ZIP_MAGIC = b"PK\x03\x04"
 #: Largest array member accepted (a tracker with a million tracks is ~100 MB).
 _MAX_MEMBER_BYTES = 2**31
+#: Largest next track id / scan count a state holds: ids live in int64 arrays, and a
+#: tracker must be able to add tracks after it (headroom below 2**63).
+MAX_ID = 2**62
 
 
 class StateFileError(ValueError):
@@ -151,6 +154,8 @@ def _read_verified(path):
         header = json.loads(blob.tobytes().decode("utf-8"))
     except (UnicodeDecodeError, ValueError) as exc:
         raise bad(f"damaged header ({exc})") from None
+    except RecursionError:  # JSON nested deeper than the parser's recursion limit
+        raise bad("damaged header (JSON nested too deeply)") from None
     if not isinstance(header, dict) or header.get("format") != FORMAT:
         raise bad(f"not a {FORMAT} file")
     if header.get("version") != VERSION:
@@ -218,18 +223,9 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
     ):
         raise bad("fields 'seeds'/'seed_covs'/'seed_times' have inconsistent shapes")
     for name in ("P", "seed_covs"):
-        cov = arrays[name]
-        if len(cov):
-            asym = np.abs(cov - cov.transpose(0, 2, 1)).max()
-            scale = np.abs(cov).max()
-            if asym > 1e-9 * max(scale, 1e-300):
-                raise bad(f"field {name!r} holds a covariance that is not symmetric")
-            try:
-                np.linalg.cholesky(cov)
-            except np.linalg.LinAlgError:
-                raise bad(
-                    f"field {name!r} holds a covariance that is not positive definite"
-                ) from None
+        problem = covariance_problem(arrays[name])
+        if problem:
+            raise bad(f"field {name!r} holds a covariance that {problem}")
     ex = arrays["existence"]
     if ((ex < 0) | (ex > 1)).any():
         raise bad("field 'existence' has values outside [0, 1]")
@@ -241,12 +237,48 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
             raise bad(f"field {name!r} has negative values")
     for name in ("next_id", "n_scans"):
         v = scalars.get(name)
-        if not isinstance(v, int) or isinstance(v, bool) or v < 0:
-            raise bad(f"scalar {name!r} must be a non-negative integer, got {v!r}")
+        if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= MAX_ID:
+            shown = v if not isinstance(v, int) or abs(v) < 10**30 else f"{len(str(v))}-digit int"
+            raise bad(f"scalar {name!r} must be an integer in [0, 2**62], got {shown!r}")
     if N and scalars["next_id"] <= int(ids.max()):
         raise bad("scalar 'next_id' is not above every track id")
     t = scalars.get("time")
-    if t is not None and (
-        not isinstance(t, int | float) or isinstance(t, bool) or not math.isfinite(t)
-    ):
-        raise bad(f"scalar 'time' must be a finite number or null, got {t!r}")
+    if t is not None:
+        try:  # a Python int beyond the float range overflows float() (and math.isfinite)
+            ok = isinstance(t, int | float) and not isinstance(t, bool) and math.isfinite(float(t))
+        except OverflowError:
+            ok = False
+        if not ok:
+            shown = t if not isinstance(t, int) or abs(t) < 10**30 else f"{len(str(t))}-digit int"
+            raise bad(f"scalar 'time' must be a finite number or null, got {shown!r}")
+
+
+def covariance_problem(cov: np.ndarray) -> str | None:
+    """What keeps a stack (K, d, d) of covariances out of a tracker state, or None.
+
+    The one test both :func:`validate_tracker_arrays` (on load) and
+    ``JPDATracker.start_tracks`` (on the way in) apply, so that every state the
+    API accepts can be saved and loaded again: finite, symmetric to 1e-9 relative
+    and positive definite (Cholesky). Returns e.g. ``"is not symmetric (track 3)"``.
+    """
+    if not len(cov):
+        return None
+    finite = np.isfinite(cov).reshape(len(cov), -1).all(axis=1)
+    if not finite.all():
+        return f"has non-finite entries (track {int(np.argmin(finite))})"
+    asym = np.abs(cov - cov.transpose(0, 2, 1)).reshape(len(cov), -1).max(axis=1)
+    scale = np.abs(cov).reshape(len(cov), -1).max(axis=1)
+    bad = asym > 1e-9 * np.maximum(scale, 1e-300)
+    if bad.any():
+        return f"is not symmetric (track {int(np.argmax(bad))})"
+    try:
+        np.linalg.cholesky(cov)
+        return None
+    except np.linalg.LinAlgError:
+        pass
+    for i in range(len(cov)):
+        try:
+            np.linalg.cholesky(cov[i])
+        except np.linalg.LinAlgError:
+            return f"is not positive definite (track {i})"
+    return "is not positive definite"  # pragma: no cover
