@@ -455,7 +455,7 @@ def _from_checkpoint(
             f"{resume}: a tracker state without the bookkeeping of a jointtrack run; it "
             "cannot resume `jointtrack run`"
         )
-    inputs = info["inputs"]
+    inputs = runmod._run_inputs(info["inputs"])
     what = runmod._describe(inputs)
 
     def conflict(flag, value):

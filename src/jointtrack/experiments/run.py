@@ -179,6 +179,7 @@ from jointtrack.experiments.writers import (  # noqa: F401 - re-exported
     fault,
 )
 from jointtrack.io import Detections, to_jsonable, write_metrics
+from jointtrack.scenarios import run_name
 from jointtrack.trackers import JPDATracker, TrackerConfig
 from jointtrack.trackers.state_io import read_run
 
@@ -319,6 +320,14 @@ def _check_writable(path: Path, flag: str) -> None:
         raise RunConfigError(f"{flag} {path}: the directory {parent} is not writable")
 
 
+def _run_inputs(inputs):
+    """A checkpoint's recorded inputs with the scenario's run name (checkpoints written
+    before runs recorded it hold the generator's name, e.g. ``many_targets``)."""
+    if isinstance(inputs, dict) and isinstance(inputs.get("scenario"), str):
+        return {**inputs, "scenario": run_name(inputs["scenario"])}
+    return inputs
+
+
 def _check_resume(resume: Path, info, trk, src, identity, out_dir: Path, fmt: str) -> None:
     """The checkpoint belongs to this run: same inputs, output directory and format."""
     if not isinstance(info, dict) or "parts" not in info:
@@ -326,7 +335,7 @@ def _check_resume(resume: Path, info, trk, src, identity, out_dir: Path, fmt: st
             f"{resume}: a tracker state without the bookkeeping of a jointtrack run "
             "(saved by JPDATracker.save?); it cannot resume `jointtrack run`"
         )
-    if info.get("inputs") != identity:
+    if _run_inputs(info.get("inputs")) != identity:
         raise RunConfigError(
             f"{resume}: the checkpoint was made for {_describe(info.get('inputs'))}, "
             f"not {_describe(identity)}"
@@ -711,7 +720,8 @@ def run_scenario(
         scenario = make_scenario(name, seed, kwargs)
         identity = {"scenario": name, "seed": seed, "kwargs": kwargs}
     else:
-        identity = {"scenario": scenario.name, "seed": scenario.seed, "kwargs": kwargs}
+        # the run name (many, not the generator's many_targets): --resume rebuilds it by name
+        identity = {"scenario": run_name(scenario.name), "seed": scenario.seed, "kwargs": kwargs}
     start = start_setting(start_from, start_from_truth, "run_scenario:", noun="argument")
     if start is None:
         # the particle tracker follows the targets it is started with: from the truth
