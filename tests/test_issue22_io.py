@@ -99,3 +99,171 @@ def test_complex_tables_are_refused_by_gospa_series(column):
     name = ["truth times", "truth: ids", "truth positions"][column]
     with pytest.raises(ValueError, match=name):
         gospa_series(*bad, *table, c=5.0)
+
+
+# ----------------------------------------------------------------------------- item 16
+
+
+def _small_crossing():
+    from jointtrack.scenarios import crossing
+
+    return crossing(seed=1, n_scans=8, clutter_per_scan=2.0)
+
+
+# Parquet: only the needed columns are read, but pyarrow parses the whole footer
+# (≈ 1 s per 30 000 columns on a busy CI machine), so its file is narrower
+@pytest.mark.parametrize("suffix, n", [(".csv", 100_000), (".parquet", 20_000)])
+def test_a_header_of_100k_columns_is_read_in_linear_time(tmp_path, suffix, n):
+    import time
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from jointtrack.io import read_detections
+
+    names = ["time", "x", "y", *(f"extra{i}" for i in range(n - 3))]
+    path = tmp_path / f"wide{suffix}"
+    if suffix == ".csv":
+        path.write_text(",".join(names) + "\n" + ",".join(["0", "1.5", "2"] + ["7"] * (n - 3)))
+    else:
+        cols = [pa.array([v]) for v in (0.0, 1.5, 2.0, *([7.0] * (n - 3)))]
+        pq.write_table(pa.Table.from_arrays(cols, names=names), path)
+    t0 = time.perf_counter()
+    det = read_detections(path)
+    seconds = time.perf_counter() - t0
+    assert det.scans[0].tolist() == [[1.5, 2.0]]
+    assert seconds < 2.0, seconds
+    # a duplicate among them is still found, and named
+    if suffix == ".csv":
+        path.write_text(",".join([*names, "EXTRA17"]) + "\n" + ",".join(["0"] * (n + 1)))
+        with pytest.raises(ValueError, match="duplicate column.*extra17"):
+            read_detections(path)
+
+
+huge = st.floats(1e150, 1.7976931348623157e308, exclude_min=True)
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    value=huge,
+    sign=st.sampled_from([1.0, -1.0]),
+    column=st.sampled_from(["x", "y", "z", "range", "sensor_x"]),
+    row=st.integers(0, 2),
+    suffix=st.sampled_from([".csv", ".parquet"]),
+)
+def test_a_coordinate_whose_square_overflows_is_refused_naming_file_row_and_column(
+    tmp_path_factory, value, sign, column, row, suffix
+):
+    from jointtrack.io import DetectionFileError, Detections, read_detections, write_detections
+
+    tmp = tmp_path_factory.mktemp("huge")
+    if column == "range":
+        sign = 1.0  # a negative range is refused for being negative
+    rb = column in ("range", "sensor_x")
+    dim = 3 if column == "z" else 2
+    scans = [np.full((1, dim), 1.0 if rb else 3.0) for _ in range(3)]
+    positions = [np.array([[0.0, 0.0]]) for _ in range(3)] if column == "sensor_x" else None
+    det = Detections(
+        times=[0.0, 1.0, 2.0],
+        scans=scans,
+        kind="range-bearing" if rb else "position",
+        dim=dim,
+        sensor_positions=positions,
+    )
+    table = det.to_table()
+    table[column][row] = sign * value
+    from jointtrack.io._files import write_columns
+
+    path = tmp / f"det{suffix}"
+    write_columns(path, suffix.strip("."), table, int_cols=set())
+    with pytest.raises(DetectionFileError) as info:
+        read_detections(path)
+    msg = str(info.value)
+    assert msg.startswith(str(path)) and f"data row {row + 1}" in msg
+    assert f"column '{column}'" in msg and "beyond" in msg
+    # the largest accepted magnitude is read as it is, and a write/read round trip keeps it
+    table[column][row] = sign * 1e150
+    write_columns(path, suffix.strip("."), table, int_cols=set())
+    back = read_detections(path)
+    assert back.n_detections == 3
+    write_detections(back, tmp / f"again{suffix}")
+    assert read_detections(tmp / f"again{suffix}").to_table()[column][row] == sign * 1e150
+
+
+def test_detections_built_in_memory_refuse_huge_coordinates():
+    from jointtrack.io import Detections
+
+    with pytest.raises(ValueError, match=r"scans\[1\] has a coordinate beyond"):
+        Detections(times=[0.0, 1.0], scans=[np.zeros((1, 2)), np.array([[1e300, 0.0]])])
+
+
+def test_a_finished_run_keeps_no_parts(tmp_path):
+    from jointtrack.experiments.run import RunConfigError, run_scenario
+
+    sc = _small_crossing()
+    run_scenario(sc, None, tmp_path / "a", plots=False)
+    assert not (tmp_path / "a" / ".tracks-parts").exists()
+    ck = tmp_path / "ck.npz"
+    run_scenario(sc, None, tmp_path / "b", plots=False, checkpoint=ck, checkpoint_every=3)
+    assert not (tmp_path / "b" / ".tracks-parts").exists()  # every scan done
+    assert (tmp_path / "b" / "tracks.csv").read_bytes() == (
+        tmp_path / "a" / "tracks.csv"
+    ).read_bytes()
+    with pytest.raises(RunConfigError, match="run is complete.*nothing to resume"):
+        run_scenario(sc, None, tmp_path / "b", plots=False, resume=ck)
+    assert (tmp_path / "b" / "tracks.csv").read_bytes() == (
+        tmp_path / "a" / "tracks.csv"
+    ).read_bytes()
+    # stopped early by max_scans, the parts stay: the checkpoint can extend the run
+    run_scenario(sc, None, tmp_path / "c", plots=False, checkpoint=ck, max_scans=4)
+    assert any((tmp_path / "c" / ".tracks-parts").iterdir())
+    run_scenario(sc, None, tmp_path / "c", plots=False, resume=ck)
+    assert not (tmp_path / "c" / ".tracks-parts").exists()
+    assert (tmp_path / "c" / "tracks.csv").read_bytes() == (
+        tmp_path / "a" / "tracks.csv"
+    ).read_bytes()
+
+
+def test_a_failed_run_without_a_checkpoint_removes_its_parts(tmp_path):
+    from jointtrack.experiments.run import RunConfigError, run_detections
+    from jointtrack.io import Detections
+
+    det = Detections(
+        times=[0.0, 1.0],
+        scans=[np.zeros((1, 2)), np.zeros((1, 2))],
+        sensors=[np.array([1]), np.array([1])],
+    )
+    # fails after the output directory was prepared: sensor 1 is no range-bearing sensor
+    bad = {1: {"type": "range-bearing", "sensor_position": [0.0, 0.0]}}
+    with pytest.raises(RunConfigError, match="sensor 1"):
+        run_detections(det, {}, tmp_path / "o", sensors=bad, plots=False)
+    assert not (tmp_path / "o" / ".tracks-parts").exists()
+
+
+def test_a_failure_mid_run_keeps_the_parts_only_for_its_checkpoint(tmp_path, monkeypatch):
+    from jointtrack.experiments.run import run_scenario
+    from jointtrack.trackers import JPDATracker
+
+    sc = _small_crossing()
+    run_scenario(sc, None, tmp_path / "full", plots=False)
+    step = JPDATracker.step
+
+    def failing_step(self, t, z, **kw):
+        if self.n_scans == 5:
+            raise RuntimeError("disk on fire")
+        return step(self, t, z, **kw)
+
+    monkeypatch.setattr(JPDATracker, "step", failing_step)
+    with pytest.raises(RuntimeError, match="disk on fire"):
+        run_scenario(sc, None, tmp_path / "plain", plots=False)
+    assert not (tmp_path / "plain" / ".tracks-parts").exists()
+    ck = tmp_path / "ck.npz"
+    with pytest.raises(RuntimeError, match="disk on fire"):
+        run_scenario(sc, None, tmp_path / "ck", plots=False, checkpoint=ck, checkpoint_every=2)
+    assert any((tmp_path / "ck" / ".tracks-parts").iterdir())  # the checkpoint needs them
+    monkeypatch.setattr(JPDATracker, "step", step)
+    run_scenario(sc, None, tmp_path / "ck", plots=False, resume=ck)
+    assert not (tmp_path / "ck" / ".tracks-parts").exists()
+    assert (tmp_path / "ck" / "tracks.csv").read_bytes() == (
+        tmp_path / "full" / "tracks.csv"
+    ).read_bytes()

@@ -112,6 +112,11 @@ the checkpoint belongs to this run, drops whatever was written after it and
 continues with the next scan, so a run killed at any instant and resumed writes
 exactly the tracks and metrics of an uninterrupted one. ``jointtrack run
 --resume FILE`` needs no other flag: the inputs come from the checkpoint.
+The committed parts (``OUT/.tracks-parts/``) stay only while the checkpoint
+can continue the run (stopped early by ``max_scans``, killed, or failed after a
+checkpoint); a run that has processed every scan, and a run without a
+checkpoint that fails, removes them (resuming a completed run is then an error
+saying so).
 
 The pieces: :mod:`~jointtrack.experiments.config` (config file, scenarios,
 tracker settings), :mod:`~jointtrack.experiments.writers` (tracks file,
@@ -478,131 +483,152 @@ def _run(
     elapsed_before = 0.0
     start = 0
     writer = _TrackWriter(out_dir, src.dim, fmt, scan_times=src.times)
-    if resume is not None:
-        resume = Path(resume)
-        trk = JPDATracker.load(resume)
-        info = read_run(resume)
-        _check_resume(resume, info, trk, src, identity, out_dir, fmt)
-        clusters = list(info.get("clusters", []))
-        fallbacks.update(info.get("fallbacks", {}))
-        elapsed_before = float(info.get("elapsed_seconds", 0.0))
-        if trk.config != cfg:
-            diff = sorted(k for k, v in cfg.to_dict().items() if trk.config.to_dict()[k] != v)
-            warn(
-                f"{resume}: continuing with the checkpoint's tracker settings "
-                f"(differ in: {', '.join(diff)})"
-            )
-        cfg = trk.config
-        if trk.time is not None:
-            start = int(np.searchsorted(src.times, trk.time, side="right"))
-        writer.resume(int(info["parts"]))
-        if checkpoint is None:
-            checkpoint = resume  # keep checkpointing where the run was checkpointed
-    else:
-        writer.start_fresh()
-        dt = float(np.median(np.diff(src.times))) if len(src.times) > 1 else 1.0
-        if particle is not None:
-            from jointtrack.trackers.particle import ParticleJPDATracker
-
-            trk = ParticleJPDATracker(particle)
-            start_truth_particles(trk, src.x0, dt)
-        else:
-            trk = JPDATracker(cfg)
-            if src.x0 is not None and len(src.x0):
-                start_truth_tracks(trk, src.x0, dt)
-
-    sensor_tables = {int(k): dict(v) for k, v in (sensors or {}).items()}
-    if particle is None:
-        _register_sensors(trk, src, sensor_tables, warn)
-    scan_weights: list = []  # particle tracker: per scan [coefficient s, derivative s, …]
-    K = len(src.times)
-    stop = K if max_scans is None else min(K, int(max_scans))
-
-    def run_info(n_parts: int, seconds: float) -> dict:
-        return {
-            "inputs": identity,
-            "out_dir": str(out_dir.resolve()),
-            "format": fmt,
-            "checkpoint_every": int(checkpoint_every),
-            "max_scans": None if max_scans is None else int(max_scans),
-            "metrics_opts": to_jsonable(metrics_opts, fallback="text"),
-            "parts": int(n_parts),
-            "n_scans": int(trk.n_scans),
-            "clusters": clusters,
-            "fallbacks": dict(fallbacks),
-            "sensors": {str(k): v for k, v in sensor_tables.items()},
-            "elapsed_seconds": seconds,
-        }
-
-    from jointtrack._console import progress_bar
-
-    if console.is_terminal or progress:
-        with console.status(
-            "loading the compiled kernels (the first run after install compiles them, about 20 s)…"
-        ):
-            _warm_up(cfg, particle)
-    else:
-        _warm_up(cfg, particle)
-    # one line per approximated cluster would flood the terminal: they are counted
-    # per reason in metrics.json and the summary instead
-    tracker_log = logging.getLogger("jointtrack.tracker")
-    saved_level = tracker_log.level
-    tracker_log.setLevel(logging.ERROR)
-    loop0 = time.perf_counter()
-    n_done = 0
+    # whether a checkpoint file refers to the parts (a resumed run's, or one saved below):
+    # a failed run removes them otherwise, as they cannot be needed
+    checkpointed = [resume is not None]
     try:
-        with progress_bar(console, unit="scans", enabled=progress, remaining=True) as bar:
-            task = bar.add_task("tracking", total=stop, completed=start)
-            for k in range(start, stop):
-                t = float(src.times[k])
-                for res in _step_scan(trk, t, src, k):
-                    if particle is not None:
-                        scan_weights.append(
-                            [
-                                res.coefficient_seconds,
-                                res.derivative_seconds,
-                                float(res.ess.mean()),
-                                float(res.ess.min()),
-                                max((c[1] for c in res.components), default=0),
-                            ]
-                        )
-                        continue
-                    for (n_tr, n_me), sec, conf in zip(
-                        res.cluster_sizes, res.cluster_seconds, res.cluster_confirmed, strict=True
-                    ):
-                        if conf:
-                            clusters.append([int(n_tr), int(n_me), float(sec)])
-                    for reason, conf in zip(
-                        res.cluster_fallbacks, res.cluster_confirmed, strict=True
-                    ):
-                        if reason:
-                            key = "refused" if reason.startswith("refused") else reason
-                            # tentative-track clusters (clutter-born, in heavy clutter)
-                            # apart from the confirmed ones the experiment is about
-                            key += "" if conf else ", tentative tracks"
-                            fallbacks[key] = fallbacks.get(key, 0) + 1
-                writer.write_scan(t, res)  # the tracks after the time's last sensor
-                fault("scan", k)
-                n_done += 1
-                if checkpoint is not None and trk.n_scans % checkpoint_every == 0:
-                    # part first, then the checkpoint that counts it (see writers)
-                    n_parts = writer.commit()
-                    fault("part", k)
-                    seconds = elapsed_before + time.perf_counter() - loop0
-                    _save_checkpoint(trk, checkpoint, run_info(n_parts, seconds))
-                    fault("checkpoint", k)
-                bar.update(task, advance=1)
-        loop_seconds = time.perf_counter() - loop0
-        if checkpoint is not None and (n_done or resume is not None):
-            n_parts = writer.commit() if writer._pending else writer.n_parts
-            _save_checkpoint(trk, checkpoint, run_info(n_parts, elapsed_before + loop_seconds))
-        writer.finish(keep_parts=checkpoint is not None)
-    except KeyboardInterrupt:
-        writer.snapshot()
+        if resume is not None:
+            resume = Path(resume)
+            trk = JPDATracker.load(resume)
+            info = read_run(resume)
+            _check_resume(resume, info, trk, src, identity, out_dir, fmt)
+            clusters = list(info.get("clusters", []))
+            fallbacks.update(info.get("fallbacks", {}))
+            elapsed_before = float(info.get("elapsed_seconds", 0.0))
+            if trk.config != cfg:
+                diff = sorted(k for k, v in cfg.to_dict().items() if trk.config.to_dict()[k] != v)
+                warn(
+                    f"{resume}: continuing with the checkpoint's tracker settings "
+                    f"(differ in: {', '.join(diff)})"
+                )
+            cfg = trk.config
+            if trk.time is not None:
+                start = int(np.searchsorted(src.times, trk.time, side="right"))
+            if start >= len(src.times) and not writer.parts_dir.is_dir():
+                # a completed run drops its parts (see writers): nothing is left to do
+                raise RunConfigError(
+                    f"{resume}: the run is complete (all {len(src.times)} scans, tracks in "
+                    f"{writer.path}); there is nothing to resume"
+                )
+            writer.resume(int(info["parts"]))
+            if checkpoint is None:
+                checkpoint = resume  # keep checkpointing where the run was checkpointed
+        else:
+            writer.start_fresh()
+            dt = float(np.median(np.diff(src.times))) if len(src.times) > 1 else 1.0
+            if particle is not None:
+                from jointtrack.trackers.particle import ParticleJPDATracker
+
+                trk = ParticleJPDATracker(particle)
+                start_truth_particles(trk, src.x0, dt)
+            else:
+                trk = JPDATracker(cfg)
+                if src.x0 is not None and len(src.x0):
+                    start_truth_tracks(trk, src.x0, dt)
+
+        sensor_tables = {int(k): dict(v) for k, v in (sensors or {}).items()}
+        if particle is None:
+            _register_sensors(trk, src, sensor_tables, warn)
+        scan_weights: list = []  # particle tracker: per scan [coefficient s, derivative s, …]
+        K = len(src.times)
+        stop = K if max_scans is None else min(K, int(max_scans))
+
+        def run_info(n_parts: int, seconds: float) -> dict:
+            return {
+                "inputs": identity,
+                "out_dir": str(out_dir.resolve()),
+                "format": fmt,
+                "checkpoint_every": int(checkpoint_every),
+                "max_scans": None if max_scans is None else int(max_scans),
+                "metrics_opts": to_jsonable(metrics_opts, fallback="text"),
+                "parts": int(n_parts),
+                "n_scans": int(trk.n_scans),
+                "clusters": clusters,
+                "fallbacks": dict(fallbacks),
+                "sensors": {str(k): v for k, v in sensor_tables.items()},
+                "elapsed_seconds": seconds,
+            }
+
+        from jointtrack._console import progress_bar
+
+        if console.is_terminal or progress:
+            with console.status(
+                "loading the compiled kernels (the first run after install compiles them, "
+                "about 20 s)…"
+            ):
+                _warm_up(cfg, particle)
+        else:
+            _warm_up(cfg, particle)
+        # one line per approximated cluster would flood the terminal: they are counted
+        # per reason in metrics.json and the summary instead
+        tracker_log = logging.getLogger("jointtrack.tracker")
+        saved_level = tracker_log.level
+        tracker_log.setLevel(logging.ERROR)
+        loop0 = time.perf_counter()
+        n_done = 0
+        try:
+            with progress_bar(console, unit="scans", enabled=progress, remaining=True) as bar:
+                task = bar.add_task("tracking", total=stop, completed=start)
+                for k in range(start, stop):
+                    t = float(src.times[k])
+                    for res in _step_scan(trk, t, src, k):
+                        if particle is not None:
+                            scan_weights.append(
+                                [
+                                    res.coefficient_seconds,
+                                    res.derivative_seconds,
+                                    float(res.ess.mean()),
+                                    float(res.ess.min()),
+                                    max((c[1] for c in res.components), default=0),
+                                ]
+                            )
+                            continue
+                        for (n_tr, n_me), sec, conf in zip(
+                            res.cluster_sizes,
+                            res.cluster_seconds,
+                            res.cluster_confirmed,
+                            strict=True,
+                        ):
+                            if conf:
+                                clusters.append([int(n_tr), int(n_me), float(sec)])
+                        for reason, conf in zip(
+                            res.cluster_fallbacks, res.cluster_confirmed, strict=True
+                        ):
+                            if reason:
+                                key = "refused" if reason.startswith("refused") else reason
+                                # tentative-track clusters (clutter-born, in heavy clutter)
+                                # apart from the confirmed ones the experiment is about
+                                key += "" if conf else ", tentative tracks"
+                                fallbacks[key] = fallbacks.get(key, 0) + 1
+                    writer.write_scan(t, res)  # the tracks after the time's last sensor
+                    fault("scan", k)
+                    n_done += 1
+                    if checkpoint is not None and trk.n_scans % checkpoint_every == 0:
+                        # part first, then the checkpoint that counts it (see writers)
+                        n_parts = writer.commit()
+                        fault("part", k)
+                        seconds = elapsed_before + time.perf_counter() - loop0
+                        _save_checkpoint(trk, checkpoint, run_info(n_parts, seconds))
+                        checkpointed[0] = True
+                        fault("checkpoint", k)
+                    bar.update(task, advance=1)
+            loop_seconds = time.perf_counter() - loop0
+            if checkpoint is not None and (n_done or resume is not None):
+                n_parts = writer.commit() if writer._pending else writer.n_parts
+                _save_checkpoint(trk, checkpoint, run_info(n_parts, elapsed_before + loop_seconds))
+                checkpointed[0] = True
+            # the parts are kept only while a resume can extend the run (--max-scans)
+            writer.finish(keep_parts=checkpoint is not None and stop < K)
+        except KeyboardInterrupt:
+            writer.snapshot()
+            raise
+        finally:
+            writer.close()
+            tracker_log.setLevel(saved_level)
+    except BaseException:
+        if not checkpointed[0]:
+            writer.discard_parts()
         raise
-    finally:
-        writer.close()
-        tracker_log.setLevel(saved_level)
 
     # ------------------------------------------------------------ metrics
     tracks = writer.table()

@@ -70,7 +70,9 @@ one (time, sensor), empty on position rows.
   required columns (all listed), no data rows, a non-numeric, empty, NaN or
   infinite value (for ``time``: neither a number nor an ISO-8601 timestamp —
   the message shows the cell and the accepted formats — or numbers and
-  timestamps mixed),
+  timestamps mixed), a coordinate (``x, y, z, range, sensor_x, sensor_y``)
+  beyond ±10¹⁵⁰ (:data:`~jointtrack.io.detections.MAX_COORDINATE`: the
+  tracker squares coordinate differences; rescale such data),
   a non-integer sensor id, a row with the wrong number of fields, a time
   earlier than the row before it, position and range–bearing columns together
   (or neither) outside a mixed file, a negative range or a bearing outside

@@ -36,6 +36,14 @@ POS_COLUMNS = ("x", "y", "z")
 RB_COLUMNS = ("range", "bearing")
 SENSOR_POSITION_COLUMNS = ("sensor_x", "sensor_y")
 
+#: Largest |coordinate| (x, y, z, range, sensor_x, sensor_y) read from a file: the
+#: filter squares differences of coordinates (innovations, gate distances), and
+#: (2·10¹⁵⁰)² = 4·10³⁰⁰ leaves room below the float64 maximum (1.8·10³⁰⁸) for
+#: dividing by a small noise variance. Beyond it a value cannot be tracked
+#: meaningfully, and is refused with the file, row and column.
+MAX_COORDINATE = 1e150
+_COORDINATE_COLUMNS = (*POS_COLUMNS, *RB_COLUMNS[:1], *SENSOR_POSITION_COLUMNS)
+
 _NS = 1_000_000_000
 _UNIT_NS = {"s": _NS, "ms": 1_000_000, "us": 1_000, "ns": 1}
 
@@ -126,6 +134,11 @@ class Detections:
                 raise ValueError(f"scans[{k}] must have shape (M, {dim}), got {z.shape}")
             if not np.all(np.isfinite(z)):
                 raise ValueError(f"scans[{k}] has a non-finite coordinate")
+            if z.size and np.abs(z).max() > MAX_COORDINATE:
+                raise ValueError(
+                    f"scans[{k}] has a coordinate beyond ±{MAX_COORDINATE:g}, which the tracker "
+                    "cannot square (rescale the data)"
+                )
             if row_kinds is not None and row_kinds[k].shape != (z.shape[0],):
                 raise ValueError(
                     f"row_kinds[{k}] must have shape ({z.shape[0]},), got {row_kinds[k].shape}"
@@ -582,6 +595,7 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
         kind = "position"
     t, origin = _time_column(path, err, cols["time"], lines)
     _check_time_order(path, err, t, origin, lines)
+    _check_magnitudes(path, err, cols, lines)
     sensor = None
     row_rb = None
     if kind == "mixed":
@@ -640,6 +654,27 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
         row_kinds=None if row_rb is None else tuple(row_rb[s:e] for s, e in bounds),
         sensor_positions=None if where is None else tuple(where[s:e] for s, e in bounds),
     )
+
+
+def _check_magnitudes(path, err, cols, lines) -> None:
+    """``err`` at the first coordinate beyond ±:data:`MAX_COORDINATE` (NaN: an empty
+    cell of a mixed file, checked elsewhere)."""
+    for c in _COORDINATE_COLUMNS:
+        if c not in cols:
+            continue
+        big = np.flatnonzero(np.abs(cols[c]) > MAX_COORDINATE)
+        if big.size:
+            i = int(big[0])
+            raise row_error(
+                err,
+                path,
+                f"value {float(cols[c][i])!r} is beyond ±{MAX_COORDINATE:g}: the tracker squares "
+                "differences of coordinates, which would overflow; rescale the data (e.g. "
+                "kilometres instead of metres)",
+                i,
+                lines,
+                c,
+            )
 
 
 def _filled(path, err, cols, names, lines, what: str) -> np.ndarray:
