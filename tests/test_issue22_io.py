@@ -267,3 +267,56 @@ def test_a_failure_mid_run_keeps_the_parts_only_for_its_checkpoint(tmp_path, mon
     assert (tmp_path / "ck" / "tracks.csv").read_bytes() == (
         tmp_path / "full" / "tracks.csv"
     ).read_bytes()
+
+
+# ----------------------------------------------------------------------------- item 17
+
+
+def _half_step_scene(two_sensors: bool, n=16, seed=0):
+    """Two targets at 10 m/s; sensor 1 scans at t = k, sensor 2 at t = k + 0.5; truth at t = k."""
+    from jointtrack.io import Detections
+
+    rng = np.random.default_rng(seed)
+
+    def where(t):
+        return np.array([[10.0 * t, 0.0], [10.0 * t, 300.0]])
+
+    times, scans, sensors = [], [], []
+    for k in range(n):
+        for sid, t in ((1, float(k)), (2, k + 0.5)):
+            if sid == 2 and not two_sensors:
+                continue
+            times.append(t)
+            scans.append(where(t) + rng.normal(0.0, 2.0, (2, 2)))
+            sensors.append(np.array([sid, sid]))
+    det = Detections(times=times, scans=scans, sensors=sensors)
+    # the truth at t = 0 … n: it spans every scan
+    tk = np.repeat(np.arange(n + 1, dtype=float), 2)
+    truth = (tk, np.tile([1, 2], n + 1), np.concatenate([where(t) for t in range(n + 1)]))
+    return det, truth
+
+
+HALF_CFG = dict(clutter_density=1e-7, measurement_noise=4.0, max_speed=20.0, process_noise=0.1)
+
+
+def test_a_second_sensor_between_the_truth_times_is_scored_against_the_targets(tmp_path):
+    from jointtrack.experiments.run import run_detections
+
+    got = {}
+    for two in (False, True):
+        det, truth = _half_step_scene(two)
+        out = tmp_path / ("two" if two else "one")
+        sensors = {1: {"measurement_noise": 4.0}, 2: {"measurement_noise": 4.0}}
+        got[two] = run_detections(det, HALF_CFG, out, truth=truth, sensors=sensors, plots=False)
+    one, two = got[False], got[True]
+    assert two["scoring"]["rule"] == "scan-times-interpolated-truth"
+    assert two["scoring"]["n_interpolated_rows"] == 2 * 16  # both targets, t = 0.5 … 15.5
+    assert one["scoring"]["n_interpolated_rows"] == 0
+    # no sawtooth: no scored time has a false track (each scan's tracks are true)
+    assert two["gospa"]["mean_n_false"] == 0 and one["gospa"]["mean_n_false"] == 0
+    assert two["tracks"]["n_false_tracks"] == one["tracks"]["n_false_tracks"] == 0
+    # and the score is the single sensor's, or a little better: twice the detections
+    # (the scans before confirmation, all missed targets, are a smaller part of the run)
+    for key in ("gospa", "ospa"):
+        assert 0.5 * one[key]["mean"] <= two[key]["mean"] <= 1.1 * one[key]["mean"]
+    assert two["tracks"]["rmse"] <= one["tracks"]["rmse"] < 3.0  # σ = 2 m per axis

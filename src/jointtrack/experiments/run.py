@@ -12,7 +12,9 @@ tracks and timing only). Both write into ``out_dir``:
   committed parts that survive a kill at any instant and are assembled into
   the file at the end (see :mod:`~jointtrack.experiments.writers`); Parquet
   row groups hold 50 scans each.
-* ``metrics.json``: GOSPA (α = 2, p = 2, mean per scan and its localisation /
+* ``metrics.json``: ``scoring`` (which times are scored and where the truth
+  is taken there: :data:`SCORING_SCAN_TIMES`, :data:`SCORING_INTERPOLATED`),
+  GOSPA (α = 2, p = 2, mean per scan and its localisation /
   missed / false parts, identity switches), OSPA mean, the track statistics of
   :func:`jointtrack.metrics.track_statistics`, and timing: per cluster size
   (number of tracks in a multi-track cluster) the count, mean and maximum
@@ -206,6 +208,21 @@ __all__ = [
 ]
 
 
+#: metrics.json ``scoring`` of a built-in scenario: its truth has a row at every scan time
+SCORING_SCAN_TIMES = {
+    "rule": "scan-times",
+    "description": "tracks and truth compared at every scan time (the scenario's truth has "
+    "a row for each target at each scan time)",
+}
+#: metrics.json ``scoring`` of a detections run with a truth (:func:`_truth_at_scans`)
+SCORING_INTERPOLATED = {
+    "rule": "scan-times-interpolated-truth",
+    "description": "tracks scored at every scan time; a target is present from its first "
+    "truth row's time to its last, at its truth row there or linearly interpolated between "
+    "its rows before and after (e.g. a second sensor's scans between the truth's times)",
+}
+
+
 @dataclass
 class _Source:
     """What is being tracked: scans, plus the truth when simulated."""
@@ -224,6 +241,8 @@ class _Source:
     notes: list = field(default_factory=list)
     kind: str = "position"  # of the scans: "position" or "range-bearing" ([r, θ] rows)
     sensor_ids: tuple | None = None  # per scan, the sensor id of each detection
+    # metrics.json "scoring" (with a truth): how truth and tracks are compared
+    scoring: dict | None = field(default_factory=lambda: dict(SCORING_SCAN_TIMES))
 
 
 def _cartesian(scans, sensor_position) -> list:
@@ -874,17 +893,24 @@ def _load_truth(truth, detections: Detections) -> tuple[tuple, dict, str]:
 
 
 def _truth_at_scans(truth: tuple, times: np.ndarray, name: str, time_origin, dim: int):
-    """The truth rows at scan times (exact match), and a note about the others (or None).
+    """The truth at the scan times, the number of its rows interpolated, and a note
+    about the truth rows at times with no scan (or None).
 
-    Scoring compares tracks with the truth at equal times only, so rows at a
-    time with no scan can never be matched: they are left out and counted in
-    the note. No row at any scan time is an error (a different clock or unit).
+    Tracks are scored at every scan time (:data:`SCORING_INTERPOLATED`). A
+    target is there from its first row's time to its last; at a scan time in
+    that span its position is its row at that time, else the linear
+    interpolation between its rows just before and after (a scan of a second
+    sensor between the truth's times: its tracks are compared with where the
+    targets were, not with no target at all). Rows at a time with no scan are
+    used only so; they are counted in the note. No row at any scan time is an
+    error (a different clock or unit).
     """
     tt, ti, tp = truth
     if tp.shape[1] != dim:
         raise RunConfigError(
             f"{name} holds {tp.shape[1]}-D positions but the detections are {dim}-D"
         )
+    times = np.asarray(times, dtype=np.float64)
     at_scan = np.isin(tt, times)
     if tt.size and not at_scan.any():
         raise RunConfigError(
@@ -892,18 +918,53 @@ def _truth_at_scans(truth: tuple, times: np.ndarray, name: str, time_origin, dim
             f"{_describe_time(float(tt.min()), time_origin)} to "
             f"{_describe_time(float(tt.max()), time_origin)}, scans from "
             f"{_describe_time(float(times[0]), time_origin)} to "
-            f"{_describe_time(float(times[-1]), time_origin)}); truth and tracks are matched "
-            "by exact time, so the truth needs the detections' times (same unit and clock)"
+            f"{_describe_time(float(times[-1]), time_origin)}); truth and tracks must be on "
+            "one clock, so the truth needs rows at the detections' times (same unit and clock)"
         )
     note = None
     if not at_scan.all():
         off = tt[~at_scan]
         note = (
             f"{name}: {off.size} truth row(s) at {np.unique(off).size} time(s) with no scan "
-            f"(first at {_describe_time(float(off[0]), time_origin)}) are not scored: truth "
-            "and tracks are compared at the scan times only (exact time match)"
+            f"(first at {_describe_time(float(off[0]), time_origin)}) are not scored at their "
+            "own times: tracks are scored at the scan times, where a target's position is its "
+            "row or is interpolated between its rows"
         )
-    return (tt[at_scan], ti[at_scan], tp[at_scan]), note
+    out_t, out_i, out_p = [], [], []
+    n_interpolated = 0
+    order = np.lexsort((tt, ti))
+    ids, first = np.unique(ti[order], return_index=True)
+    bounds = [*first.tolist(), order.size]
+    for j, tid in enumerate(ids.tolist()):
+        rows = order[bounds[j] : bounds[j + 1]]
+        t_id, p_id = tt[rows], tp[rows]
+        same = np.flatnonzero(np.diff(t_id) == 0)
+        if same.size:
+            raise RunConfigError(
+                f"{name}: target {tid} has two rows at "
+                f"{_describe_time(float(t_id[same[0]]), time_origin)}"
+            )
+        inside = times[(times >= t_id[0]) & (times <= t_id[-1])]
+        k = np.clip(np.searchsorted(t_id, inside, side="right") - 1, 0, t_id.size - 1)
+        exact = t_id[k] == inside
+        pos = p_id[k].copy()
+        between = np.flatnonzero(~exact)
+        if between.size:
+            k0 = k[between]
+            t0, t1 = t_id[k0], t_id[k0 + 1]
+            # halves: no overflow of the differences for times near the float range
+            w = ((inside[between] / 2 - t0 / 2) / (t1 / 2 - t0 / 2))[:, None]
+            # a convex combination: no overflow for positions near the float range either
+            pos[between] = p_id[k0] * (1.0 - w) + p_id[k0 + 1] * w
+            n_interpolated += int(between.size)
+        out_t.append(inside)
+        out_i.append(np.full(inside.size, tid, dtype=np.int64))
+        out_p.append(pos)
+    if not out_t:
+        return (tt[:0], ti[:0].astype(np.int64), tp[:0]), 0, note
+    t_all, i_all, p_all = np.concatenate(out_t), np.concatenate(out_i), np.concatenate(out_p)
+    o = np.lexsort((i_all, t_all))  # time order, then id
+    return (t_all[o], i_all[o], p_all[o]), n_interpolated, note
 
 
 def _check_resume_files(resume, identity: dict) -> None:
@@ -963,11 +1024,16 @@ def run_detections(
     truth file (:func:`jointtrack.io.read_truth`, read with the detections'
     ``time_origin``) or a table ``(times, ids, positions)`` on the detections'
     clock. With a truth the run is scored as a built-in scenario is — GOSPA,
-    OSPA, track statistics, ``gospa.png``, the truth in ``scene.png`` —
-    matching truth and tracks by exact time. Truth rows at a time with no scan
-    (e.g. a scan without detections, which a detections file cannot hold) are
-    not scored and are counted in a note of ``metrics.json`` and the summary;
-    a truth with no row at any scan time is an error. The truth file's path
+    OSPA, track statistics, ``gospa.png``, the truth in ``scene.png`` — at
+    every scan time, where a target (present from its first truth row's time
+    to its last) is at its truth row or at the linear interpolation between
+    its rows before and after: a second sensor's scans between the truth's
+    times are scored against where the targets were. ``metrics.json`` names
+    this rule (``scoring``, with the number of interpolated positions). Truth
+    rows at a time with no scan (e.g. a scan without detections, which a
+    detections file cannot hold) are not scored at their own time and are
+    counted in a note of ``metrics.json`` and the summary; a truth with no
+    row at any scan time is an error (a different clock or unit). The truth file's path
     and SHA-256 are part of the run's identity, so a checkpoint resumes only
     with the same truth.
 
@@ -1047,13 +1113,14 @@ def run_detections(
         path = Path(detections.source).resolve()
         # the file's content, so that a resume notices a changed file
         identity = {"detections": str(path), "sha256": _file_sha256(path)}
-    table, truth_ids, notes = None, None, []
+    table, truth_ids, notes, scoring = None, None, [], None
     if truth is not None:
         table, entries, name = _load_truth(truth, detections)
         identity.update(entries)
-        table, note = _truth_at_scans(
+        table, n_interpolated, note = _truth_at_scans(
             table, detections.times, name, detections.time_origin, cfg.dim
         )
+        scoring = {**SCORING_INTERPOLATED, "n_interpolated_rows": n_interpolated}
         if note:
             notes.append(note)
         truth_ids = tuple(table[1][table[0] == t] for t in detections.times)
@@ -1076,6 +1143,7 @@ def run_detections(
         region=region,
         sigma=sigma,
         kind=plot_kind,
+        scoring=scoring,
     )
     src.detections = detections  # stepped by _step_scan, sensors checked by _register_sensors
     return _run(src, cfg, out_dir, fmt=fmt, progress=progress, **options)
