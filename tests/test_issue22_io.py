@@ -320,3 +320,113 @@ def test_a_second_sensor_between_the_truth_times_is_scored_against_the_targets(t
     for key in ("gospa", "ospa"):
         assert 0.5 * one[key]["mean"] <= two[key]["mean"] <= 1.1 * one[key]["mean"]
     assert two["tracks"]["rmse"] <= one["tracks"]["rmse"] < 3.0  # σ = 2 m per axis
+
+
+# ----------------------------------------------------------------------------- item 8
+
+BIG = 2**62  # BIG and BIG + 1 are one float64
+
+
+def _labelled_detections(ids, n_scans=12, seed=0):
+    """Two targets seen by two sensors (σ = 5 m and 20 m) with the given two ids."""
+    from jointtrack.io import Detections
+
+    rng = np.random.default_rng(seed)
+    scans, sensors = [], []
+    for t in range(n_scans):
+        truth = np.array([[10.0 * t, 0.0], [10.0 * t, 500.0]])
+        scans.append(
+            np.vstack([truth + rng.normal(0, 5.0, (2, 2)), truth + rng.normal(0, 20.0, (2, 2))])
+        )
+        sensors.append(np.array([ids[0], ids[0], ids[1], ids[1]], dtype=object))
+    return Detections(times=np.arange(n_scans, dtype=float), scans=scans, sensors=sensors)
+
+
+def _sensors_toml(ids, second_type="position"):
+    return (
+        "[tracker]\nclutter_density = 1e-6\nmeasurement_noise = 25.0\nmax_speed = 20.0\n"
+        "process_noise = 0.1\n"
+        f"[sensors.{ids[0]}]\nmeasurement_noise = 25.0\n"
+        f'[sensors.{ids[1]}]\nmeasurement_noise = 400.0\np_d = 0.9\ntype = "{second_type}"\n'
+    )
+
+
+ID_CASES = [(["radar_a", "radar_b"], ".csv"), (["radar_a", "radar_b"], ".parquet")]
+ID_CASES += [([BIG, BIG + 1], ".csv"), ([BIG, BIG + 1], ".parquet")]
+
+
+@pytest.mark.parametrize("ids, suffix", ID_CASES)
+def test_sensor_ids_are_labels_read_exactly(tmp_path, ids, suffix):
+    from jointtrack.io import read_detections, write_detections
+
+    path = write_detections(_labelled_detections(ids), tmp_path / f"det{suffix}")
+    det = read_detections(path)
+    assert list(det.sensor_kinds()) == sorted(ids)
+    assert [sid for sid, *_ in det.sensor_scans(0)] == sorted(ids)
+    assert all(type(sid) is type(ids[0]) for sid in det.sensor_kinds())
+    # written back, the ids are the same labels
+    again = read_detections(write_detections(det, tmp_path / f"again{suffix}"))
+    assert [a.tolist() for a in again.sensors] == [a.tolist() for a in det.sensors]
+
+
+@pytest.mark.parametrize("ids, suffix", ID_CASES)
+def test_each_labelled_sensor_gets_its_own_table_and_two_targets_two_tracks(tmp_path, ids, suffix):
+    from jointtrack.io import read_tracks, write_detections
+
+    det = write_detections(_labelled_detections(ids), tmp_path / f"det{suffix}")
+    (tmp_path / "run.toml").write_text(_sensors_toml(ids))
+    r = _run("--detections", det, "--config", tmp_path / "run.toml", "--out", tmp_path / "o")
+    assert r.exit_code == 0, r.output
+    notes = json.loads((tmp_path / "o" / "metrics.json").read_text())["notes"]
+    assert not any("does not occur" in n for n in notes), notes  # both tables matched
+    tr = read_tracks(tmp_path / "o" / "tracks.csv")
+    assert len(np.unique(tr["track_id"])) == 2
+    # the second table is the second sensor's: its wrong type is reported for that id
+    (tmp_path / "bad.toml").write_text(_sensors_toml(ids, "range-bearing"))
+    r = _run("--detections", det, "--config", tmp_path / "bad.toml", "--out", tmp_path / "b")
+    assert r.exit_code != 0
+    assert f"sensor {ids[1]}: the detections give it position rows" in r.output
+    assert "its [sensors] table has type" in r.output
+
+
+@pytest.mark.parametrize("ids, suffix", [ID_CASES[1], ID_CASES[2]])
+def test_a_killed_run_with_labelled_sensors_resumes_to_the_uninterrupted_tracks(
+    tmp_path, ids, suffix
+):
+    from jointtrack.io import write_detections
+
+    det = write_detections(_labelled_detections(ids), tmp_path / f"det{suffix}")
+    (tmp_path / "run.toml").write_text(_sensors_toml(ids))
+    base = ["--detections", det, "--config", tmp_path / "run.toml"]
+    full = _run(*base, "--out", tmp_path / "full")
+    assert full.exit_code == 0, full.output
+    args = ["run", *base, "--out", "part", "--checkpoint", "ck.npz", "--checkpoint-every", "3"]
+    killed = _cli(args, tmp_path, fault="scan:7")
+    assert killed.returncode == -signal.SIGKILL
+    resumed = _run("--resume", tmp_path / "ck.npz")
+    assert resumed.exit_code == 0, resumed.output
+    assert _rows(tmp_path / "part", "csv") == _rows(tmp_path / "full", "csv")
+    got = json.loads((tmp_path / "part" / "metrics.json").read_text())
+    assert not any("does not occur" in n for n in got["notes"]), got["notes"]
+
+
+def test_bad_sensor_ids_are_refused_naming_the_row(tmp_path):
+    from jointtrack.io import DetectionFileError, Detections, read_detections
+
+    path = tmp_path / "d.csv"
+    path.write_text(f"time,x,y,sensor\n0,1,2,{2**63}\n")
+    with pytest.raises(DetectionFileError, match=r"line 2 .*column 'sensor'.*64-bit"):
+        read_detections(path)
+    path.write_text("time,x,y,sensor\n0,1,2,radar_a\n0,1,2, \n")
+    with pytest.raises(DetectionFileError, match=r"line 3 .*column 'sensor'.*empty"):
+        read_detections(path)
+    path.write_text(f"time,x,y,sensor\n0,1,2,{float(2**60)!r}\n")
+    with pytest.raises(DetectionFileError, match=r"column 'sensor'.*2\^53"):
+        read_detections(path)
+    path.write_text("time,x,y,sensor\n0,1,2,7.0\n")  # a float column's integer: id 7
+    assert read_detections(path).sensor_kinds() == {7: "position"}
+    z = [np.zeros((1, 2))]
+    with pytest.raises(ValueError, match=r"sensors\[0\].*dtype float64"):
+        Detections(times=[0.0], scans=z, sensors=[np.array([1.0])])
+    with pytest.raises(ValueError, match="integers in some scans and strings"):
+        Detections(times=[0.0, 1.0], scans=z * 2, sensors=[np.array([1]), np.array(["a"])])

@@ -161,6 +161,10 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     make_tracker_config,
     particle_options,
     scenario_tracker_settings,
+    sensor_label,
+    sensor_tables_for,
+    sensor_tables_from_run,
+    sensor_tables_to_run,
     start_setting,
     start_truth_particles,
     start_truth_tracks,
@@ -281,7 +285,7 @@ def _register_sensors(trk, src, tables: dict, warn) -> None:
         if tables:
             warn("the [sensors] tables are ignored: the detections have no sensor column")
         return
-    present = sorted({int(i) for ids in src.sensor_ids for i in ids})
+    present = sorted({i for ids in src.sensor_ids for i in ids.tolist()})
     made = make_sensors(tables, trk.config, trk.state_dim)
     for sid in sorted(set(made) - set(present)):
         warn(f"[sensors] sensor {sid} does not occur in the detections")
@@ -303,6 +307,9 @@ def _register_sensors(trk, src, tables: dict, warn) -> None:
         src.tracker_sensors[sid] = sensor
 
 
+_MOVING = ("moving sensor",)  # the tracker's key of an id-less moving sensor
+
+
 def _step_scan(trk, t: float, src, k: int) -> list:
     """The scan(s) at time index k: one per sensor in id order (sequential-update JPDA).
 
@@ -318,8 +325,9 @@ def _step_scan(trk, t: float, src, k: int) -> list:
             if pos is None:
                 out.append(trk.step(t, z) if sid is None else trk.step(t, z, sensor=sid))
                 continue
-            # id None is the configuration's own sensor, which cannot be replaced
-            key = "moving" if sid is None else sid
+            # id None is the configuration's own sensor, which cannot be replaced; a
+            # tuple key cannot clash with a sensor id (an int or a str)
+            key = _MOVING if sid is None else sid
             try:
                 trk.add_sensor(key, src.tracker_sensors[sid].at(pos))
             except ValueError as exc:
@@ -330,7 +338,7 @@ def _step_scan(trk, t: float, src, k: int) -> list:
     if src.sensor_ids is None or not len(src.sensor_ids[k]):
         return [trk.step(t, z)]
     ids = src.sensor_ids[k]
-    return [trk.step(t, z[ids == sid], sensor=int(sid)) for sid in np.unique(ids)]
+    return [trk.step(t, z[ids == sid], sensor=sid) for sid in np.unique(ids).tolist()]
 
 
 def _check_writable(path: Path, flag: str) -> None:
@@ -545,7 +553,7 @@ def _run(
                 if src.x0 is not None and len(src.x0):
                     start_truth_tracks(trk, src.x0, dt)
 
-        sensor_tables = {int(k): dict(v) for k, v in (sensors or {}).items()}
+        sensor_tables = {k: dict(v) for k, v in (sensors or {}).items()}
         if particle is None:
             _register_sensors(trk, src, sensor_tables, warn)
         scan_weights: list = []  # particle tracker: per scan [coefficient s, derivative s, …]
@@ -564,7 +572,7 @@ def _run(
                 "n_scans": int(trk.n_scans),
                 "clusters": clusters,
                 "fallbacks": dict(fallbacks),
-                "sensors": {str(k): v for k, v in sensor_tables.items()},
+                "sensors": sensor_tables_to_run(sensor_tables),
                 "elapsed_seconds": seconds,
             }
 
@@ -1059,7 +1067,15 @@ def run_detections(
     scans = detections.scans
     sigma = math.sqrt(float(np.max(np.diag(cfg.measurement_covariance()))))
     # range-bearing sensors' fixed positions: their [sensors] tables, else [tracker]
-    tables = {int(i): dict(v) for i, v in (options.get("sensors") or {}).items()}
+    string_ids = detections.sensors is not None and any(
+        s.dtype.kind == "U" for s in detections.sensors
+    )
+    # ids are labels: [sensors.1] names the detections' id "1" when their ids are strings
+    tables = sensor_tables_for(
+        {sensor_label(i, "[sensors]"): dict(v) for i, v in (options.get("sensors") or {}).items()},
+        string_ids,
+    )
+    options = {**options, "sensors": tables}
     state_dim = (2 if cfg.motion == "cv" else 3) * cfg.dim
     fixed = {None: tuple(cfg.sensor_position)}
     for sid, sensor in make_sensors(tables, cfg, state_dim).items():
