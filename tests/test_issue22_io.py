@@ -327,19 +327,28 @@ def test_a_second_sensor_between_the_truth_times_is_scored_against_the_targets(t
 BIG = 2**62  # BIG and BIG + 1 are one float64
 
 
-def _labelled_detections(ids, n_scans=12, seed=0):
-    """Two targets seen by two sensors (σ = 5 m and 20 m) with the given two ids."""
-    from jointtrack.io import Detections
+def _write_labelled(path, ids, n_scans=12, seed=0):
+    """Two targets seen by two sensors (σ = 5 m and 20 m) with the given two ids, written
+    directly: CSV text, or Parquet with an int64 / string ``sensor`` column."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
 
     rng = np.random.default_rng(seed)
-    scans, sensors = [], []
-    for t in range(n_scans):
-        truth = np.array([[10.0 * t, 0.0], [10.0 * t, 500.0]])
-        scans.append(
-            np.vstack([truth + rng.normal(0, 5.0, (2, 2)), truth + rng.normal(0, 20.0, (2, 2))])
-        )
-        sensors.append(np.array([ids[0], ids[0], ids[1], ids[1]], dtype=object))
-    return Detections(times=np.arange(n_scans, dtype=float), scans=scans, sensors=sensors)
+    t, xy, sid = [], [], []
+    for k in range(n_scans):
+        truth = np.array([[10.0 * k, 0.0], [10.0 * k, 500.0]])
+        xy += [truth + rng.normal(0, 5.0, (2, 2)), truth + rng.normal(0, 20.0, (2, 2))]
+        t += [float(k)] * 4
+        sid += [ids[0], ids[0], ids[1], ids[1]]
+    xy = np.concatenate(xy)
+    if path.suffix == ".csv":
+        rows = [f"{a!r},{x!r},{y!r},{v}" for a, (x, y), v in zip(t, xy.tolist(), sid, strict=True)]
+        path.write_text("time,x,y,sensor\n" + "\n".join(rows) + "\n")
+    else:
+        kind = pa.string() if isinstance(ids[0], str) else pa.int64()
+        cols = [pa.array(t), pa.array(xy[:, 0]), pa.array(xy[:, 1]), pa.array(sid, kind)]
+        pq.write_table(pa.Table.from_arrays(cols, names=["time", "x", "y", "sensor"]), path)
+    return path
 
 
 def _sensors_toml(ids, second_type="position"):
@@ -359,8 +368,7 @@ ID_CASES += [([BIG, BIG + 1], ".csv"), ([BIG, BIG + 1], ".parquet")]
 def test_sensor_ids_are_labels_read_exactly(tmp_path, ids, suffix):
     from jointtrack.io import read_detections, write_detections
 
-    path = write_detections(_labelled_detections(ids), tmp_path / f"det{suffix}")
-    det = read_detections(path)
+    det = read_detections(_write_labelled(tmp_path / f"det{suffix}", ids))
     assert list(det.sensor_kinds()) == sorted(ids)
     assert [sid for sid, *_ in det.sensor_scans(0)] == sorted(ids)
     assert all(type(sid) is type(ids[0]) for sid in det.sensor_kinds())
@@ -371,9 +379,9 @@ def test_sensor_ids_are_labels_read_exactly(tmp_path, ids, suffix):
 
 @pytest.mark.parametrize("ids, suffix", ID_CASES)
 def test_each_labelled_sensor_gets_its_own_table_and_two_targets_two_tracks(tmp_path, ids, suffix):
-    from jointtrack.io import read_tracks, write_detections
+    from jointtrack.io import read_tracks
 
-    det = write_detections(_labelled_detections(ids), tmp_path / f"det{suffix}")
+    det = _write_labelled(tmp_path / f"det{suffix}", ids)
     (tmp_path / "run.toml").write_text(_sensors_toml(ids))
     r = _run("--detections", det, "--config", tmp_path / "run.toml", "--out", tmp_path / "o")
     assert r.exit_code == 0, r.output
@@ -393,9 +401,7 @@ def test_each_labelled_sensor_gets_its_own_table_and_two_targets_two_tracks(tmp_
 def test_a_killed_run_with_labelled_sensors_resumes_to_the_uninterrupted_tracks(
     tmp_path, ids, suffix
 ):
-    from jointtrack.io import write_detections
-
-    det = write_detections(_labelled_detections(ids), tmp_path / f"det{suffix}")
+    det = _write_labelled(tmp_path / f"det{suffix}", ids)
     (tmp_path / "run.toml").write_text(_sensors_toml(ids))
     base = ["--detections", det, "--config", tmp_path / "run.toml"]
     full = _run(*base, "--out", tmp_path / "full")
