@@ -63,8 +63,9 @@ def test_bad_sensor_tables(tmp_path):
     from jointtrack.experiments.config import load_config
 
     bad = tmp_path / "bad.toml"
-    bad.write_text("[sensors.north]\nmeasurement_noise = 4.0\n")
-    with pytest.raises(RunConfigError, match=r"\[sensors.north\].*integer"):
+    # a table name is a string id (issue 22); an id that is neither integer nor string is not
+    bad.write_text("[sensors.north]\nid = 1.5\nmeasurement_noise = 4.0\n")
+    with pytest.raises(RunConfigError, match=r"\[sensors.north\].*integer or a string"):
         load_config(bad)
     bad.write_text("[sensors.1]\nnoise = 4.0\n")
     with pytest.raises(RunConfigError, match="unknown key"):
@@ -234,7 +235,8 @@ def _mixed_csv(tmp_path, body, header="time,x,y,range,bearing,sensor"):
         ("0,1,2,,,1\n1,,,100,0.5,1\n", 3, "range", "sensor 1 gives a range-bearing row"),
         ("0,,,100,0.5,2\n1,3,4,nan,nan,2\n", 3, "x", "sensor 2 gives a position row"),
         ("0,,,-1,0.5,2\n", 2, "range", "negative range"),
-        ("0,,,100,0.5,2\n0,1,2,,,x\n", 3, "sensor", "non-numeric"),
+        # a sensor id is a label ("x" is one, issue 22); an empty one is missing
+        ("0,,,100,0.5,2\n0,1,2,,, \n", 3, "sensor", "empty value"),
     ],
 )
 def test_bad_mixed_rows(tmp_path, body, line, column, words):

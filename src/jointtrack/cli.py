@@ -455,7 +455,7 @@ def _from_checkpoint(
             f"{resume}: a tracker state without the bookkeeping of a jointtrack run; it "
             "cannot resume `jointtrack run`"
         )
-    inputs = info["inputs"]
+    inputs = runmod._run_inputs(info["inputs"])
     what = runmod._describe(inputs)
 
     def conflict(flag, value):
@@ -510,7 +510,7 @@ def _from_checkpoint(
         tracker=tracker,
         scenario=table,
         metrics=dict(info.get("metrics_opts") or {}),
-        sensors={int(k): v for k, v in (info.get("sensors") or {}).items()},
+        sensors=runmod.sensor_tables_from_run(info.get("sensors")),
     )
     if config is not None:
         given = runmod.load_config(config)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import math
+import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -72,7 +73,7 @@ class RunConfig:
     scenario: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)
     source: str | None = None
-    sensors: dict = field(default_factory=dict)  # sensor id → [sensors.NAME] table
+    sensors: dict = field(default_factory=dict)  # sensor id (int or str) → [sensors.NAME] table
     # which tracker: [tracker] keys kind / weights / particles (see particle_options)
     tracker_options: dict = field(default_factory=dict)
 
@@ -172,8 +173,60 @@ def load_config(path) -> RunConfig:
     )
 
 
+def sensor_label(value, where: str):
+    """A sensor id as a label: a Python ``int`` (int64, exactly) or a ``str``.
+
+    Integers, and strings that are integers (``"7"``, a TOML table name
+    ``[sensors.7]``), give ``int`` ids, as the integer cells of a detections
+    file do; other strings are string ids (``radar_a``). Booleans, floats and
+    integers beyond 64 bits raise :class:`RunConfigError` naming ``where``.
+    """
+    if isinstance(value, str):
+        text = value.strip()
+        if not text:
+            raise RunConfigError(f"{where}: a sensor id cannot be empty")
+        if not re.fullmatch(r"[+-]?[0-9]+", text):
+            return text
+        value = int(text)
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise RunConfigError(
+            f"{where}: the sensor id (key 'id', or the table name) must be an integer or a "
+            f"string as in the detections' sensor column, got {value!r}"
+        )
+    if not -(2**63) <= int(value) < 2**63:
+        raise RunConfigError(f"{where}: sensor id {value} is beyond 64-bit integers")
+    return int(value)
+
+
+def sensor_tables_for(tables: Mapping, string_ids: bool) -> dict:
+    """``[sensors]`` tables keyed like the detections' ids: as they are for integer
+    ids; as strings (``1`` → ``"1"``) when the detections' ids are strings."""
+    out: dict = {}
+    for sid, table in tables.items():
+        key = str(sid) if string_ids else sid
+        if key in out:
+            raise RunConfigError(f"[sensors]: sensor id {key!r} is configured twice")
+        out[key] = table
+    return out
+
+
+def sensor_tables_to_run(tables: Mapping) -> list:
+    """The ``[sensors]`` tables as ``[[id, table], …]`` for a checkpoint (JSON keys are
+    strings: pairs keep int ids ints, exactly)."""
+    return [[sid, dict(t)] for sid, t in tables.items()]
+
+
+def sensor_tables_from_run(saved) -> dict:
+    """The ``[sensors]`` tables of :func:`sensor_tables_to_run` (or, from older
+    checkpoints, ``{str(id): table}``) by id."""
+    if isinstance(saved, Mapping):
+        return {sensor_label(k, "checkpoint"): dict(v) for k, v in saved.items()}
+    return {sensor_label(k, "checkpoint"): dict(v) for k, v in (saved or [])}
+
+
 def _sensor_tables(tables: dict, source: str) -> dict:
-    """``[sensors.NAME]`` tables by sensor id (the ``id`` key, or NAME when it is a number)."""
+    """``[sensors.NAME]`` tables by sensor id (the ``id`` key, or NAME;
+    :func:`sensor_label`)."""
     out: dict = {}
     for name, table in tables.items():
         where = f"{source}: [sensors.{name}]"
@@ -184,16 +237,9 @@ def _sensor_tables(tables: dict, source: str) -> dict:
             raise RunConfigError(
                 f"{where}: unknown key(s) {', '.join(unknown)} (known: {', '.join(_SENSOR_KEYS)})"
             )
-        sid = table.get("id", name)
-        try:
-            sid = int(sid)
-        except (TypeError, ValueError):
-            raise RunConfigError(
-                f"{where}: the sensor id (key 'id', or the table name) must be an integer "
-                f"as in the detections' sensor column, got {sid!r}"
-            ) from None
+        sid = sensor_label(table.get("id", name), where)
         if sid in out:
-            raise RunConfigError(f"{where}: sensor id {sid} is configured twice")
+            raise RunConfigError(f"{where}: sensor id {sid!r} is configured twice")
         kind = table.get("type", None)
         if kind is not None and kind not in ("position", "range-bearing"):
             raise RunConfigError(f"{where}: 'type' must be 'position' or 'range-bearing'")
@@ -222,7 +268,7 @@ def make_sensors(tables: dict, cfg, state_dim: int) -> dict:
                     sensor_position=tuple(t.get("sensor_position", cfg.sensor_position)),
                     state_dim=state_dim,
                 )
-            out[int(sid)] = Sensor(model, t.get("p_d"), t.get("clutter_density"))
+            out[sid] = Sensor(model, t.get("p_d"), t.get("clutter_density"))
         except (TypeError, ValueError) as exc:
             raise RunConfigError(f"[sensors] sensor {sid}: {_one_line(exc)}") from None
     return out

@@ -12,7 +12,9 @@ tracks and timing only). Both write into ``out_dir``:
   committed parts that survive a kill at any instant and are assembled into
   the file at the end (see :mod:`~jointtrack.experiments.writers`); Parquet
   row groups hold 50 scans each.
-* ``metrics.json``: GOSPA (α = 2, p = 2, mean per scan and its localisation /
+* ``metrics.json``: ``scoring`` (which times are scored and where the truth
+  is taken there: :data:`SCORING_SCAN_TIMES`, :data:`SCORING_INTERPOLATED`),
+  GOSPA (α = 2, p = 2, mean per scan and its localisation /
   missed / false parts, identity switches), OSPA mean, the track statistics of
   :func:`jointtrack.metrics.track_statistics`, and timing: per cluster size
   (number of tracks in a multi-track cluster) the count, mean and maximum
@@ -112,6 +114,11 @@ the checkpoint belongs to this run, drops whatever was written after it and
 continues with the next scan, so a run killed at any instant and resumed writes
 exactly the tracks and metrics of an uninterrupted one. ``jointtrack run
 --resume FILE`` needs no other flag: the inputs come from the checkpoint.
+The committed parts (``OUT/.tracks-parts/``) stay only while the checkpoint
+can continue the run (stopped early by ``max_scans``, killed, or failed after a
+checkpoint); a run that has processed every scan, and a run without a
+checkpoint that fails, removes them (resuming a completed run is then an error
+saying so).
 
 The pieces: :mod:`~jointtrack.experiments.config` (config file, scenarios,
 tracker settings), :mod:`~jointtrack.experiments.writers` (tracks file,
@@ -154,6 +161,10 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     make_tracker_config,
     particle_options,
     scenario_tracker_settings,
+    sensor_label,
+    sensor_tables_for,
+    sensor_tables_from_run,
+    sensor_tables_to_run,
     start_setting,
     start_truth_particles,
     start_truth_tracks,
@@ -179,6 +190,7 @@ from jointtrack.experiments.writers import (  # noqa: F401 - re-exported
     fault,
 )
 from jointtrack.io import Detections, to_jsonable, write_metrics
+from jointtrack.scenarios import run_name
 from jointtrack.trackers import JPDATracker, TrackerConfig
 from jointtrack.trackers.state_io import read_run
 
@@ -200,6 +212,21 @@ __all__ = [
 ]
 
 
+#: metrics.json ``scoring`` of a built-in scenario: its truth has a row at every scan time
+SCORING_SCAN_TIMES = {
+    "rule": "scan-times",
+    "description": "tracks and truth compared at every scan time (the scenario's truth has "
+    "a row for each target at each scan time)",
+}
+#: metrics.json ``scoring`` of a detections run with a truth (:func:`_truth_at_scans`)
+SCORING_INTERPOLATED = {
+    "rule": "scan-times-interpolated-truth",
+    "description": "tracks scored at every scan time; a target is present from its first "
+    "truth row's time to its last, at its truth row there or linearly interpolated between "
+    "its rows before and after (e.g. a second sensor's scans between the truth's times)",
+}
+
+
 @dataclass
 class _Source:
     """What is being tracked: scans, plus the truth when simulated."""
@@ -218,6 +245,8 @@ class _Source:
     notes: list = field(default_factory=list)
     kind: str = "position"  # of the scans: "position" or "range-bearing" ([r, θ] rows)
     sensor_ids: tuple | None = None  # per scan, the sensor id of each detection
+    # metrics.json "scoring" (with a truth): how truth and tracks are compared
+    scoring: dict | None = field(default_factory=lambda: dict(SCORING_SCAN_TIMES))
 
 
 def _cartesian(scans, sensor_position) -> list:
@@ -256,7 +285,7 @@ def _register_sensors(trk, src, tables: dict, warn) -> None:
         if tables:
             warn("the [sensors] tables are ignored: the detections have no sensor column")
         return
-    present = sorted({int(i) for ids in src.sensor_ids for i in ids})
+    present = sorted({i for ids in src.sensor_ids for i in ids.tolist()})
     made = make_sensors(tables, trk.config, trk.state_dim)
     for sid in sorted(set(made) - set(present)):
         warn(f"[sensors] sensor {sid} does not occur in the detections")
@@ -278,6 +307,9 @@ def _register_sensors(trk, src, tables: dict, warn) -> None:
         src.tracker_sensors[sid] = sensor
 
 
+_MOVING = ("moving sensor",)  # the tracker's key of an id-less moving sensor
+
+
 def _step_scan(trk, t: float, src, k: int) -> list:
     """The scan(s) at time index k: one per sensor in id order (sequential-update JPDA).
 
@@ -293,8 +325,9 @@ def _step_scan(trk, t: float, src, k: int) -> list:
             if pos is None:
                 out.append(trk.step(t, z) if sid is None else trk.step(t, z, sensor=sid))
                 continue
-            # id None is the configuration's own sensor, which cannot be replaced
-            key = "moving" if sid is None else sid
+            # id None is the configuration's own sensor, which cannot be replaced; a
+            # tuple key cannot clash with a sensor id (an int or a str)
+            key = _MOVING if sid is None else sid
             try:
                 trk.add_sensor(key, src.tracker_sensors[sid].at(pos))
             except ValueError as exc:
@@ -305,7 +338,7 @@ def _step_scan(trk, t: float, src, k: int) -> list:
     if src.sensor_ids is None or not len(src.sensor_ids[k]):
         return [trk.step(t, z)]
     ids = src.sensor_ids[k]
-    return [trk.step(t, z[ids == sid], sensor=int(sid)) for sid in np.unique(ids)]
+    return [trk.step(t, z[ids == sid], sensor=sid) for sid in np.unique(ids).tolist()]
 
 
 def _check_writable(path: Path, flag: str) -> None:
@@ -319,6 +352,14 @@ def _check_writable(path: Path, flag: str) -> None:
         raise RunConfigError(f"{flag} {path}: the directory {parent} is not writable")
 
 
+def _run_inputs(inputs):
+    """A checkpoint's recorded inputs with the scenario's run name (checkpoints written
+    before runs recorded it hold the generator's name, e.g. ``many_targets``)."""
+    if isinstance(inputs, dict) and isinstance(inputs.get("scenario"), str):
+        return {**inputs, "scenario": run_name(inputs["scenario"])}
+    return inputs
+
+
 def _check_resume(resume: Path, info, trk, src, identity, out_dir: Path, fmt: str) -> None:
     """The checkpoint belongs to this run: same inputs, output directory and format."""
     if not isinstance(info, dict) or "parts" not in info:
@@ -326,7 +367,7 @@ def _check_resume(resume: Path, info, trk, src, identity, out_dir: Path, fmt: st
             f"{resume}: a tracker state without the bookkeeping of a jointtrack run "
             "(saved by JPDATracker.save?); it cannot resume `jointtrack run`"
         )
-    if info.get("inputs") != identity:
+    if _run_inputs(info.get("inputs")) != identity:
         raise RunConfigError(
             f"{resume}: the checkpoint was made for {_describe(info.get('inputs'))}, "
             f"not {_describe(identity)}"
@@ -469,131 +510,152 @@ def _run(
     elapsed_before = 0.0
     start = 0
     writer = _TrackWriter(out_dir, src.dim, fmt, scan_times=src.times)
-    if resume is not None:
-        resume = Path(resume)
-        trk = JPDATracker.load(resume)
-        info = read_run(resume)
-        _check_resume(resume, info, trk, src, identity, out_dir, fmt)
-        clusters = list(info.get("clusters", []))
-        fallbacks.update(info.get("fallbacks", {}))
-        elapsed_before = float(info.get("elapsed_seconds", 0.0))
-        if trk.config != cfg:
-            diff = sorted(k for k, v in cfg.to_dict().items() if trk.config.to_dict()[k] != v)
-            warn(
-                f"{resume}: continuing with the checkpoint's tracker settings "
-                f"(differ in: {', '.join(diff)})"
-            )
-        cfg = trk.config
-        if trk.time is not None:
-            start = int(np.searchsorted(src.times, trk.time, side="right"))
-        writer.resume(int(info["parts"]))
-        if checkpoint is None:
-            checkpoint = resume  # keep checkpointing where the run was checkpointed
-    else:
-        writer.start_fresh()
-        dt = float(np.median(np.diff(src.times))) if len(src.times) > 1 else 1.0
-        if particle is not None:
-            from jointtrack.trackers.particle import ParticleJPDATracker
-
-            trk = ParticleJPDATracker(particle)
-            start_truth_particles(trk, src.x0, dt)
-        else:
-            trk = JPDATracker(cfg)
-            if src.x0 is not None and len(src.x0):
-                start_truth_tracks(trk, src.x0, dt)
-
-    sensor_tables = {int(k): dict(v) for k, v in (sensors or {}).items()}
-    if particle is None:
-        _register_sensors(trk, src, sensor_tables, warn)
-    scan_weights: list = []  # particle tracker: per scan [coefficient s, derivative s, …]
-    K = len(src.times)
-    stop = K if max_scans is None else min(K, int(max_scans))
-
-    def run_info(n_parts: int, seconds: float) -> dict:
-        return {
-            "inputs": identity,
-            "out_dir": str(out_dir.resolve()),
-            "format": fmt,
-            "checkpoint_every": int(checkpoint_every),
-            "max_scans": None if max_scans is None else int(max_scans),
-            "metrics_opts": to_jsonable(metrics_opts, fallback="text"),
-            "parts": int(n_parts),
-            "n_scans": int(trk.n_scans),
-            "clusters": clusters,
-            "fallbacks": dict(fallbacks),
-            "sensors": {str(k): v for k, v in sensor_tables.items()},
-            "elapsed_seconds": seconds,
-        }
-
-    from jointtrack._console import progress_bar
-
-    if console.is_terminal or progress:
-        with console.status(
-            "loading the compiled kernels (the first run after install compiles them, about 20 s)…"
-        ):
-            _warm_up(cfg, particle)
-    else:
-        _warm_up(cfg, particle)
-    # one line per approximated cluster would flood the terminal: they are counted
-    # per reason in metrics.json and the summary instead
-    tracker_log = logging.getLogger("jointtrack.tracker")
-    saved_level = tracker_log.level
-    tracker_log.setLevel(logging.ERROR)
-    loop0 = time.perf_counter()
-    n_done = 0
+    # whether a checkpoint file refers to the parts (a resumed run's, or one saved below):
+    # a failed run removes them otherwise, as they cannot be needed
+    checkpointed = [resume is not None]
     try:
-        with progress_bar(console, unit="scans", enabled=progress, remaining=True) as bar:
-            task = bar.add_task("tracking", total=stop, completed=start)
-            for k in range(start, stop):
-                t = float(src.times[k])
-                for res in _step_scan(trk, t, src, k):
-                    if particle is not None:
-                        scan_weights.append(
-                            [
-                                res.coefficient_seconds,
-                                res.derivative_seconds,
-                                float(res.ess.mean()),
-                                float(res.ess.min()),
-                                max((c[1] for c in res.components), default=0),
-                            ]
-                        )
-                        continue
-                    for (n_tr, n_me), sec, conf in zip(
-                        res.cluster_sizes, res.cluster_seconds, res.cluster_confirmed, strict=True
-                    ):
-                        if conf:
-                            clusters.append([int(n_tr), int(n_me), float(sec)])
-                    for reason, conf in zip(
-                        res.cluster_fallbacks, res.cluster_confirmed, strict=True
-                    ):
-                        if reason:
-                            key = "refused" if reason.startswith("refused") else reason
-                            # tentative-track clusters (clutter-born, in heavy clutter)
-                            # apart from the confirmed ones the experiment is about
-                            key += "" if conf else ", tentative tracks"
-                            fallbacks[key] = fallbacks.get(key, 0) + 1
-                writer.write_scan(t, res)  # the tracks after the time's last sensor
-                fault("scan", k)
-                n_done += 1
-                if checkpoint is not None and trk.n_scans % checkpoint_every == 0:
-                    # part first, then the checkpoint that counts it (see writers)
-                    n_parts = writer.commit()
-                    fault("part", k)
-                    seconds = elapsed_before + time.perf_counter() - loop0
-                    _save_checkpoint(trk, checkpoint, run_info(n_parts, seconds))
-                    fault("checkpoint", k)
-                bar.update(task, advance=1)
-        loop_seconds = time.perf_counter() - loop0
-        if checkpoint is not None and (n_done or resume is not None):
-            n_parts = writer.commit() if writer._pending else writer.n_parts
-            _save_checkpoint(trk, checkpoint, run_info(n_parts, elapsed_before + loop_seconds))
-        writer.finish(keep_parts=checkpoint is not None)
-    except KeyboardInterrupt:
-        writer.snapshot()
+        if resume is not None:
+            resume = Path(resume)
+            trk = JPDATracker.load(resume)
+            info = read_run(resume)
+            _check_resume(resume, info, trk, src, identity, out_dir, fmt)
+            clusters = list(info.get("clusters", []))
+            fallbacks.update(info.get("fallbacks", {}))
+            elapsed_before = float(info.get("elapsed_seconds", 0.0))
+            if trk.config != cfg:
+                diff = sorted(k for k, v in cfg.to_dict().items() if trk.config.to_dict()[k] != v)
+                warn(
+                    f"{resume}: continuing with the checkpoint's tracker settings "
+                    f"(differ in: {', '.join(diff)})"
+                )
+            cfg = trk.config
+            if trk.time is not None:
+                start = int(np.searchsorted(src.times, trk.time, side="right"))
+            if start >= len(src.times) and not writer.parts_dir.is_dir():
+                # a completed run drops its parts (see writers): nothing is left to do
+                raise RunConfigError(
+                    f"{resume}: the run is complete (all {len(src.times)} scans, tracks in "
+                    f"{writer.path}); there is nothing to resume"
+                )
+            writer.resume(int(info["parts"]))
+            if checkpoint is None:
+                checkpoint = resume  # keep checkpointing where the run was checkpointed
+        else:
+            writer.start_fresh()
+            dt = float(np.median(np.diff(src.times))) if len(src.times) > 1 else 1.0
+            if particle is not None:
+                from jointtrack.trackers.particle import ParticleJPDATracker
+
+                trk = ParticleJPDATracker(particle)
+                start_truth_particles(trk, src.x0, dt)
+            else:
+                trk = JPDATracker(cfg)
+                if src.x0 is not None and len(src.x0):
+                    start_truth_tracks(trk, src.x0, dt)
+
+        sensor_tables = {k: dict(v) for k, v in (sensors or {}).items()}
+        if particle is None:
+            _register_sensors(trk, src, sensor_tables, warn)
+        scan_weights: list = []  # particle tracker: per scan [coefficient s, derivative s, …]
+        K = len(src.times)
+        stop = K if max_scans is None else min(K, int(max_scans))
+
+        def run_info(n_parts: int, seconds: float) -> dict:
+            return {
+                "inputs": identity,
+                "out_dir": str(out_dir.resolve()),
+                "format": fmt,
+                "checkpoint_every": int(checkpoint_every),
+                "max_scans": None if max_scans is None else int(max_scans),
+                "metrics_opts": to_jsonable(metrics_opts, fallback="text"),
+                "parts": int(n_parts),
+                "n_scans": int(trk.n_scans),
+                "clusters": clusters,
+                "fallbacks": dict(fallbacks),
+                "sensors": sensor_tables_to_run(sensor_tables),
+                "elapsed_seconds": seconds,
+            }
+
+        from jointtrack._console import progress_bar
+
+        if console.is_terminal or progress:
+            with console.status(
+                "loading the compiled kernels (the first run after install compiles them, "
+                "about 20 s)…"
+            ):
+                _warm_up(cfg, particle)
+        else:
+            _warm_up(cfg, particle)
+        # one line per approximated cluster would flood the terminal: they are counted
+        # per reason in metrics.json and the summary instead
+        tracker_log = logging.getLogger("jointtrack.tracker")
+        saved_level = tracker_log.level
+        tracker_log.setLevel(logging.ERROR)
+        loop0 = time.perf_counter()
+        n_done = 0
+        try:
+            with progress_bar(console, unit="scans", enabled=progress, remaining=True) as bar:
+                task = bar.add_task("tracking", total=stop, completed=start)
+                for k in range(start, stop):
+                    t = float(src.times[k])
+                    for res in _step_scan(trk, t, src, k):
+                        if particle is not None:
+                            scan_weights.append(
+                                [
+                                    res.coefficient_seconds,
+                                    res.derivative_seconds,
+                                    float(res.ess.mean()),
+                                    float(res.ess.min()),
+                                    max((c[1] for c in res.components), default=0),
+                                ]
+                            )
+                            continue
+                        for (n_tr, n_me), sec, conf in zip(
+                            res.cluster_sizes,
+                            res.cluster_seconds,
+                            res.cluster_confirmed,
+                            strict=True,
+                        ):
+                            if conf:
+                                clusters.append([int(n_tr), int(n_me), float(sec)])
+                        for reason, conf in zip(
+                            res.cluster_fallbacks, res.cluster_confirmed, strict=True
+                        ):
+                            if reason:
+                                key = "refused" if reason.startswith("refused") else reason
+                                # tentative-track clusters (clutter-born, in heavy clutter)
+                                # apart from the confirmed ones the experiment is about
+                                key += "" if conf else ", tentative tracks"
+                                fallbacks[key] = fallbacks.get(key, 0) + 1
+                    writer.write_scan(t, res)  # the tracks after the time's last sensor
+                    fault("scan", k)
+                    n_done += 1
+                    if checkpoint is not None and trk.n_scans % checkpoint_every == 0:
+                        # part first, then the checkpoint that counts it (see writers)
+                        n_parts = writer.commit()
+                        fault("part", k)
+                        seconds = elapsed_before + time.perf_counter() - loop0
+                        _save_checkpoint(trk, checkpoint, run_info(n_parts, seconds))
+                        checkpointed[0] = True
+                        fault("checkpoint", k)
+                    bar.update(task, advance=1)
+            loop_seconds = time.perf_counter() - loop0
+            if checkpoint is not None and (n_done or resume is not None):
+                n_parts = writer.commit() if writer._pending else writer.n_parts
+                _save_checkpoint(trk, checkpoint, run_info(n_parts, elapsed_before + loop_seconds))
+                checkpointed[0] = True
+            # the parts are kept only while a resume can extend the run (--max-scans)
+            writer.finish(keep_parts=checkpoint is not None and stop < K)
+        except KeyboardInterrupt:
+            writer.snapshot()
+            raise
+        finally:
+            writer.close()
+            tracker_log.setLevel(saved_level)
+    except BaseException:
+        if not checkpointed[0]:
+            writer.discard_parts()
         raise
-    finally:
-        writer.close()
-        tracker_log.setLevel(saved_level)
 
     # ------------------------------------------------------------ metrics
     tracks = writer.table()
@@ -711,7 +773,8 @@ def run_scenario(
         scenario = make_scenario(name, seed, kwargs)
         identity = {"scenario": name, "seed": seed, "kwargs": kwargs}
     else:
-        identity = {"scenario": scenario.name, "seed": scenario.seed, "kwargs": kwargs}
+        # the run name (many, not the generator's many_targets): --resume rebuilds it by name
+        identity = {"scenario": run_name(scenario.name), "seed": scenario.seed, "kwargs": kwargs}
     start = start_setting(start_from, start_from_truth, "run_scenario:", noun="argument")
     if start is None:
         # the particle tracker follows the targets it is started with: from the truth
@@ -838,17 +901,24 @@ def _load_truth(truth, detections: Detections) -> tuple[tuple, dict, str]:
 
 
 def _truth_at_scans(truth: tuple, times: np.ndarray, name: str, time_origin, dim: int):
-    """The truth rows at scan times (exact match), and a note about the others (or None).
+    """The truth at the scan times, the number of its rows interpolated, and a note
+    about the truth rows at times with no scan (or None).
 
-    Scoring compares tracks with the truth at equal times only, so rows at a
-    time with no scan can never be matched: they are left out and counted in
-    the note. No row at any scan time is an error (a different clock or unit).
+    Tracks are scored at every scan time (:data:`SCORING_INTERPOLATED`). A
+    target is there from its first row's time to its last; at a scan time in
+    that span its position is its row at that time, else the linear
+    interpolation between its rows just before and after (a scan of a second
+    sensor between the truth's times: its tracks are compared with where the
+    targets were, not with no target at all). Rows at a time with no scan are
+    used only so; they are counted in the note. No row at any scan time is an
+    error (a different clock or unit).
     """
     tt, ti, tp = truth
     if tp.shape[1] != dim:
         raise RunConfigError(
             f"{name} holds {tp.shape[1]}-D positions but the detections are {dim}-D"
         )
+    times = np.asarray(times, dtype=np.float64)
     at_scan = np.isin(tt, times)
     if tt.size and not at_scan.any():
         raise RunConfigError(
@@ -856,18 +926,53 @@ def _truth_at_scans(truth: tuple, times: np.ndarray, name: str, time_origin, dim
             f"{_describe_time(float(tt.min()), time_origin)} to "
             f"{_describe_time(float(tt.max()), time_origin)}, scans from "
             f"{_describe_time(float(times[0]), time_origin)} to "
-            f"{_describe_time(float(times[-1]), time_origin)}); truth and tracks are matched "
-            "by exact time, so the truth needs the detections' times (same unit and clock)"
+            f"{_describe_time(float(times[-1]), time_origin)}); truth and tracks must be on "
+            "one clock, so the truth needs rows at the detections' times (same unit and clock)"
         )
     note = None
     if not at_scan.all():
         off = tt[~at_scan]
         note = (
             f"{name}: {off.size} truth row(s) at {np.unique(off).size} time(s) with no scan "
-            f"(first at {_describe_time(float(off[0]), time_origin)}) are not scored: truth "
-            "and tracks are compared at the scan times only (exact time match)"
+            f"(first at {_describe_time(float(off[0]), time_origin)}) are not scored at their "
+            "own times: tracks are scored at the scan times, where a target's position is its "
+            "row or is interpolated between its rows"
         )
-    return (tt[at_scan], ti[at_scan], tp[at_scan]), note
+    out_t, out_i, out_p = [], [], []
+    n_interpolated = 0
+    order = np.lexsort((tt, ti))
+    ids, first = np.unique(ti[order], return_index=True)
+    bounds = [*first.tolist(), order.size]
+    for j, tid in enumerate(ids.tolist()):
+        rows = order[bounds[j] : bounds[j + 1]]
+        t_id, p_id = tt[rows], tp[rows]
+        same = np.flatnonzero(np.diff(t_id) == 0)
+        if same.size:
+            raise RunConfigError(
+                f"{name}: target {tid} has two rows at "
+                f"{_describe_time(float(t_id[same[0]]), time_origin)}"
+            )
+        inside = times[(times >= t_id[0]) & (times <= t_id[-1])]
+        k = np.clip(np.searchsorted(t_id, inside, side="right") - 1, 0, t_id.size - 1)
+        exact = t_id[k] == inside
+        pos = p_id[k].copy()
+        between = np.flatnonzero(~exact)
+        if between.size:
+            k0 = k[between]
+            t0, t1 = t_id[k0], t_id[k0 + 1]
+            # halves: no overflow of the differences for times near the float range
+            w = ((inside[between] / 2 - t0 / 2) / (t1 / 2 - t0 / 2))[:, None]
+            # a convex combination: no overflow for positions near the float range either
+            pos[between] = p_id[k0] * (1.0 - w) + p_id[k0 + 1] * w
+            n_interpolated += int(between.size)
+        out_t.append(inside)
+        out_i.append(np.full(inside.size, tid, dtype=np.int64))
+        out_p.append(pos)
+    if not out_t:
+        return (tt[:0], ti[:0].astype(np.int64), tp[:0]), 0, note
+    t_all, i_all, p_all = np.concatenate(out_t), np.concatenate(out_i), np.concatenate(out_p)
+    o = np.lexsort((i_all, t_all))  # time order, then id
+    return (t_all[o], i_all[o], p_all[o]), n_interpolated, note
 
 
 def _check_resume_files(resume, identity: dict) -> None:
@@ -927,11 +1032,16 @@ def run_detections(
     truth file (:func:`jointtrack.io.read_truth`, read with the detections'
     ``time_origin``) or a table ``(times, ids, positions)`` on the detections'
     clock. With a truth the run is scored as a built-in scenario is — GOSPA,
-    OSPA, track statistics, ``gospa.png``, the truth in ``scene.png`` —
-    matching truth and tracks by exact time. Truth rows at a time with no scan
-    (e.g. a scan without detections, which a detections file cannot hold) are
-    not scored and are counted in a note of ``metrics.json`` and the summary;
-    a truth with no row at any scan time is an error. The truth file's path
+    OSPA, track statistics, ``gospa.png``, the truth in ``scene.png`` — at
+    every scan time, where a target (present from its first truth row's time
+    to its last) is at its truth row or at the linear interpolation between
+    its rows before and after: a second sensor's scans between the truth's
+    times are scored against where the targets were. ``metrics.json`` names
+    this rule (``scoring``, with the number of interpolated positions). Truth
+    rows at a time with no scan (e.g. a scan without detections, which a
+    detections file cannot hold) are not scored at their own time and are
+    counted in a note of ``metrics.json`` and the summary; a truth with no
+    row at any scan time is an error (a different clock or unit). The truth file's path
     and SHA-256 are part of the run's identity, so a checkpoint resumes only
     with the same truth.
 
@@ -957,7 +1067,15 @@ def run_detections(
     scans = detections.scans
     sigma = math.sqrt(float(np.max(np.diag(cfg.measurement_covariance()))))
     # range-bearing sensors' fixed positions: their [sensors] tables, else [tracker]
-    tables = {int(i): dict(v) for i, v in (options.get("sensors") or {}).items()}
+    string_ids = detections.sensors is not None and any(
+        s.dtype.kind == "U" for s in detections.sensors
+    )
+    # ids are labels: [sensors.1] names the detections' id "1" when their ids are strings
+    tables = sensor_tables_for(
+        {sensor_label(i, "[sensors]"): dict(v) for i, v in (options.get("sensors") or {}).items()},
+        string_ids,
+    )
+    options = {**options, "sensors": tables}
     state_dim = (2 if cfg.motion == "cv" else 3) * cfg.dim
     fixed = {None: tuple(cfg.sensor_position)}
     for sid, sensor in make_sensors(tables, cfg, state_dim).items():
@@ -1011,13 +1129,14 @@ def run_detections(
         path = Path(detections.source).resolve()
         # the file's content, so that a resume notices a changed file
         identity = {"detections": str(path), "sha256": _file_sha256(path)}
-    table, truth_ids, notes = None, None, []
+    table, truth_ids, notes, scoring = None, None, [], None
     if truth is not None:
         table, entries, name = _load_truth(truth, detections)
         identity.update(entries)
-        table, note = _truth_at_scans(
+        table, n_interpolated, note = _truth_at_scans(
             table, detections.times, name, detections.time_origin, cfg.dim
         )
+        scoring = {**SCORING_INTERPOLATED, "n_interpolated_rows": n_interpolated}
         if note:
             notes.append(note)
         truth_ids = tuple(table[1][table[0] == t] for t in detections.times)
@@ -1040,6 +1159,7 @@ def run_detections(
         region=region,
         sigma=sigma,
         kind=plot_kind,
+        scoring=scoring,
     )
     src.detections = detections  # stepped by _step_scan, sensors checked by _register_sensors
     return _run(src, cfg, out_dir, fmt=fmt, progress=progress, **options)

@@ -152,6 +152,8 @@ def _run_metrics(
             "total": series.total,
         }
         metrics["ospa"] = {"c": c, "p": p, "mean": _ospa_mean(truth, tracks, scan_times, c, p)}
+        # which times are scored and where the truth comes from there (see run._Source)
+        metrics["scoring"] = dict(getattr(src, "scoring", None) or {})
         metrics["tracks"] = stats.as_dict()
     else:
         ids = tracks[1]

@@ -14,8 +14,11 @@ count are complete), possibly one part newer than the checkpoint, and possibly a
 partial or temporary file. Resuming (:meth:`_TrackWriter.resume`) deletes
 everything newer than the checkpoint and continues. When the run ends, the parts
 are concatenated into ``OUT/tracks.csv`` (or ``tracks.parquet``) — again a
-temporary file renamed into place; the parts directory is kept while the run
-has a checkpoint (so that it can be continued) and removed otherwise. The final
+temporary file renamed into place; the parts directory is kept only while a
+checkpoint can continue the run (a checkpointed run stopped early by
+``--max-scans``, or killed or failed after a checkpoint) and removed otherwise:
+when the run has processed every scan, and when a run without a checkpoint
+ends in any way, error or Ctrl-C included. The final
 file equals an uninterrupted run's row for row, whatever was killed when. An
 interrupted run (Ctrl-C) also writes the rows so far to the tracks file.
 
@@ -265,6 +268,12 @@ class _TrackWriter:
         self._write_atomic(self.path, self.rows())
         if not keep_parts:
             shutil.rmtree(self.parts_dir, ignore_errors=True)
+
+    def discard_parts(self) -> None:
+        """Remove the parts directory (a failed run without a checkpoint: nothing can
+        resume from them; the tracks so far are in the tracks file after a Ctrl-C)."""
+        self.close()
+        shutil.rmtree(self.parts_dir, ignore_errors=True)
 
     def snapshot(self) -> None:
         """Write every row so far to the tracks file (an interrupted run shows its progress);

@@ -14,7 +14,8 @@ column     required  meaning
 ``x``      yes       position coordinate (any unit, e.g. metres); finite
 ``y``      yes       position coordinate; finite
 ``z``      no        third coordinate; its presence makes the detections 3-D
-``sensor`` no        integer sensor id (e.g. for several radars)
+``sensor`` no        sensor id, a label (e.g. for several radars): integers
+                     (64-bit, exactly) or text such as ``radar_a``
 =========  ========  ==========================================================
 
 or a range–bearing measurement of a 2-D sensor (``range, bearing``; track it
@@ -28,7 +29,7 @@ column       required  meaning
 ``bearing``  yes       angle in **radians**, anticlockwise from the +x axis;
                        finite, within [−2π, 2π] (larger values are taken for
                        degrees and rejected); not wrapped on reading
-``sensor``   no        integer sensor id
+``sensor``   no        sensor id: an integer or a text label
 ===========  ========  ========================================================
 
 The columns decide the kind (:attr:`Detections.kind`: ``"position"`` or
@@ -50,6 +51,12 @@ one (time, sensor), empty on position rows.
   skipped; other columns (``snr``, ``amplitude``, …) are ignored. Parquet:
   the same column names; numeric column types (or strings holding numbers);
   ``time`` may also be a Parquet ``timestamp`` column.
+* Sensor ids are labels, never rounded: a CSV ``sensor`` column whose cells
+  are all integers holds int64 ids (``4611686018427387905`` stays distinct
+  from ``4611686018427387904``); otherwise each cell is a text id as written
+  (``radar_a``). Parquet: an integer column, or a string column (text ids).
+  A run's ``[sensors.ID]`` tables are matched by id (``[sensors.radar_a]``,
+  ``[sensors.7]``).
 * Times: numbers are used as they are (:attr:`Detections.time_origin` is
   ``None``). ISO-8601 timestamps (``2026-11-23T10:00:00.5Z``, with or without
   fraction, ``Z`` or ``±HH:MM`` offset; a space instead of ``T`` is accepted)
@@ -70,9 +77,11 @@ one (time, sensor), empty on position rows.
   required columns (all listed), no data rows, a non-numeric, empty, NaN or
   infinite value (for ``time``: neither a number nor an ISO-8601 timestamp —
   the message shows the cell and the accepted formats — or numbers and
-  timestamps mixed),
-  a non-integer sensor id, a row with the wrong number of fields, a time
-  earlier than the row before it, position and range–bearing columns together
+  timestamps mixed), a coordinate (``x, y, z, range, sensor_x, sensor_y``)
+  beyond ±10¹⁵⁰ (:data:`~jointtrack.io.detections.MAX_COORDINATE`: the
+  tracker squares coordinate differences; rescale such data), an empty
+  sensor id or an integer one beyond 64 bits, a row with the wrong number of
+  fields, a time earlier than the row before it, position and range–bearing columns together
   (or neither) outside a mixed file, a negative range or a bearing outside
   [−2π, 2π]; in a mixed file a row filling both sets or neither (or half a
   set), a sensor whose rows change kind; a sensor position on some of a

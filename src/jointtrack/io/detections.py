@@ -6,6 +6,7 @@ times: :mod:`jointtrack.io.times`.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,7 +14,6 @@ from pathlib import Path
 import numpy as np
 
 from jointtrack.io._files import (
-    check_integer,
     load_columns,
     out_path,
     parquet_is_numeric,
@@ -25,7 +25,14 @@ from jointtrack.io._files import (
 from jointtrack.io.errors import DetectionFileError
 from jointtrack.io.times import EXPECTED_TIMES, format_timestamp, parse_origin, parse_timestamp
 
-__all__ = ["DETECTION_KINDS", "KINDS", "Detections", "read_detections", "write_detections"]
+__all__ = [
+    "DETECTION_KINDS",
+    "KINDS",
+    "Detections",
+    "read_detections",
+    "sensor_ids",
+    "write_detections",
+]
 
 #: the kinds of a measurement (a row of a scan)
 KINDS = ("position", "range-bearing")
@@ -35,6 +42,14 @@ DETECTION_KINDS = (*KINDS, "mixed")
 POS_COLUMNS = ("x", "y", "z")
 RB_COLUMNS = ("range", "bearing")
 SENSOR_POSITION_COLUMNS = ("sensor_x", "sensor_y")
+
+#: Largest |coordinate| (x, y, z, range, sensor_x, sensor_y) read from a file: the
+#: filter squares differences of coordinates (innovations, gate distances), and
+#: (2·10¹⁵⁰)² = 4·10³⁰⁰ leaves room below the float64 maximum (1.8·10³⁰⁸) for
+#: dividing by a small noise variance. Beyond it a value cannot be tracked
+#: meaningfully, and is refused with the file, row and column.
+MAX_COORDINATE = 1e150
+_COORDINATE_COLUMNS = (*POS_COLUMNS, *RB_COLUMNS[:1], *SENSOR_POSITION_COLUMNS)
 
 _NS = 1_000_000_000
 _UNIT_NS = {"s": _NS, "ms": 1_000_000, "us": 1_000, "ns": 1}
@@ -51,8 +66,12 @@ class Detections:
         the detections at ``times[k]`` (``M_k`` may be 0): positions, or
         ``[r, θ]`` rows (range, bearing in radians) when ``kind`` is
         ``"range-bearing"``.
-    sensors : tuple of K int64 arrays ``(M_k,)`` with the sensor id of each
-        detection, or ``None`` when there is no sensor information.
+    sensors : tuple of K arrays ``(M_k,)`` with the sensor id of each
+        detection, or ``None`` when there is no sensor information. Sensor ids
+        are labels: int64 arrays (any integer ids, exactly — no float
+        rounding) or string arrays (``"radar_a"``), all scans of one kind
+        (:func:`sensor_ids`); :meth:`sensor_kinds` and :meth:`sensor_scans`
+        give them as Python ``int`` or ``str``.
     dim : columns of a detection: the spatial dimension for positions (2 or 3
         from files; any ≥ 1 when built directly), 2 for range–bearing.
     source : the file the detections were read from, if any.
@@ -126,6 +145,11 @@ class Detections:
                 raise ValueError(f"scans[{k}] must have shape (M, {dim}), got {z.shape}")
             if not np.all(np.isfinite(z)):
                 raise ValueError(f"scans[{k}] has a non-finite coordinate")
+            if z.size and np.abs(z).max() > MAX_COORDINATE:
+                raise ValueError(
+                    f"scans[{k}] has a coordinate beyond ±{MAX_COORDINATE:g}, which the tracker "
+                    "cannot square (rescale the data)"
+                )
             if row_kinds is not None and row_kinds[k].shape != (z.shape[0],):
                 raise ValueError(
                     f"row_kinds[{k}] must have shape ({z.shape[0]},), got {row_kinds[k].shape}"
@@ -143,17 +167,11 @@ class Detections:
             sensors = tuple(sensors)
             if len(sensors) != len(fixed):
                 raise ValueError(f"{len(fixed)} scans but {len(sensors)} sensor arrays")
-            fs = []
             for k, (s, z) in enumerate(zip(sensors, fixed, strict=True)):
-                s = np.asarray(s)
-                if s.size == 0:
-                    s = s.reshape(0).astype(np.int64)
-                if s.shape != (z.shape[0],):
-                    raise ValueError(f"sensors[{k}] must have shape ({z.shape[0]},), got {s.shape}")
-                if not np.issubdtype(s.dtype, np.integer):
-                    raise ValueError(f"sensors[{k}] must hold integers, got dtype {s.dtype}")
-                fs.append(s.astype(np.int64))
-            sensors = tuple(fs)
+                shape = np.shape(s)
+                if shape != (z.shape[0],) and not (z.shape[0] == 0 and np.size(s) == 0):
+                    raise ValueError(f"sensors[{k}] must have shape ({z.shape[0]},), got {shape}")
+            sensors = sensor_ids(sensors)
         if self.kind == "mixed":
             if sensors is None:
                 raise ValueError(
@@ -197,12 +215,13 @@ class Detections:
             return self.row_kinds[k]
         return np.full(self.scans[k].shape[0], self.kind, dtype=_KIND_DTYPE)
 
-    def sensor_kinds(self) -> dict[int, str]:
-        """``{sensor id: measurement kind of its rows}`` (empty without ``sensors``)."""
-        out: dict[int, str] = {}
+    def sensor_kinds(self) -> dict:
+        """``{sensor id: measurement kind of its rows}`` (empty without ``sensors``);
+        ids as Python ``int`` or ``str``, sorted."""
+        out: dict = {}
         for k, ids in enumerate(self.sensors or ()):
             for sid, kind in zip(ids.tolist(), self.scan_kinds(k).tolist(), strict=True):
-                out.setdefault(int(sid), str(kind))
+                out.setdefault(sid, str(kind))
         return dict(sorted(out.items()))
 
     def sensor_scans(self, k: int) -> list[tuple]:
@@ -227,7 +246,7 @@ class Detections:
         if self.sensors is None or not len(self.sensors[k]):
             return [entry(None, np.arange(z.shape[0]))]
         ids = self.sensors[k]
-        return [entry(int(sid), np.flatnonzero(ids == sid)) for sid in np.unique(ids)]
+        return [entry(sid, np.flatnonzero(ids == sid)) for sid in np.unique(ids).tolist()]
 
     def cartesian(self, sensor_position=(0.0, 0.0)) -> tuple:
         """The scans as Cartesian positions ``(M_k, dim)``: position rows as they
@@ -245,9 +264,8 @@ class Detections:
                 continue
             s = np.zeros((z.shape[0], 2))
             if isinstance(sensor_position, Mapping):
-                ids = self.sensors[k] if self.sensors is not None else [None] * z.shape[0]
-                for i, sid in enumerate(ids):
-                    key = None if sid is None else int(sid)
+                ids = self.sensors[k].tolist() if self.sensors is not None else [None] * z.shape[0]
+                for i, key in enumerate(ids):
                     if not rb[i]:
                         continue
                     if key not in sensor_position and None not in sensor_position:
@@ -289,6 +307,8 @@ class Detections:
                 out[names[a]] = Z[:, a].copy()
         if self.sensors is not None:
             out["sensor"] = np.concatenate(self.sensors) if self.sensors else np.zeros(0, np.int64)
+            if out["sensor"].dtype.kind == "U" and not out["sensor"].size:
+                out["sensor"] = np.zeros(0, np.int64)
         if self.sensor_positions is not None:
             S = np.concatenate(self.sensor_positions, axis=0) if self.scans else np.zeros((0, 2))
             out["sensor_x"], out["sensor_y"] = S[:, 0].copy(), S[:, 1].copy()
@@ -296,6 +316,59 @@ class Detections:
 
 
 _KIND_DTYPE = "<U13"
+_INT64 = np.iinfo(np.int64)
+
+
+def sensor_ids(sensors) -> tuple:
+    """Sensor-id arrays as labels: all int64 (exact) or all strings.
+
+    ``sensors``: a sequence of 1-D arrays (or lists) of integers — any integer
+    dtype or Python ints within int64 — or of strings. Floats (ids that
+    differ beyond 2^53 would merge), booleans and mixed kinds are refused
+    with a ValueError naming ``sensors[k]``. Empty arrays take the kind of
+    the others.
+    """
+    out, kinds = [], set()
+    for k, s in enumerate(sensors):
+        a = np.asarray(s) if not isinstance(s, np.ndarray) else s
+        if a.ndim != 1:
+            a = a.reshape(-1) if a.size == 0 else a
+        if a.ndim != 1:
+            raise ValueError(f"sensors[{k}] must be 1-D, got shape {a.shape}")
+        if a.size == 0:
+            out.append(None)
+            continue
+        if a.dtype.kind == "O":
+            vals = a.tolist()
+            if all(isinstance(v, str) for v in vals):
+                a = np.array(vals, dtype=str)
+            elif all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in vals):
+                if any(not (_INT64.min <= int(v) <= _INT64.max) for v in vals):
+                    raise ValueError(f"sensors[{k}] has an id beyond 64-bit integers")
+                a = np.array([int(v) for v in vals], dtype=np.int64)
+            else:
+                bad = next(
+                    v
+                    for v in vals
+                    if not isinstance(v, str | int | np.integer) or isinstance(v, bool)
+                )
+                raise ValueError(f"sensors[{k}] holds {bad!r}; sensor ids are integers or strings")
+        if a.dtype.kind == "u" and a.dtype.itemsize == 8 and a.size and a.max() > _INT64.max:
+            raise ValueError(f"sensors[{k}] has an id beyond 64-bit signed integers")
+        if a.dtype.kind in "iu":
+            out.append(a.astype(np.int64))
+            kinds.add("integer")
+        elif a.dtype.kind == "U":
+            out.append(a)
+            kinds.add("string")
+        else:
+            raise ValueError(
+                f"sensors[{k}] must hold integer or string ids (labels), got dtype {a.dtype}"
+            )
+    if len(kinds) > 1:
+        raise ValueError("sensors: the ids are integers in some scans and strings in others")
+    empty = np.zeros(0, dtype=str if kinds == {"string"} else np.int64)
+    return tuple(empty if a is None else a for a in out)
 
 
 def _check_row_kinds(kind: str, row_kinds, scans) -> tuple | None:
@@ -525,6 +598,81 @@ def _time_column(path, err, raw, lines) -> tuple[np.ndarray, str | None]:
     )
 
 
+_INT_TEXT = re.compile(r"[+-]?[0-9]+")
+
+
+def _sensor_column(path, err, raw, lines) -> np.ndarray:
+    """Sensor ids (labels) of the raw ``sensor`` column: int64 or strings, exactly.
+
+    CSV cells that are all integers (``7``, ``4611686018427387905``; or
+    integral numbers such as ``7.0`` up to 2^53, where floats are exact) are
+    int64 ids; otherwise every cell is a string id, as written (``radar_a``).
+    Parquet: an integer column gives int64 ids, a string column string ids, a
+    float column int64 ids when integral and within ±2^53. Empty cells and
+    nulls are errors, and so are integers beyond 64 bits.
+    """
+    if not isinstance(raw, list):  # a pyarrow column
+        import pyarrow as pa
+
+        parquet_nulls(path, err, raw, "sensor")
+        t = raw.type
+        if pa.types.is_integer(t):
+            if pa.types.is_uint64(t):
+                v = np.asarray(raw.to_numpy(zero_copy_only=False), dtype=np.uint64)
+                big = np.flatnonzero(v > np.uint64(_INT64.max))
+                if big.size:
+                    i = int(big[0])
+                    raise row_error(
+                        err, path, f"sensor id {int(v[i])} is beyond 64-bit signed integers",
+                        i, lines, "sensor",
+                    )  # fmt: skip
+            return np.asarray(raw.to_numpy(zero_copy_only=False)).astype(np.int64)
+        if pa.types.is_floating(t):
+            return _integral_floats(
+                path, err, np.asarray(raw.to_numpy(zero_copy_only=False), float), lines
+            )
+        if parquet_is_string(t):
+            return np.array([str(v).strip() for v in raw.to_pylist()], dtype=str).reshape(-1)
+        raise err(path, f"has type {t}; sensor ids are integers or strings", column="sensor")
+    texts = [str(c).strip() for c in raw]
+    for i, c in enumerate(texts):
+        if not c:
+            raise row_error(err, path, "empty value (a sensor id is needed)", i, lines, "sensor")
+    if all(_INT_TEXT.fullmatch(c) for c in texts):
+        ints = [int(c) for c in texts]
+        for i, v in enumerate(ints):
+            if not _INT64.min <= v <= _INT64.max:
+                raise row_error(
+                    err,
+                    path,
+                    f"sensor id {texts[i]} is beyond 64-bit integers (use a text id)",
+                    i,
+                    lines,
+                    "sensor",
+                )
+        return np.array(ints, dtype=np.int64)
+    if all(_is_number(c) for c in texts):  # e.g. 7.0 from a float column
+        return _integral_floats(path, err, np.array(texts, dtype=np.float64), lines)
+    return np.array(texts, dtype=str).reshape(-1)
+
+
+def _integral_floats(path, err, v: np.ndarray, lines) -> np.ndarray:
+    """int64 ids from float ones: integral and within ±2^53 (where floats are exact)."""
+    bad = np.flatnonzero(~np.isfinite(v) | (v != np.round(v)) | (np.abs(v) > 2.0**53))
+    if bad.size:
+        i = int(bad[0])
+        raise row_error(
+            err,
+            path,
+            f"sensor id {float(v[i])!r} is not an integer within ±2^53 as a number (floats "
+            "beyond merge distinct ids); write integer ids as integers, or use text ids",
+            i,
+            lines,
+            "sensor",
+        )
+    return v.astype(np.int64)
+
+
 def _check_time_order(path, err, t: np.ndarray, origin, lines) -> None:
     """``err`` at the first row whose time is earlier than the row before it."""
     if t.size < 2:
@@ -572,7 +720,7 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
     """
     err = DetectionFileError
     path, cols, _extras, lines, n_rows = load_columns(
-        path, err, (), (), parse_extras=False, pick=_pick_detection_columns, raw=("time",)
+        path, err, (), (), parse_extras=False, pick=_pick_detection_columns, raw=("time", "sensor")
     )
     if n_rows == 0 and not allow_empty:
         raise err(path, "has no detections: a header but no data rows")
@@ -582,10 +730,11 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
         kind = "position"
     t, origin = _time_column(path, err, cols["time"], lines)
     _check_time_order(path, err, t, origin, lines)
+    _check_magnitudes(path, err, cols, lines)
     sensor = None
     row_rb = None
     if kind == "mixed":
-        sensor = check_integer(path, err, cols["sensor"], "sensor", lines)
+        sensor = _sensor_column(path, err, cols["sensor"], lines)
         row_rb = _mixed_rows(path, err, cols, sensor, lines)
     if kind != "position":
         rb = slice(None) if row_rb is None else row_rb
@@ -609,7 +758,7 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
                 "bearing",
             )
     if sensor is None and "sensor" in cols:
-        sensor = check_integer(path, err, cols["sensor"], "sensor", lines)
+        sensor = _sensor_column(path, err, cols["sensor"], lines)
     if kind == "range-bearing":
         Z = np.column_stack([cols[c] for c in RB_COLUMNS]) if t.size else np.zeros((0, 2))
     elif kind == "mixed":
@@ -640,6 +789,27 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
         row_kinds=None if row_rb is None else tuple(row_rb[s:e] for s, e in bounds),
         sensor_positions=None if where is None else tuple(where[s:e] for s, e in bounds),
     )
+
+
+def _check_magnitudes(path, err, cols, lines) -> None:
+    """``err`` at the first coordinate beyond ±:data:`MAX_COORDINATE` (NaN: an empty
+    cell of a mixed file, checked elsewhere)."""
+    for c in _COORDINATE_COLUMNS:
+        if c not in cols:
+            continue
+        big = np.flatnonzero(np.abs(cols[c]) > MAX_COORDINATE)
+        if big.size:
+            i = int(big[0])
+            raise row_error(
+                err,
+                path,
+                f"value {float(cols[c][i])!r} is beyond ±{MAX_COORDINATE:g}: the tracker squares "
+                "differences of coordinates, which would overflow; rescale the data (e.g. "
+                "kilometres instead of metres)",
+                i,
+                lines,
+                c,
+            )
 
 
 def _filled(path, err, cols, names, lines, what: str) -> np.ndarray:
@@ -807,5 +977,10 @@ def write_detections(detections: Detections, path) -> Path:
                 v = table[name]
                 text = ["" if np.isnan(a) else repr(float(a)) for a in v.tolist()]
                 text_cols[name] = (text, pa.array(v, pa.float64(), mask=np.isnan(v)))
+    if "sensor" in table and table["sensor"].dtype.kind == "U":
+        import pyarrow as pa
+
+        ids = table["sensor"].tolist()  # string ids: CSV text, a Parquet string column
+        text_cols["sensor"] = (ids, pa.array(ids, pa.string()))
     write_columns(path, kind, table, int_cols={"sensor"}, text_cols=text_cols)
     return path

@@ -108,6 +108,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from jointtrack.assignment import is_feasible, linear_assignment
+from jointtrack.assignment._checks import _as_real_array, as_float
 
 __all__ = ["GOSPA", "GOSPASeries", "gospa", "gospa_series", "ospa"]
 
@@ -123,10 +124,9 @@ _RESOLVE_BELOW = 2.0**-100
 
 def _points(X, name: str, d: int | None = None) -> np.ndarray:
     """``X`` as a float64 ``(n, d)`` array (``(0,)`` or ``[]`` → ``(0, d)``)."""
-    try:
-        A = np.asarray(X, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a numeric (n, d) array of points") from None
+    # the package's check: complex entries (whose imaginary part float64 would drop),
+    # booleans, strings and huge integers are refused with a message naming ``name``
+    A = _as_real_array(X, name)
     if A.ndim == 1 and A.size == 0:
         A = A.reshape(0, 0 if d is None else d)
     if A.ndim != 2:
@@ -151,11 +151,12 @@ def _pair(X, Y) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _number(x, name: str, ok, requirement: str) -> float:
-    """``x`` as a float; ValueError naming ``name`` if it is not a number or fails ``ok``."""
-    try:
-        x = float(x)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {x!r}") from None
+    """``x`` as a float; ValueError naming ``name`` if it is not a real number (complex,
+    bool, string: :func:`~jointtrack.assignment._checks.as_float`'s rules, but ±inf and
+    NaN pass to ``ok``) or fails ``ok``."""
+    if not (isinstance(x, float | np.floating) and not math.isfinite(x)):
+        x = as_float(x, name)
+    x = float(x)
     if not ok(x):
         raise ValueError(f"{name} must be {requirement}, got {x}")
     return x
@@ -440,13 +441,10 @@ def gospa(X, Y, c: float, p: float = 2, alpha: float = 2) -> GOSPA:
 
 
 def _table(times, ids, pos, name: str):
-    try:
-        t = np.asarray(times, dtype=np.float64)
-        i_raw = np.asarray(ids)
-        P = np.asarray(pos, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: times, ids and positions must be numeric arrays") from None
-    if i_raw.size and not np.issubdtype(i_raw.dtype, np.number):
+    t = _as_real_array(times, f"{name} times")
+    P = _as_real_array(pos, f"{name} positions")
+    i_raw = np.asarray(ids)
+    if i_raw.size and i_raw.dtype.kind not in "iuf":  # complex, bool, strings, objects
         raise ValueError(f"{name}: ids must be integers, got dtype {i_raw.dtype}")
     if t.ndim != 1 or i_raw.ndim != 1:
         raise ValueError(f"{name}: times and ids must be 1-D, got shapes {t.shape}, {i_raw.shape}")

@@ -29,6 +29,20 @@ GENERATORS = {
     "abreast": abreast,
 }
 
+
+def run_name(name: str) -> str:
+    """The run/sweep name (a key of :data:`GENERATORS`) of a detection scenario.
+
+    ``name``: a run name, or the :attr:`Scenario.name` its generator gives
+    (``"many_targets"`` → ``"many"``); any other name is returned unchanged.
+    A run records this name, so that ``--resume`` can rebuild the scenario.
+    """
+    for key, fn in GENERATORS.items():
+        if name in (key, fn.__name__):
+            return key
+    return name
+
+
 __all__ = [
     "GENERATORS",
     "AcousticScenario",
@@ -41,5 +55,6 @@ __all__ = [
     "ncv_matrices",
     "nominal_gate",
     "propagate_ncv",
+    "run_name",
     "simulate_scenario",
 ]
