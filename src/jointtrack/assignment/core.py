@@ -256,7 +256,7 @@ def _infeasible(method, marginals, info) -> AssignmentResult:
 
 def _glynn_value(W, kind, warn) -> AssignmentResult | None:
     """Glynn's or Ryser's formula on the scaled, balanced matrix; None if not accurate enough."""
-    from jointtrack.assignment.sinkhorn import balance_exponents
+    from jointtrack.assignment._sinkhorn import balance_exponents
 
     n = W.shape[0]
     B, _, _, log_shift, ok = scale_problem(W, np.zeros(n))
