@@ -14,7 +14,7 @@ The rule that rules this out: a cached function that holds parallel code (its
 own, or through its callees) is only ever called from Python, and everything
 between it and the ``parallel=True`` kernels is uncached, so it is always compiled
 in one piece with the parallel code. :func:`test_cached_parallel_code_is_only_called_from_python`
-checks that rule on every jitted function of the package (the 73 ``cache=True``
+checks that rule on every jitted function of the package (every ``cache=True``
 uses); :func:`test_cached_frontier_kernels_survive_reload` runs the failing
 sequence in fresh processes on a fresh cache.
 """
