@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from jointtrack.assignment.sinkhorn import sinkhorn
+from jointtrack.assignment import sinkhorn
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent import log_permanent, permanent
 from jointtrack.permanent.bethe import bethe_permanent

@@ -20,7 +20,7 @@ Layout
 ``feasibility``      :func:`is_feasible` — the one feasibility test (bipartite matching)
 ``lsap``             :func:`linear_assignment` — the one assignment solver (with duals)
 ``scaling``          power-of-two scaling from the assignment dual
-``sinkhorn``         :func:`sinkhorn` (Schaub eq. 38) and pre-balancing for Glynn
+``_sinkhorn``        :func:`sinkhorn` (Schaub eq. 38) and pre-balancing for Glynn
 ``_splitfloat``      mantissa/exponent arithmetic for leaf folding
 ``_fold``            leaf folding, unfolding, components
 ``_plan``            frontier-DP layer order and slots
@@ -41,13 +41,16 @@ __all__ = [
     "assignment_sum",
     "is_feasible",
     "linear_assignment",
+    "sinkhorn",
 ]
 
 
 def __getattr__(name):
-    # sinkhorn pulls in nothing heavy, but keep the import graph one-way
+    # sinkhorn pulls in nothing heavy, but keep the import graph one-way. Its module
+    # is _sinkhorn: a submodule named sinkhorn would replace this function as the
+    # package attribute as soon as anything imported it.
     if name == "sinkhorn":
-        from jointtrack.assignment.sinkhorn import sinkhorn
+        from jointtrack.assignment._sinkhorn import sinkhorn
 
         return sinkhorn
     raise AttributeError(f"module 'jointtrack.assignment' has no attribute {name!r}")

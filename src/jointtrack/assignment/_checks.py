@@ -6,7 +6,8 @@ assignment-sum core (permanents, JPDA, particle weights, identities) rejects bad
 input with the same clear message naming the argument. Rejected everywhere:
 complex numbers (their imaginary part would otherwise be dropped silently),
 booleans used as numbers, Python integers too large for a float, strings and
-ragged nested sequences, NaN and infinities.
+ragged nested sequences, NaN and infinities, and masked arrays (``numpy.ma``: a
+TypeError, since ``np.asarray`` would drop the mask and use the hidden values).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ __all__ = [
 
 #: Largest group size accepted (a group count is a number of tracks or identities).
 MAX_COUNT = 2**31 - 1
+_MAX_INT = 2**63 - 1
 
 
 def _as_real_array(value, name: str) -> np.ndarray:
@@ -36,6 +38,7 @@ def _as_real_array(value, name: str) -> np.ndarray:
         return value  # the hot path: the tracker passes float64 arrays
     if isinstance(value, (str, bytes)):
         raise ValueError(f"{name} must be an array of real numbers, got a string")
+    _refuse_masked(value, name)
     try:
         raw = np.asarray(value)
     except (TypeError, ValueError, OverflowError) as exc:
@@ -72,6 +75,24 @@ def _as_real_array(value, name: str) -> np.ndarray:
     if kind not in "iuf":
         raise ValueError(f"{name} must be an array of real numbers, got dtype {raw.dtype}")
     return np.asarray(raw, dtype=np.float64)
+
+
+def _refuse_masked(value, name: str) -> None:
+    """TypeError for a masked array (or a sequence holding masked entries)."""
+    if _holds(value, np.ma.MaskedArray):
+        raise TypeError(
+            f"{name} is a masked array (numpy.ma); its mask would be dropped silently: "
+            f"pass a plain array (e.g. {name}.filled(0.0) or {name}.compressed())"
+        )
+
+
+def _holds(value, cls) -> bool:
+    """``value`` is a ``cls``, or a nested list/tuple holding one."""
+    if isinstance(value, cls):
+        return True
+    if isinstance(value, list | tuple):
+        return any(_holds(v, cls) for v in value)
+    return False
 
 
 def _holds_bool(value) -> bool:
@@ -144,6 +165,7 @@ def as_counts(counts, length: int, name: str) -> np.ndarray:
         return np.ones(length, np.int64)
     if isinstance(counts, (str, bytes)):
         raise ValueError(f"{name} must be a 1-D array of positive integers, got a string")
+    _refuse_masked(counts, name)
     try:
         raw = np.asarray(counts)
     except (TypeError, ValueError, OverflowError) as exc:
@@ -173,7 +195,12 @@ def as_counts(counts, length: int, name: str) -> np.ndarray:
 
 
 def as_int(value, name: str, minimum: int | None = None, maximum: int | None = None) -> int:
-    """A whole number (Python or numpy int, or an integral float) within the bounds."""
+    """A whole number (Python or numpy int, or an integral float) within the bounds.
+
+    Without an explicit ``maximum``, at most 2^63 − 1 (what numpy can index or
+    allocate with): a 10**400 is refused here, not deep inside numpy.
+    """
+    _refuse_masked(value, name)
     if isinstance(value, bool | np.bool_) or value is None:
         raise ValueError(f"{name} must be an integer, got {value!r}")
     if isinstance(value, numbers.Integral):
@@ -186,6 +213,8 @@ def as_int(value, name: str, minimum: int | None = None, maximum: int | None = N
         raise ValueError(f"{name} must be ≥ {minimum}, got {out}")
     if maximum is not None and out > maximum:
         raise ValueError(f"{name} must be ≤ {maximum}, got {out}")
+    if maximum is None and out > _MAX_INT:
+        raise ValueError(f"{name} is too large ({len(str(out))} digits; at most 2^63 - 1)")
     return out
 
 
@@ -202,6 +231,7 @@ def as_float(
 
     A 0-d real array (what numpy reductions and indexing return) counts as a number.
     """
+    _refuse_masked(value, name)
     if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
         value = value[()]
     if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):

@@ -13,12 +13,18 @@ backward pass (memory ∝ nops/stride + stride, one extra forward pass). Powers 
 two renormalise an array only if its sum leaves [2^-600, 2^600]; the exponents are
 tracked and added back into log Z and into each contraction's scale.
 
-The ``parallel=True`` kernels and every jitted function that calls them (up to
-:func:`frontier_dp`) must stay in this one file. numba does not record a cached
-``parallel=True`` callee's threading-layer initialisation in a caller compiled in
-another process, so a caller in another file, recompiled alone after an edit,
-would be cached without it and segfault when next loaded from the cache (numba
-issues #8578, #4807). Serial callees (:mod:`._exact_kernels`) are unaffected.
+On the way to the parallel kernels only :func:`frontier_dp` and :func:`frontier_value`
+are cached, and they are only called from Python; the ``parallel=True`` kernels and
+everything between them and these two (:func:`_op_fwd`, :func:`_layer_fwd`,
+:func:`_layer_bwd`) are not cached, so they are always compiled in one piece with
+the cached caller. numba records
+that a ``parallel=True`` function must start its threading layer when loaded from
+the cache, but a caller compiled on a callee that was itself *loaded* from the
+cache does not inherit that note: with these kernels cached, ``jointtrack run``
+cached ``_op_fwd``, the README's saddle example then compiled ``frontier_value``
+on it, and every later load of ``frontier_value`` died with SIGSEGV (numba issues
+#8578, #4807; tests/test_numba_cache.py checks the rule on every jitted function).
+Serial callees (:mod:`._kernels`) are unaffected and stay cached.
 """
 
 from __future__ import annotations
@@ -41,7 +47,7 @@ _RENORM_HI = 2.0**600
 _RENORM_LO = 2.0**-600
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(parallel=True)
 def _fwd_par(x, y, kb, u, ws, his, hq, los, lq, w3, small, nchunk):
     nblk = x.size >> kb
     parts = np.zeros(nchunk)
@@ -64,7 +70,7 @@ def _fwd_par(x, y, kb, u, ws, his, hq, los, lq, w3, small, nchunk):
     return parts.sum()
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(parallel=True)
 def _bwd_par(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, nchunk):
     nblk = b.size >> kb
     parts = np.zeros((nchunk, ws.size + 5))
@@ -90,7 +96,7 @@ def _bwd_par(F, b, bp, kb, u, ws, his, hq, los, lq, w3, q3, small, nchunk):
     return parts.sum(axis=0)
 
 
-@numba.njit(cache=True)
+@numba.njit
 def _layer_fwd(x, y, kb, u, slots, ws, nchunk):
     """One measurement (layer) step of the forward DP; returns Σ y."""
     his, hq, los, lq, w3, q3, small = _split_slots(kb, slots, ws)
@@ -99,7 +105,7 @@ def _layer_fwd(x, y, kb, u, slots, ws, nchunk):
     return _fwd_blocks(x, y, kb, u, ws, his, hq, los, lq, w3, small, 0, x.size >> kb)
 
 
-@numba.njit(cache=True)
+@numba.njit
 def _layer_bwd(F, b, bp, kb, u, slots, ws, nchunk):
     """Adjoint of :func:`_layer_fwd` + contraction; returns (acc per slot, Σ F·b, Σ bp)."""
     his, hq, los, lq, w3, q3, small = _split_slots(kb, slots, ws)
@@ -148,7 +154,7 @@ def _layer_lists(W, lay_slot, a):
     return slots, ws, items
 
 
-@numba.njit(cache=True)
+@numba.njit
 def _op_fwd(k, a, x, y, kb, nchunk, W, u, v, lay_slot, slot_of):
     if k == 0:
         slots, ws, _ = _layer_lists(W, lay_slot, a)

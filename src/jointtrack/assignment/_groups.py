@@ -270,5 +270,5 @@ def group_dp(W, items, a, cap, t, marginals):
 
 
 def state_count(counts) -> float:
-    """Π(n_j + 1) as a float (it can exceed int64)."""
-    return float(np.prod(np.asarray(counts, dtype=float) + 1.0))
+    """Π(n_j + 1) as a float (it can exceed int64; inf past the float range, without a warning)."""
+    return math.prod([float(n) + 1.0 for n in np.asarray(counts).ravel().tolist()])

@@ -164,7 +164,8 @@ def _frontier_block(W, u, v, marginals, max_bits, max_memory, parallel):
     plan_a = frontier_plan(G)
     plan_b = frontier_plan(np.ascontiguousarray(G.T))
     # cost ≈ layers · 2^K (layers = rows for plan_a, columns for plan_b)
-    transpose = C * 2.0 ** plan_b[1] < R * 2.0 ** plan_a[1]
+    # Python ints: exact, and 2^K cannot overflow for a frontier of 1024+ items
+    transpose = C << int(plan_b[1]) < R << int(plan_a[1])
     if transpose:
         W, u, v = np.ascontiguousarray(W.T), v, u
     _, K, op_kind, op_arg, slot_of, lay_slot, term = plan_b if transpose else plan_a
@@ -255,7 +256,7 @@ def _infeasible(method, marginals, info) -> AssignmentResult:
 
 def _glynn_value(W, kind, warn) -> AssignmentResult | None:
     """Glynn's or Ryser's formula on the scaled, balanced matrix; None if not accurate enough."""
-    from jointtrack.assignment.sinkhorn import balance_exponents
+    from jointtrack.assignment._sinkhorn import balance_exponents
 
     n = W.shape[0]
     B, _, _, log_shift, ok = scale_problem(W, np.zeros(n))
@@ -287,7 +288,7 @@ def _glynn_wins(W) -> bool:
         return False
     if (W > 0.0).all():  # dense: the frontier is n wide whichever way (and no plan is loaded)
         return True
-    return n * 2.0 ** (n - 1) < _frontier_cost(W)
+    return _pow2_cost(n, n - 1) < _frontier_cost(W)
 
 
 # --------------------------------------------------------------------------- repeated rows/columns
@@ -547,13 +548,22 @@ def _frontier_cost(W) -> float:
     R, C = G.shape
     ka = frontier_plan(G)[1]
     kb = frontier_plan(np.ascontiguousarray(G.T))[1]
-    return min(R * 2.0**ka, C * 2.0**kb) * max(1.0, G.sum() / max(R, 1))
+    return min(_pow2_cost(R, ka), _pow2_cost(C, kb)) * max(1.0, G.sum() / max(R, 1))
 
 
 def _frontier_cost_expanded(rows, cols) -> float:
     # dense expanded problem: the frontier is the smaller side
-    R, C = rows.sum(), cols.sum()
-    return float(max(R, C)) * 2.0 ** min(R, C) * min(R, C)
+    R, C = int(rows.sum()), int(cols.sum())
+    return _pow2_cost(max(R, C), min(R, C)) * min(R, C)
+
+
+def _pow2_cost(m, k) -> float:
+    """m · 2^k as a float, inf past the float range (a cost, only ever compared).
+
+    ``2.0 ** k`` raises OverflowError from k = 1024 on: a block of 1024 columns.
+    """
+    m, k = int(m), int(k)
+    return math.ldexp(float(m), k) if m.bit_length() + k < 1020 else math.inf
 
 
 def _expanded(W, null, rows, cols, marginals, method, max_bits, max_memory, parallel):

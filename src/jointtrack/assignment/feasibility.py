@@ -11,23 +11,33 @@ from __future__ import annotations
 
 import numpy as np
 
+from jointtrack.assignment._checks import as_counts, as_null_weights, as_weights
+
 __all__ = ["is_feasible"]
 
 
 def is_feasible(W, null=None, row_counts=None, col_counts=None) -> bool:
-    """True if some assignment of ``W`` (plain arrays, already validated) weighs > 0.
+    """True if some assignment of ``W`` weighs > 0.
 
     ``null[r] > 0`` lets row r stay unassigned; group counts expand rows/columns.
+    Arguments are checked as by :func:`~jointtrack.assignment.assignment_sum`
+    (a NaN is refused, not read as a zero weight).
+
+    Raises
+    ------
+    ValueError, TypeError
+        bad input, naming the argument.
     """
     # scipy.sparse.csgraph costs ~0.3 s to import: only when a test is asked for
     from scipy.sparse import csr_array
     from scipy.sparse.csgraph import maximum_bipartite_matching
 
-    support = np.asarray(W) > 0
-    must = np.ones(support.shape[0], bool) if null is None else ~(np.asarray(null) > 0)
+    W = as_weights(W, "W")
+    support = W > 0
+    must = ~(as_null_weights(null, W.shape[0], "null") > 0)
     if row_counts is not None or col_counts is not None:
-        r = np.ones(support.shape[0], int) if row_counts is None else np.asarray(row_counts, int)
-        c = np.ones(support.shape[1], int) if col_counts is None else np.asarray(col_counts, int)
+        r = as_counts(row_counts, support.shape[0], "row_counts")
+        c = as_counts(col_counts, support.shape[1], "col_counts")
         support = np.repeat(np.repeat(support, r, axis=0), c, axis=1)
         must = np.repeat(must, r)
     support = support[must]

@@ -176,9 +176,14 @@ def group_exponents(W, null, row_counts, col_counts):
     with np.errstate(divide="ignore"):
         lw = np.log(W)
         lu = np.log(null)
+    return group_log_exponents(lw, lu, row_counts, col_counts)
+
+
+def group_log_exponents(lw, lu, row_counts, col_counts):
+    """:func:`group_exponents` of weights given by their logarithms (−inf for 0)."""
     a, g, ok = group_log_scales(lw, lu, row_counts, col_counts)
     if not ok:
-        return np.zeros(W.shape[0], np.int64), np.zeros(W.shape[1], np.int64), False
+        return np.zeros(lw.shape[0], np.int64), np.zeros(lw.shape[1], np.int64), False
     return np.rint(a / _LN2).astype(np.int64), np.rint(g / _LN2).astype(np.int64), True
 
 

@@ -44,7 +44,7 @@ def __getattr__(name):
         import importlib
 
         module = (
-            "jointtrack.assignment.sinkhorn"
+            "jointtrack.assignment._sinkhorn"
             if name == "sinkhorn"
             else (f"jointtrack.permanent.{_LAZY[name]}")
         )

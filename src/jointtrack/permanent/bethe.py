@@ -146,9 +146,9 @@ from scipy.sparse.csgraph import connected_components, maximum_bipartite_matchin
 from scipy.special import expit, logsumexp
 
 from jointtrack.assignment._checks import as_float, as_int
+from jointtrack.assignment._sinkhorn import scale_log
 from jointtrack.assignment.lsap import linear_assignment
 from jointtrack.assignment.scaling import group_exponents
-from jointtrack.assignment.sinkhorn import scale_log
 from jointtrack.errors import InfeasibleAssignmentError
 from jointtrack.permanent._validate import check_matrix
 

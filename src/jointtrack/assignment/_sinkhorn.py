@@ -27,7 +27,7 @@ import numpy as np
 
 from jointtrack.assignment._checks import as_counts, as_float, as_int, as_weights
 from jointtrack.assignment.feasibility import is_feasible
-from jointtrack.assignment.scaling import group_exponents
+from jointtrack.assignment.scaling import group_log_exponents
 from jointtrack.errors import InfeasibleAssignmentError
 
 _LN2 = math.log(2.0)
@@ -181,14 +181,16 @@ def _support_defect(S: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> str | 
 # ----------------------------------------------------------------------------------------
 
 
+# A Newton trial step may overshoot until e^{L+u+v} or its sums leave the float range;
+# the resulting inf is what the line search rejects, so it must not warn.
 def _sums(L, u, v, a, b):
     with np.errstate(over="ignore", invalid="ignore"):
         P = np.exp(L + u[:, None] + v[None, :])
-    return P, P @ b, a @ P
+        return P, P @ b, a @ P
 
 
 def _error(r, c, tau):
-    with np.errstate(invalid="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):
         e = max(float(np.max(np.abs(r - 1.0))), float(np.max(np.abs(c / tau - 1.0))))
     return e if np.isfinite(e) else np.inf
 
@@ -207,7 +209,8 @@ def _newton(L, a, b, tau, u, v, tol, max_steps):
     n, m = L.shape
 
     def objective(P, uu, vv):
-        val = float(a @ P @ b - a @ uu - tau * (b @ vv))
+        with np.errstate(over="ignore", invalid="ignore"):
+            val = float(a @ P @ b - a @ uu - tau * (b @ vv))
         return val if np.isfinite(val) else np.inf
 
     P, r, c = _sums(L, u, v, a, b)
@@ -359,7 +362,31 @@ def sinkhorn(A, *, tol: float = 1e-12, max_iter: int = 10_000, row_counts=None, 
         representable in float64.
     """
     A = weights_arg(A, "A")
-    n, m = A.shape
+    lr, B, lc = sinkhorn_log(
+        _log(A), tol=tol, max_iter=max_iter, row_counts=row_counts, col_counts=col_counts
+    )
+    with np.errstate(over="ignore", under="ignore"):
+        d1, d2 = np.exp(lr), np.exp(lc)
+    if not (np.all(np.isfinite(d1) & (d1 > 0)) and np.all(np.isfinite(d2) & (d2 > 0))):
+        raise ValueError(
+            "the Sinkhorn factors of A are not representable in float64 (A's entries span "
+            "too wide a range); the scaling exists but d1, d2 would over- or underflow"
+        )
+    return d1, B, d2
+
+
+def sinkhorn_log(log_A, *, tol=1e-12, max_iter=10_000, row_counts=None, col_counts=None):
+    """:func:`sinkhorn` of ``A = exp(log_A)`` (−inf = 0): ``(log d1, B, log d2)``.
+
+    For coefficients outside the float64 range (Schaub's identity coefficients
+    after hundreds of updates): the support, the existence test and the scaling
+    are all taken on ``log_A`` itself, so an entry far below the others is still a
+    positive entry (exponentiating first flushed it to 0 and a strictly positive
+    matrix then "lacked total support"). ``log_A`` must be validated (float64,
+    no NaN or +inf). Raises as :func:`sinkhorn`, except that the factors need not
+    be representable.
+    """
+    n, m = log_A.shape
     rows = as_counts(row_counts, n, "row_counts")
     cols = as_counts(col_counts, m, "col_counts")
     if rows.sum() > cols.sum():
@@ -369,24 +396,24 @@ def sinkhorn(A, *, tol: float = 1e-12, max_iter: int = 10_000, row_counts=None, 
     tol = as_float(tol, "tol", minimum=0.0, open_min=True)
     max_iter = as_int(max_iter, "max_iter", 1)
     if n == 0:
-        return np.ones(0), A.copy(), np.ones(m)
-    if not is_feasible(A, None, rows, cols):
+        return np.zeros(0), np.exp(log_A), np.zeros(m)
+    S = log_A > -np.inf
+    if not is_feasible(S.astype(np.float64), None, rows, cols):
         raise InfeasibleAssignmentError(
             "A has no assignment with positive weight (its permanent is 0): "
             "no Sinkhorn scaling exists"
         )
-    S = A > 0
     defect = _support_defect(S, rows, cols)
     if defect is not None:
         raise ValueError(defect)
-    # 1. dual scaling by exact powers of two: every entry ≤ ~1, best assignment ≈ 1
+    # 1. dual scaling by powers of two: every entry ≤ ~1, best assignment ≈ 1
     try:
-        er, ec, ok = group_exponents(A, np.zeros(n), rows, cols)
+        er, ec, ok = group_log_exponents(log_A, np.full(n, -np.inf), rows, cols)
     except ValueError:  # expansion too large for one assignment solve
         er, ec, ok = np.zeros(n, np.int64), np.zeros(m, np.int64), False
     if not ok:
         er, ec = np.zeros(n, np.int64), np.zeros(m, np.int64)
-    L = _log(A) + (er[:, None] + ec[None, :]) * _LN2  # log space: no underflow
+    L = log_A + (er[:, None] + ec[None, :]) * _LN2  # log space: no underflow
     a, b = rows.astype(np.float64), cols.astype(np.float64)
     N, M = float(a.sum()), float(b.sum())
     tau = N / M
@@ -413,12 +440,6 @@ def sinkhorn(A, *, tol: float = 1e-12, max_iter: int = 10_000, row_counts=None, 
             lr, lc, u, v = lr + frac * dr, lc + frac * dc, u + frac * dr, v + frac * dc
             break
         frac *= 0.5
-    with np.errstate(over="ignore", under="ignore"):
-        d1, d2 = np.exp(lr), np.exp(lc)
-    if not (np.all(np.isfinite(d1) & (d1 > 0)) and np.all(np.isfinite(d2) & (d2 > 0))):
-        raise ValueError(
-            "the Sinkhorn factors of A are not representable in float64 (A's entries span "
-            "too wide a range); the scaling exists but d1, d2 would over- or underflow"
-        )
-    B = np.exp(L + u[:, None] + v[None, :])
-    return d1, B, d2
+    with np.errstate(under="ignore"):
+        B = np.exp(L + u[:, None] + v[None, :])
+    return lr, B, lc
