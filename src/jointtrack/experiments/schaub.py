@@ -132,16 +132,47 @@ STEPS = {1: 400, 2: 100, 3: 400}
 #: the reference check runs at every step up to here, then at every 10th step
 REFERENCE_ALL_STEPS = 100
 QUICK_STEPS = 40
+#: how Table III's c (and Tables I–II's ⌊i/2⌋) enters Σ_P = c_P I
+READINGS = {
+    "variance": "c is the process-noise variance, Sigma_P = c I (the tables read literally)",
+    "std": "c is the process-noise standard deviation, Sigma_P = c^2 I",
+}
+#: seeds of the max-weight statistics (full run; quick: QUICK_SEEDS) and of the curves
+SEEDS = 100
+QUICK_SEEDS = 10
+CURVE_SEEDS = 5
 
 
-def example_setup(example: int) -> dict:
-    """Identities, observed tracks and measurement noise of example 1, 2 or 3 (Tables I–III)."""
+def _check_reading(process_noise_reading) -> str:
+    if process_noise_reading not in READINGS:
+        raise ValueError(
+            f"process_noise_reading must be one of {', '.join(READINGS)}, "
+            f"got {process_noise_reading!r}"
+        )
+    return process_noise_reading
+
+
+def table_process_noise(example: int, i: int) -> float:
+    """The tables' process-noise number c of identity i: ⌊i/2⌋ (Tables I–II) or its class (III)."""
+    if example in (1, 2):
+        return float(i // 2)
+    return float(1 + (i >= 60) + (i >= 90))  # classes of 60, 30 and 10 identities
+
+
+def example_setup(example: int, process_noise_reading: str = "variance") -> dict:
+    """Identities, observed tracks and measurement noise of example 1, 2 or 3 (Tables I–III).
+
+    ``process_noise_reading``: ``"variance"`` (default, the tables read
+    literally: Σ_P = c I) or ``"std"`` (c a standard deviation: Σ_P = c² I).
+    """
     from jointtrack.identity.database import Identity, IdentityDatabase
 
     if example not in (1, 2, 3):
         raise ValueError(f"example must be 1, 2 or 3, got {example!r}")
+    power = 1 if _check_reading(process_noise_reading) == "variance" else 2
+    noise = [table_process_noise(example, i) ** power for i in range(N_IDENTITIES)]
     if example in (1, 2):
-        ids = [Identity(f"id{i}", float(i // 2), attribute=float(i)) for i in range(N_IDENTITIES)]
+        ids = [Identity(f"id{i}", noise[i], attribute=float(i)) for i in range(N_IDENTITIES)]
         n_obs = 6
         # Table I: attribute variance 4 + ∞·((t − 1) mod 2), 0-based t (see module docstring)
         attr_var = [
@@ -149,11 +180,10 @@ def example_setup(example: int) -> dict:
             for t in range(n_obs)
         ]
     else:
-        sizes = (60, 30, 10)
-        ids = []
-        for c, size in enumerate(sizes, start=1):
-            for _ in range(size):
-                ids.append(Identity(f"id{len(ids)}", float(c), label=f"class {c}"))
+        ids = [
+            Identity(f"id{i}", noise[i], label=f"class {table_process_noise(3, i):g}")
+            for i in range(N_IDENTITIES)
+        ]
         n_obs = N_IDENTITIES
         attr_var = [None] * n_obs
     db = IdentityDatabase(ids, dim=2)
@@ -163,6 +193,7 @@ def example_setup(example: int) -> dict:
         "n_hidden": N_IDENTITIES - n_obs,
         "truth": np.arange(n_obs),  # U = I: identity t on track t
         "attribute_variance": attr_var,
+        "process_noise_reading": process_noise_reading,
     }
 
 
@@ -207,10 +238,17 @@ def _R(setup, t):
 
 def _correct_from(kl: list[float]) -> int | None:
     """First step (1-based) from which the divergence stays 0; None if it never settles."""
-    k = len(kl)
-    while k > 0 and kl[k - 1] == 0.0:
-        k -= 1
-    return k + 1 if k < len(kl) else None
+    return _stays_right_from(np.asarray(kl) == 0.0)
+
+
+def _stays_right_from(right) -> int | None:
+    """First step (1-based) from which ``right`` stays true to the end; None if it is false
+    at the last step."""
+    right = np.asarray(right, dtype=bool)
+    wrong = np.flatnonzero(~right)
+    if wrong.size == 0:
+        return 1
+    return None if wrong[-1] == right.size - 1 else int(wrong[-1]) + 2
 
 
 def _warm_up() -> None:
@@ -230,16 +268,20 @@ def run_example(
     *,
     reference_every: int = 1,
     on_step=None,
+    process_noise_reading: str = "variance",
 ) -> dict:
-    """Run one example; per step: max KL of every method, seconds, reference error."""
+    """Run one example; per step: max KL of every method, seconds, reference error.
+
+    ``process_noise_reading``: see :func:`example_setup`.
+    """
     from jointtrack.assignment.scaling import from_log_weights
     from jointtrack.identity import deconflict
     from jointtrack.identity.filterbank import IdentityBank
     from jointtrack.identity.metrics import aggregate_classes, asymptotic_matrix, kl_rows
     from jointtrack.permanent.reference import reference_marginals
 
+    setup = example_setup(example, process_noise_reading)
     _warm_up()
-    setup = example_setup(example)
     db = setup["database"]
     n_obs = setup["n_observed"]
     _, Z = _simulate(setup, n_steps, seed, example)
@@ -285,6 +327,7 @@ def run_example(
         "example": example,
         "steps": n_steps,
         "seed": seed,
+        "process_noise_reading": process_noise_reading,
         "n_identities": db.n_identities,
         "n_observed_tracks": n_obs,
         "n_hidden_tracks": setup["n_hidden"],
@@ -309,6 +352,116 @@ def run_example(
             )
         ),
     }
+
+
+def maxweight_statistics(
+    example: int,
+    n_steps: int,
+    seeds,
+    process_noise_reading: str = "variance",
+    *,
+    on_step=None,
+) -> dict:
+    """When max-weight matching on the exact likelihoods is right, over many seeds.
+
+    Max-weight matching of M (56)–(57) is the most probable joint assignment
+    given every measurement so far (M's permanent terms are the joint
+    posterior of the assignments), so no method that sees the same
+    measurements is right at a given step with a higher probability: its
+    statistics are the best any method can do on these examples. "Right"
+    means its class-aggregated max KL is 0, as in :func:`run_example`.
+
+    All seeds run in one :class:`~jointtrack.identity.filterbank.IdentityBank`
+    (tracks keyed ``(seed index, track)``; tracks are independent, so a track
+    gets the numbers of a one-seed bank to rounding) to batch the filters.
+
+    Returns
+    -------
+    dict
+        ``stays_right_from`` per seed (1-based step, None: wrong at the last
+        step), ``right`` (seeds × steps bool, as lists) and the settings.
+    """
+    from jointtrack.identity import deconflict
+    from jointtrack.identity.filterbank import IdentityBank
+    from jointtrack.identity.metrics import aggregate_classes, asymptotic_matrix, kl_rows
+
+    setup = example_setup(example, process_noise_reading)
+    seeds = [int(s) for s in seeds]
+    if not seeds:
+        raise ValueError("seeds must hold at least one seed")
+    n_steps = int(n_steps)
+    if n_steps < 1:
+        raise ValueError(f"n_steps must be >= 1, got {n_steps}")
+    _warm_up()
+    db = setup["database"]
+    n_obs, n_hidden = setup["n_observed"], setup["n_hidden"]
+    Z = [_simulate(setup, n_steps, s, example)[1] for s in seeds]
+    Va = aggregate_classes(asymptotic_matrix(setup["truth"], db.classes), db.classes)
+    R_of = [_R(setup, tr) for tr in range(n_obs)]
+    bank = IdentityBank(db)  # hidden tracks are added per seed below
+    right = np.zeros((len(seeds), n_steps), dtype=bool)
+    for k in range(n_steps):
+        meas = {(j, tr): (Z[j][k, tr], R_of[tr]) for j in range(len(seeds)) for tr in range(n_obs)}
+        if k == 0:
+            bank.add_tracks(0.0, meas)
+        else:
+            bank.step(float(k), meas)
+        log_A, log_b, _, cols = bank.log_M()
+        for j in range(len(seeds)):
+            A, b = log_A[j * n_obs : (j + 1) * n_obs], log_b[j * n_obs : (j + 1) * n_obs]
+            rows = np.ones(n_obs, dtype=np.int64)
+            if n_hidden:  # the hidden row group of IdentityBank.log_M: the prior, a = b = 1
+                A = np.vstack([A, np.zeros((1, db.n_classes))])
+                b, rows = np.append(b, 0.0), np.append(rows, n_hidden)
+            r = deconflict(log_M=A, log_b=b, row_counts=rows, col_counts=cols, method="maxweight")
+            P = np.repeat(r.P[:n_obs], cols, axis=1)
+            right[j, k] = kl_rows(Va, aggregate_classes(P, db.classes)).max() == 0.0
+        if on_step is not None:
+            on_step()
+    return {
+        "example": example,
+        "steps": n_steps,
+        "seeds": seeds,
+        "process_noise_reading": process_noise_reading,
+        "stays_right_from": [_stays_right_from(row) for row in right],
+        "right": right.tolist(),
+    }
+
+
+def _quartiles(steps: list) -> list[float]:
+    """25/50/75 % of the steps from which max-weight stays right (inf: never within the run).
+
+    ``inverted_cdf`` returns sample values, so "never" (inf) is ordered, not interpolated.
+    """
+    x = np.array([math.inf if v is None else v for v in steps], dtype=float)
+    return [float(q) for q in np.quantile(x, [0.25, 0.5, 0.75], method="inverted_cdf")]
+
+
+def paper_comparison(stats: dict) -> dict:
+    """The paper's max-weight step beside one reading's statistics, as measured differences."""
+    ex = str(stats["example"])
+    paper = PAPER["maxweight_correct_from"][ex]
+    n = len(stats["seeds"])
+    settled = [v for v in stats["stays_right_from"] if v is not None]
+    out = {
+        "process_noise_reading": stats["process_noise_reading"],
+        "seeds": n,
+        "steps": stats["steps"],
+        "paper_step": paper,
+        "quartiles": _quartiles(stats["stays_right_from"]),
+        "never_settles": n - len(settled),
+    }
+    if paper <= stats["steps"]:
+        out["right_at_paper_step"] = int(sum(row[paper - 1] for row in stats["right"]))
+        # the paper's run's place among ours: the share of seeds settled by its step
+        share = sum(v <= paper for v in settled) / n
+        out["share_settled_by_paper_step"] = share
+        out["paper_is_ordinary"] = bool(0.05 <= share <= 0.95)
+    else:
+        out["right_at_paper_step"] = None
+        out["share_settled_by_paper_step"] = None
+        out["paper_is_ordinary"] = None
+    return out
 
 
 def _median_curves(runs: list[dict]) -> dict:
