@@ -629,8 +629,8 @@ def reproduce_schaub(
         str,
         typer.Option(
             "--process-noise-reading",
-            help="Table III's c as the process-noise variance (default, literal) | std "
-            "(variance c²). The max-weight statistics always show both.",
+            help="variance (default: Table III's c read literally, Σ_P = c I) | std "
+            "(c a standard deviation, Σ_P = c² I). The max-weight statistics show both.",
         ),
     ] = "variance",
     out: ReproduceOut = Path("jointtrack-out"),
@@ -638,8 +638,7 @@ def reproduce_schaub(
 ) -> None:
     """Schaub §4 examples 1-3: max KL vs step per method (Figures 5-7), ms per step.
 
-    Exits 1 if a self-check (exact vs the rational reference, the filters' Q) fails;
-    the paper's figures are reported beside ours as measured differences.
+    Exits 1 only if a self-check fails; the paper's figures are measured differences.
     """
     if seeds is not None and seeds < 1:
         _fail(f"--seeds must be >= 1, got {seeds}")
