@@ -436,3 +436,18 @@ def test_bad_sensor_ids_are_refused_naming_the_row(tmp_path):
         Detections(times=[0.0], scans=z, sensors=[np.array([1.0])])
     with pytest.raises(ValueError, match="integers in some scans and strings"):
         Detections(times=[0.0, 1.0], scans=z * 2, sensors=[np.array([1]), np.array(["a"])])
+
+
+@pytest.mark.parametrize("big", [2**53 + 2, 2**62, 2**63 + 10])
+def test_truth_ids_beyond_exact_floats_are_refused_naming_the_row(tmp_path, big):
+    """Truth ids go through float64: beyond 2^53 two targets would merge, so refuse."""
+    from jointtrack.io import read_truth
+    from jointtrack.io.errors import TruthFileError
+
+    p = tmp_path / "truth.csv"
+    p.write_text(f"time,id,x,y\n0,1,0,0\n0,{big},5,5\n0,{big + 1},9,9\n")
+    with pytest.raises(TruthFileError, match=r"beyond ±2\^53"):
+        read_truth(p)
+    p.write_text("time,id,x,y\n0,1,0,0\n0,9007199254740992,5,5\n")  # 2^53 itself is exact
+    _, ids, _ = read_truth(p)
+    assert ids.tolist() == [1, 2**53]

@@ -299,10 +299,28 @@ def load_columns(
 
 
 def check_integer(path, err, v: np.ndarray, name: str, lines) -> np.ndarray:
-    bad = v != np.round(v)
+    """int64 ids of a numeric column: integral, and within ±2^53.
+
+    The column was parsed as float64, which holds every integer only up to 2^53;
+    beyond, distinct ids would merge silently (and past 2^63 not fit int64), so
+    they are refused naming the row.
+    """
+    bad = ~np.isfinite(v) | (v != np.round(v))
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise row_error(err, path, f"value {float(v[i])!r} is not an integer", i, lines, name)
+    big = np.abs(v) > 2.0**53
+    if big.any():
+        i = int(np.flatnonzero(big)[0])
+        raise row_error(
+            err,
+            path,
+            f"value {float(v[i])!r} is beyond ±2^53, where distinct integer ids would merge "
+            "as numbers; renumber the ids",
+            i,
+            lines,
+            name,
+        )
     return v.astype(np.int64)
 
 
