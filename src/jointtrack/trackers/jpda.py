@@ -24,8 +24,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.sparse import csr_array
 
-from jointtrack.association.budget import budgeted_marginals
+from jointtrack.association.budget import (
+    DENSE_MAX_ENTRIES,
+    budgeted_marginals,
+    fallback_pair_marginals,
+)
 from jointtrack.association.clustering import cluster_pair_marginals, clusters
 from jointtrack.association.clutter import cluster_heuristic_densities
 from jointtrack.association.gating import gate_pairs, likelihood_ratio_pairs
@@ -479,7 +484,37 @@ class JPDATracker:
                 self.on_cluster(ClusterRecord(self.ids[tracks[tr]], Lc, mc, bc, dt_s, method, loud))
             return bc
 
-        beta0, weights = cluster_pair_marginals(groups, rows, cols, L_pairs, miss, solve)
+        def solve_pairs(k, tr, ms, a, b, vals, mc):
+            # too large for an N × M matrix: the tiers on the gated pairs, never dense
+            t0 = _time.perf_counter()
+            reason = (
+                f"dense_budget: {len(tr)} tracks × {len(ms)} measurements > "
+                f"{DENSE_MAX_ENTRIES} entries"
+            )
+            res = fallback_pair_marginals(a, b, vals, mc, len(ms), reason=reason)
+            dt_s = _time.perf_counter() - t0
+            self._log_fallback(len(tr), len(ms), loud, res.reason, res.method)
+            fallbacks.append(res.reason)
+            seconds.append(dt_s)
+            sizes.append((len(tr), len(ms)))
+            methods.append(res.method)
+            if self.on_cluster is not None:
+                shape = (len(tr), len(ms))
+                Lc = csr_array((vals, (a, b)), shape=shape)
+                bc = csr_array(
+                    (
+                        np.concatenate([res.beta0, res.pair_beta]),
+                        (np.concatenate([np.arange(len(tr)), a]), np.concatenate([0 * tr, b + 1])),
+                    ),
+                    shape=(len(tr), len(ms) + 1),
+                )
+                rec = ClusterRecord(self.ids[tracks[tr]], Lc, mc, bc, dt_s, res.method, loud)
+                self.on_cluster(rec)
+            return res.beta0, res.pair_beta
+
+        beta0, weights = cluster_pair_marginals(
+            groups, rows, cols, L_pairs, miss, solve, solve_pairs, DENSE_MAX_ENTRIES
+        )
         used = None
         if c.existence:
             used = weights.copy()  # unconditional: how much each pair explains its return
@@ -508,16 +543,21 @@ class JPDATracker:
             rng=self.rng,
         )
         if res.reason:
-            (log.warning if loud else log.debug)(
-                "exact association of a cluster of %d %s tracks and %d measurements not used "
-                "(%s): used %s",
-                len(Lc),
-                "confirmed" if loud else "tentative",
-                Lc.shape[1],
-                res.reason,
-                res.method,
-            )
+            self._log_fallback(len(Lc), Lc.shape[1], loud, res.reason, res.method)
         return res.beta, res.method, res.reason, _time.perf_counter() - t0
+
+    @staticmethod
+    def _log_fallback(n, m, loud, reason, method):
+        (log.warning if loud else log.debug)(
+            "%s association of a cluster of %d %s tracks and %d measurements not used "
+            "(%s): used %s",
+            "the configured" if reason.startswith("dense_budget") else "exact",
+            n,
+            "confirmed" if loud else "tentative",
+            m,
+            reason,
+            method,
+        )
 
     def _track_logic(self, hit):
         c = self.config
