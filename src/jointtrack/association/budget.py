@@ -43,6 +43,7 @@ __all__ = [
     "DENSE_MAX_ENTRIES",
     "EXACT_METHODS",
     "MAX_LBP_PAIRS",
+    "MAX_LBP_WORK",
     "TIERS",
     "BudgetedMarginals",
     "PairMarginals",
@@ -59,8 +60,10 @@ TIERS = ("lbp-sparse", "pda")
 #: Largest cluster (tracks × measurements) handed to the dense methods: 4·10⁶
 #: entries, 32 MB per float64 N × M array (the dense LBP's N + M ≤ 4000 fits).
 DENSE_MAX_ENTRIES = 4_000_000
-#: Largest number of gated pairs for the sparse LBP tier (about 48 bytes each).
-MAX_LBP_PAIRS = 4_000_000
+#: Largest number of gated pairs for the sparse LBP tier (about 48 bytes each: 400 MB).
+MAX_LBP_PAIRS = 2**23
+#: Message updates (pairs × sweeps) the sparse LBP tier may spend (a few seconds).
+MAX_LBP_WORK = 2**26
 
 
 @dataclass(frozen=True)
@@ -187,12 +190,15 @@ def fallback_pair_marginals(
     *,
     reason: str = "",
     max_pairs: int = MAX_LBP_PAIRS,
+    max_work: int = MAX_LBP_WORK,
 ) -> PairMarginals:
     """Marginals of a cluster past every budget, on its gated pairs: sparse LBP, then PDA.
 
     1. ``"lbp-sparse"``: Williams & Lau BP on the pairs
        (:func:`~jointtrack.association.lbp.lbp_pair_marginals`; memory and
-       time per sweep O(P)), when there are at most ``max_pairs`` pairs;
+       time per sweep O(P)), when there are at most ``max_pairs`` pairs; at
+       most ``max_work / P`` sweeps (between 10 and 1000), the beliefs of the
+       last sweep if BP has not converged by then;
     2. ``"pda"``: per-track PDA (Bojilov eqs. (1)–(3),
        :func:`~jointtrack.association.pda.pda_pair_marginals`; O(P), no joint
        constraint) when there are more pairs or BP degenerates (possible only
@@ -215,7 +221,10 @@ def fallback_pair_marginals(
     n_pairs = int(np.size(rows))
     if n_pairs <= max_pairs:
         try:
-            beta0, pair_beta, _info = lbp_pair_marginals(rows, cols, L_values, miss, n_measurements)
+            sweeps = int(min(1000, max(10, max_work // max(n_pairs, 1))))
+            beta0, pair_beta, _info = lbp_pair_marginals(
+                rows, cols, L_values, miss, n_measurements, max_iter=sweeps
+            )
             return PairMarginals(beta0, pair_beta, "lbp-sparse", reason)
         except InfeasibleAssignmentError as exc:  # BP degenerated; PDA re-checks feasibility
             why = f"lbp-sparse failed: {exc}"

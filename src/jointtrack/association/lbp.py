@@ -181,19 +181,20 @@ def _lbp_pairs_kernel(indptr, W, m, v, col_ptr, col_perm, cols, A, B, tol, max_i
                 pre = nu_new[p]
                 nu_new[p] = 1.0 / (v[j] + pre + suf)
                 suf += mu[p]
-        # change in the log metric
-        d = 0.0
+        # change in the log metric: the largest ratio, one log per sweep
+        q = 1.0
         for p in range(npairs):
             a = nu[p]
             b = nu_new[p]
             if a != b:
                 if a > 0.0 and b > 0.0:
-                    x = abs(np.log(b) - np.log(a))
+                    x = b / a if b > a else a / b
                 else:
                     x = np.inf
-                if x > d:
-                    d = x
+                if x > q:
+                    q = x
             nu[p] = b
+        d = np.log(q)
         if certified:
             if d == 0.0:
                 bound = 0.0
@@ -218,7 +219,7 @@ def _pair_layout(rows, cols, n, mm):
     """Row pointer of row-sorted pairs, and the column-major permutation with its pointer."""
     indptr = np.zeros(n + 1, np.int64)
     np.cumsum(np.bincount(rows, minlength=n), out=indptr[1:])
-    col_perm = np.lexsort((rows, cols)).astype(np.int64)
+    col_perm = np.argsort(cols, kind="stable").astype(np.int64)  # rows stay increasing
     col_ptr = np.zeros(mm + 1, np.int64)
     np.cumsum(np.bincount(cols, minlength=mm), out=col_ptr[1:])
     return indptr, col_perm, col_ptr
@@ -250,6 +251,16 @@ def _lbp_kernel(W, m, v, A, B, tol, max_iter, certified):
     nu = np.broadcast_to(1.0 / v, W.shape).copy()
     nu[rows, cols] = nu_p
     return nu, it, conv, d, bound
+
+
+def _row_max(base, rows, values):
+    """``max(base[i], values of row i)`` for row-sorted ``rows`` (no slow ufunc.at)."""
+    top = base.copy()
+    if rows.size:
+        starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+        r = rows[starts]
+        top[r] = np.maximum(top[r], np.maximum.reduceat(values, starts))
+    return top
 
 
 def _certificate(rows, cols, w, n, mm):
@@ -344,8 +355,7 @@ def _lbp_pairs(rows, cols, W, m, v, certified, tol, max_iter):
         bound = np.inf
     # each track's beliefs by a power of two so that the largest is in [0.5, 1)
     un = W * nu
-    top = m.copy()
-    np.maximum.at(top, rows, un)
+    top = _row_max(m, rows, un)
     with np.errstate(invalid="ignore"):
         _, e = np.frexp(top)
     u0 = np.ldexp(m, -e)
@@ -441,9 +451,7 @@ def lbp_pair_marginals(
     certified = bool(np.all(miss > 0))
     if r.size == 0:
         return beta0, pair_beta, LBPInfo(0, True, 0.0, 0.0, certified)
-    top = miss.copy()
-    np.maximum.at(top, r, w)
-    _, e = np.frexp(top)
+    _, e = np.frexp(_row_max(miss, r, w))
     w = np.maximum(np.ldexp(w, -e[r]), _FLOOR)
     m = np.ldexp(miss, -e)
     m = np.where(m > 0, np.maximum(m, _FLOOR), 0.0)

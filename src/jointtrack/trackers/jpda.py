@@ -115,6 +115,9 @@ def _merge_coincident(z: np.ndarray, t: float) -> tuple[np.ndarray, int]:
     """``z`` with each set of identical rows kept once (first occurrence, order kept)."""
     if len(z) < 2:
         return z, 0
+    x = np.sort(z[:, 0])
+    if not (x[1:] == x[:-1]).any():  # the usual scan: no tie in the first coordinate
+        return z, 0
     _, first = np.unique(z, axis=0, return_index=True)
     n_dropped = len(z) - len(first)
     if n_dropped == 0:
