@@ -64,6 +64,15 @@ was 1e-16 (mostly trees) but the 90th percentile 0.09 and the worst 0.49 (BP
 can lock onto a single event). Damping did not help. Prefer an exact method
 there.
 
+Messages live on the gated pairs (one μ and one ν per pair, the pairs in
+row-major order plus a column-major permutation), so memory is O(N + M + P)
+for P gated pairs: :func:`lbp_pair_marginals` takes the pairs directly, for
+clusters whose N × M matrix would not fit (the last-but-one tier of
+:func:`jointtrack.association.budget.fallback_pair_marginals`), and scales each
+track by a power of two instead of the dense scaling, whose assignment solve is
+limited to N + M ≤ 4000 (:func:`lbp_marginals` refuses larger clusters with
+:class:`~jointtrack.errors.ExactLimitError`).
+
 BP is exact when the gating graph is a forest (no cycles); on loopy (dense)
 clusters it is an approximation. Measured here (``tests/test_association_approx``):
 on 200 random dense 5×10 clusters, ``L = 5·U[0,1]``, ``miss = 0.1``, the
@@ -309,6 +318,9 @@ def lbp_marginals(L, miss, *, tol: float = 1e-9, max_iter: int = 1000):
     ValueError
         bad input (see ``check_cluster``), ``tol`` not a positive finite number,
         ``max_iter`` not a whole number ≥ 1.
+    ExactLimitError
+        N + M > 4000, above the dense scaling's limit (use
+        :func:`lbp_pair_marginals` on the gated pairs).
     InfeasibleAssignmentError
         no joint event has positive weight.
     """
