@@ -267,6 +267,27 @@ def test_20000_detection_scans_fit_in_2_gib():
     assert int(lines["rss"]) < 2 * 2**30
 
 
+def test_near_coincident_returns_degrade_instead_of_listing_all_pairs(monkeypatch, caplog):
+    """Returns piled on one spot (not identical): the gate and merge searches count
+    their pairs first and keep each track's nearest ones past the budget (budgets
+    lowered here so that 3,000 returns stand for 20,000)."""
+    import logging
+
+    import jointtrack.association.gating as gating
+    import jointtrack.trackers.existence as existence
+
+    monkeypatch.setattr(gating, "MAX_CANDIDATES", 2**16)
+    monkeypatch.setattr(existence, "_MAX_PAIRS", 2**16)
+    rng = np.random.default_rng(3)
+    trk = JPDATracker(TrackerConfig())
+    trk.start_tracks([[0.0, 0.0, 1.0, 0.0]], np.diag([100.0, 100, 100, 100]), time=0.0)
+    with caplog.at_level(logging.WARNING, logger="jointtrack.association"):
+        for k in (1, 2):
+            res = trk.step(float(k), rng.normal(0, 0.01, (3000, 2)) + [k, 0.0])
+    assert "nearest returns" in caplog.text
+    assert res.n_measurements == 3000 and res.cluster_methods  # the step returned
+
+
 # ------------------------------------------------------------------ item 9: coincident returns
 
 
