@@ -575,11 +575,16 @@ def _ball_candidates(
         extent = 2.0 * max(np.abs(z).max(), np.abs(z_pred).max()) + radius.max()
     p_norm = 2.0 if extent < 1e150 else np.inf
     tree = cKDTree(z)
-    # count before listing: where everything coincides the lists are N·M long
-    counts = tree.query_ball_point(z_pred, radius, p=p_norm, return_length=True)
-    total = int(counts.sum()) + m * int((~finite).sum())
-    if total > MAX_CANDIDATES:
-        return _nearest_candidates(tree, z_pred, radius, p_norm, total)
+    # count before listing: where everything coincides the lists are N·M long. The
+    # slab |x − x_i| ≤ r_i holds the ball: its count (two binary searches) is a cheap
+    # upper bound, and only past the budget are the balls counted on the tree
+    if n * m > MAX_CANDIDATES and (
+        slab_count(z[:, 0], z_pred[:, 0], radius) + m * int((~finite).sum()) > MAX_CANDIDATES
+    ):
+        counts = tree.query_ball_point(z_pred, radius, p=p_norm, return_length=True)
+        total = int(counts.sum()) + m * int((~finite).sum())
+        if total > MAX_CANDIDATES:
+            return _nearest_candidates(tree, z_pred, radius, p_norm, total)
     hits = tree.query_ball_point(z_pred, radius, p=p_norm, return_sorted=True)
     if not finite.all():  # λ_max overflowed: every measurement is a candidate
         everything = list(range(m))
@@ -590,6 +595,20 @@ def _ball_candidates(
     cols = np.fromiter(itertools.chain.from_iterable(hits), dtype=np.int64, count=total)
     rows = np.repeat(np.arange(n, dtype=np.int64), counts)
     return rows, cols
+
+
+def slab_count(points, centres, half_width) -> int:
+    """Σ_i #{j : |points[j] − centres[i]| ≤ half_width[i]} (1-D), an upper bound on ball counts."""
+    if points.size == 0 or centres.size == 0:
+        return 0
+    xs = np.sort(points)
+    half_width = np.broadcast_to(half_width, centres.shape)
+    order = np.argsort(centres)  # sorted needles: the searches walk memory in order
+    c, w = centres[order], half_width[order]
+    with np.errstate(invalid="ignore", over="ignore"):
+        hi = np.searchsorted(xs, c + w, side="right")
+        lo = np.searchsorted(xs, c - w, side="left")
+    return int((hi - lo).sum())
 
 
 def _nearest_candidates(tree, z_pred, radius, p_norm, total):

@@ -68,6 +68,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from jointtrack.association.gating import slab_count
+
 __all__ = ["existence_update", "merge_duplicates"]
 
 
@@ -111,8 +113,15 @@ def merge_duplicates(x, P, ids, existence, confirmed, dim, threshold):
     var = np.einsum("nii->n", P[:, :dim, :dim])
     radius = 3.0 * np.sqrt(2.0 * threshold * np.quantile(var, 0.99))
     tree = cKDTree(x[:, :dim])
-    # count before listing: tracks piled on one spot would give n²/2 pairs
-    n_pairs = (int(tree.query_ball_point(x[:, :dim], radius, return_length=True).sum()) - n) // 2
+    # count before listing: tracks piled on one spot would give n²/2 pairs (a slab
+    # count along x bounds the ball counts cheaply; the tree counts only past it)
+    n_pairs = n * (n - 1) // 2
+    if n_pairs > _MAX_PAIRS:
+        n_pairs = (slab_count(x[:, 0], x[:, 0], radius) - n) // 2
+    if n_pairs > _MAX_PAIRS:
+        n_pairs = (
+            int(tree.query_ball_point(x[:, :dim], radius, return_length=True).sum()) - n
+        ) // 2
     if n_pairs <= _MAX_PAIRS:
         pairs = tree.query_pairs(radius, output_type="ndarray")
     else:  # each track against its nearest neighbours only (memory O(n·k))
