@@ -656,6 +656,12 @@ def gate_pairs(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> PairGating:
        factors (batched forward substitution), and the pairs with d² ≤ γ kept.
 
     Cost O((N + M) log M + candidates) time and O(N + M + candidates) memory.
+    The candidates are counted before they are listed (a slab bound, then the
+    tree's ball counts): past :data:`MAX_CANDIDATES` (e.g. thousands of tracks and
+    returns piled on one spot, where the lists are N·M long) each gate keeps only
+    its nearest ``MAX_CANDIDATES // N`` returns within its ball, with a warning on
+    the ``jointtrack.association`` logger — an approximation that keeps memory
+    bounded.
 
     With a ``residual`` function (e.g. a wrapped bearing) Euclidean balls do not
     bound the gate, so it falls back to the dense :func:`gate_measurements` and
