@@ -16,3 +16,11 @@ class ExactLimitError(ValueError):
     (``max_bits``, ``max_memory``) and how much the problem needs. Callers such as
     the tracker catch it to switch to an approximation.
     """
+
+
+class CoincidentReturnsWarning(UserWarning):
+    """A scan held exactly coincident returns (identical measurement vectors).
+
+    A stuck or replayed detector repeats a return; the JPDA tracker keeps one of
+    each set of identical returns of a scan (the message gives the count).
+    """

@@ -13,23 +13,57 @@ subsets for a block of frontier width K. The policy, shared by the JPDA tracker
    raised before any work), the cluster goes to ``approximation`` (reason
    ``"refused: …"`` with the engine's message).
 
-The result says which method produced each cluster's β and why, so callers can
-count and report every fallback.
+3. past every budget — the approximation refuses the cluster too (the dense
+   LBP's scaling is limited to N + M ≤ 4000), or the cluster is too large for
+   an N × M matrix at all (more than :data:`DENSE_MAX_ENTRIES` entries, then no
+   dense method is tried) — the cheaper tiers of :func:`fallback_pair_marginals`
+   work on the gated pairs only (memory O(pairs)): sparse LBP
+   (:func:`~jointtrack.association.lbp.lbp_pair_marginals`, method
+   ``"lbp-sparse"``), and where that cannot run (more than ``max_pairs`` pairs,
+   or BP degenerates) per-track PDA (method ``"pda"``), which never fails on
+   a cluster whose every track can miss. A tracker step therefore never fails
+   for the size of a cluster.
+
+The result says which method (tier) produced each cluster's β and why, so
+callers can count and report every fallback.
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
 
 from jointtrack.association.core import marginals
-from jointtrack.errors import ExactLimitError
+from jointtrack.errors import ExactLimitError, InfeasibleAssignmentError
 
-__all__ = ["APPROXIMATIONS", "EXACT_METHODS", "BudgetedMarginals", "budgeted_marginals"]
+__all__ = [
+    "APPROXIMATIONS",
+    "DENSE_MAX_ENTRIES",
+    "EXACT_METHODS",
+    "MAX_LBP_PAIRS",
+    "MAX_LBP_WORK",
+    "TIERS",
+    "BudgetedMarginals",
+    "PairMarginals",
+    "budgeted_marginals",
+    "fallback_pair_marginals",
+]
+
+log = logging.getLogger("jointtrack.association")
 
 EXACT_METHODS = ("exact", "enumerate")
 APPROXIMATIONS = ("lbp", "mcmc", "kbest", "pda")
+#: The tiers past every budget, cheapest last (methods of :func:`fallback_pair_marginals`).
+TIERS = ("lbp-sparse", "pda")
+#: Largest cluster (tracks × measurements) handed to the dense methods: 4·10⁶
+#: entries, 32 MB per float64 N × M array (the dense LBP's N + M ≤ 4000 fits).
+DENSE_MAX_ENTRIES = 4_000_000
+#: Largest number of gated pairs for the sparse LBP tier (about 48 bytes each: 400 MB).
+MAX_LBP_PAIRS = 2**23
+#: Message updates (pairs × sweeps) the sparse LBP tier may spend (a few seconds).
+MAX_LBP_WORK = 2**26
 
 
 @dataclass(frozen=True)
@@ -58,16 +92,22 @@ def budgeted_marginals(
 ) -> BudgetedMarginals:
     """JPDA marginals of one cluster by ``method``, falling back to ``approximation``.
 
+    Past the budget of an exact ``method`` the cluster goes to
+    ``approximation``; if that (or a non-exact ``method``) refuses the cluster
+    too (:class:`~jointtrack.errors.ExactLimitError`, e.g. the dense LBP above
+    N + M = 4000), to the tiers of :func:`fallback_pair_marginals` on its
+    non-zero entries (``method`` ``"lbp-sparse"`` or ``"pda"`` in the result).
+
     Parameters
     ----------
     L, miss
         the cluster (:func:`jointtrack.association.marginals` convention).
     method : str
         any of :data:`jointtrack.association.METHODS`; only the exact ones
-        ("exact", "enumerate") are subject to the budget.
+        ("exact", "enumerate") are subject to ``max_tracks``.
     approximation : str or None
         one of :data:`APPROXIMATIONS`, used past the budget; None raises
-        :class:`~jointtrack.errors.ExactLimitError` there instead.
+        :class:`~jointtrack.errors.ExactLimitError` there instead (no tier is tried).
     max_tracks : int or None
         clusters with more tracks go straight to ``approximation``.
     rng
@@ -99,11 +139,100 @@ def budgeted_marginals(
         options = dict(exact_options or {}) if method == "exact" else _options(method, rng)
         beta = marginals(L, miss, method=method, **options)
     except ExactLimitError as exc:
-        if method not in EXACT_METHODS or approximation is None:
+        if approximation is None:
             raise
-        method, reason = approximation, f"refused: {exc}"
-        beta = marginals(L, miss, method=method, **_options(method, rng))
+        if method in EXACT_METHODS:
+            method, reason = approximation, f"refused: {exc}"
+            try:
+                beta = marginals(L, miss, method=method, **_options(method, rng))
+                return BudgetedMarginals(beta, method, reason)
+            except ExactLimitError as exc2:
+                exc = exc2
+        reason = f"{reason + '; ' if reason else ''}{method} refused: {exc}"
+        return _dense_fallback(L, miss, reason)
     return BudgetedMarginals(beta, method, reason)
+
+
+def _dense_fallback(L, miss, reason: str) -> BudgetedMarginals:
+    """:func:`fallback_pair_marginals` on the non-zero entries of a dense (validated) cluster."""
+    from jointtrack.association._validate import check_cluster
+
+    L, miss = check_cluster(L, miss)
+    rows, cols = (a.astype(np.int64) for a in np.nonzero(L))
+    res = fallback_pair_marginals(rows, cols, L[rows, cols], miss, L.shape[1], reason=reason)
+    beta = np.zeros((L.shape[0], L.shape[1] + 1))
+    beta[:, 0] = res.beta0
+    beta[rows, cols + 1] = res.pair_beta
+    return BudgetedMarginals(beta, res.method, res.reason)
+
+
+@dataclass(frozen=True)
+class PairMarginals:
+    """β of one cluster on its gated pairs, and the tier that produced it.
+
+    ``beta0`` (N,) no-measurement probabilities, ``pair_beta`` (P,) one per
+    gated pair; ``method`` one of :data:`TIERS`; ``reason`` why the cluster
+    came this far (and, for ``"pda"``, why sparse LBP was not used).
+    """
+
+    beta0: np.ndarray
+    pair_beta: np.ndarray
+    method: str
+    reason: str
+
+
+def fallback_pair_marginals(
+    rows,
+    cols,
+    L_values,
+    miss,
+    n_measurements: int,
+    *,
+    reason: str = "",
+    max_pairs: int = MAX_LBP_PAIRS,
+    max_work: int = MAX_LBP_WORK,
+) -> PairMarginals:
+    """Marginals of a cluster past every budget, on its gated pairs: sparse LBP, then PDA.
+
+    1. ``"lbp-sparse"``: Williams & Lau BP on the pairs
+       (:func:`~jointtrack.association.lbp.lbp_pair_marginals`; memory and
+       time per sweep O(P)), when there are at most ``max_pairs`` pairs; at
+       most ``max_work / P`` sweeps (between 10 and 1000), the beliefs of the
+       last sweep if BP has not converged by then;
+    2. ``"pda"``: per-track PDA (Bojilov eqs. (1)–(3),
+       :func:`~jointtrack.association.pda.pda_pair_marginals`; O(P), no joint
+       constraint) when there are more pairs or BP degenerates (possible only
+       with ``miss = 0`` tracks). Exact for a one-track cluster.
+
+    Each use of the PDA tier is logged (warning). Arguments as
+    :func:`~jointtrack.association.lbp.lbp_pair_marginals`; ``reason`` is
+    carried into the result.
+
+    Raises
+    ------
+    ValueError
+        bad input.
+    InfeasibleAssignmentError
+        a ``miss = 0`` track has no gated pair.
+    """
+    from jointtrack.association.lbp import lbp_pair_marginals
+    from jointtrack.association.pda import pda_pair_marginals
+
+    n_pairs = int(np.size(rows))
+    if n_pairs <= max_pairs:
+        try:
+            sweeps = int(min(1000, max(10, max_work // max(n_pairs, 1))))
+            beta0, pair_beta, _info = lbp_pair_marginals(
+                rows, cols, L_values, miss, n_measurements, max_iter=sweeps
+            )
+            return PairMarginals(beta0, pair_beta, "lbp-sparse", reason)
+        except InfeasibleAssignmentError as exc:  # BP degenerated; PDA re-checks feasibility
+            why = f"lbp-sparse failed: {exc}"
+    else:
+        why = f"{n_pairs} gated pairs > max_pairs = {max_pairs} of the sparse LBP tier"
+    log.warning("association: per-track PDA for a cluster (%s)", why)
+    beta0, pair_beta = pda_pair_marginals(rows, L_values, miss)
+    return PairMarginals(beta0, pair_beta, "pda", f"{reason + '; ' if reason else ''}{why}")
 
 
 def _options(method: str, rng) -> dict:

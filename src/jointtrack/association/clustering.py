@@ -16,6 +16,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from jointtrack.assignment._checks import as_weights
+
 __all__ = ["Cluster", "Clustering", "cluster_pair_marginals", "clusters", "has_feasible_event"]
 
 
@@ -71,23 +73,26 @@ class Clustering:
 
 
 def _as_mask(mask) -> np.ndarray:
-    try:
-        mask = np.asarray(mask)
-    except (TypeError, ValueError) as exc:  # pragma: no cover - asarray rarely fails
-        raise ValueError(f"mask must be an array: {exc}") from None
-    if mask.ndim == 1 and mask.size == 0:
-        mask = mask.reshape(0, 0)
-    if mask.ndim != 2:
-        raise ValueError(f"mask must be 2-D (tracks × measurements), got {mask.ndim} dimension(s)")
-    if mask.dtype != bool:
-        if not np.issubdtype(mask.dtype, np.number):
-            raise ValueError(f"mask must be boolean or numeric, got dtype {mask.dtype}")
-        if not np.all(np.isfinite(mask)):
-            raise ValueError("mask has non-finite entries")
-        if np.any(mask < 0):
-            raise ValueError("mask has negative entries (use a boolean gate mask or L ≥ 0)")
-        mask = mask != 0
-    return mask
+    """A 2-D bool gate mask: booleans as given, anything else through the shared weight check.
+
+    Numbers must pass :func:`~jointtrack.assignment._checks.as_weights` (real,
+    finite, ≥ 0; complex, strings, booleans mixed with numbers and integers too
+    large for a float are refused, naming ``mask``); non-zero = gated.
+    """
+    if isinstance(mask, np.ndarray) and mask.dtype == bool:
+        arr = mask
+    else:
+        try:
+            arr = np.asarray(mask)
+        except (TypeError, ValueError):  # ragged: as_weights names the problem
+            arr = None
+        if arr is not None and arr.ndim == 1 and arr.size == 0:
+            arr = arr.reshape(0, 0)
+        if arr is None or arr.dtype != bool:
+            arr = as_weights(mask if arr is None or arr.size else arr, "mask") != 0
+    if arr.ndim != 2:
+        raise ValueError(f"mask must be 2-D (tracks × measurements), got {arr.ndim} dimension(s)")
+    return arr
 
 
 def _is_index_scalar(x) -> bool:
@@ -230,7 +235,16 @@ def _clustering_from_pairs(n: int, m: int, rows: np.ndarray, cols: np.ndarray) -
     )
 
 
-def cluster_pair_marginals(groups: Clustering, rows, cols, L_pairs, miss, solve):
+def cluster_pair_marginals(
+    groups: Clustering,
+    rows,
+    cols,
+    L_pairs,
+    miss,
+    solve,
+    solve_pairs=None,
+    max_dense: int | None = None,
+):
     """β of every track's missed detection and of every gated pair, cluster by cluster.
 
     ``rows``/``cols`` (P,) are the gated pairs (track, measurement) that
@@ -238,9 +252,16 @@ def cluster_pair_marginals(groups: Clustering, rows, cols, L_pairs, miss, solve)
     ``miss`` (N,) the miss weights. One-track clusters (usually most tracks) get
     PDA, exact for one track, all at once
     (:func:`~jointtrack.association.pda.pda_pair_marginals`). Each multi-track
-    cluster ``k`` is handed to ``solve(k, tracks, measurements, L, miss_k)`` as
+    cluster ``k`` of at most ``max_dense`` (default
+    :data:`~jointtrack.association.budget.DENSE_MAX_ENTRIES`) tracks ×
+    measurements is handed to ``solve(k, tracks, measurements, L, miss_k)`` as
     its dense ``L`` (n_k × m_k) and ``miss_k``; ``solve`` returns its β
-    (n_k × (m_k + 1)), column 0 = no measurement.
+    (n_k × (m_k + 1)), column 0 = no measurement. A larger cluster is never
+    made dense (its N × M matrix may not fit in memory): it goes to
+    ``solve_pairs(k, tracks, measurements, a, b, L_values, miss_k)`` with its
+    gated pairs (``a``, ``b`` local row-major indices), which returns
+    ``(beta0_k, pair_beta_k)``; by default the tiers of
+    :func:`~jointtrack.association.budget.fallback_pair_marginals`.
 
     Returns ``(beta0 (N,), pair_beta (P,))``.
     """
@@ -266,16 +287,35 @@ def cluster_pair_marginals(groups: Clustering, rows, cols, L_pairs, miss, solve)
     order = np.argsort(pair_cluster, kind="stable")
     starts = np.searchsorted(pair_cluster[order], multi, side="left")
     ends = np.searchsorted(pair_cluster[order], multi, side="right")
+    if max_dense is None or solve_pairs is None:
+        from jointtrack.association import budget
+
+        max_dense = budget.DENSE_MAX_ENTRIES if max_dense is None else max_dense
+        solve_pairs = solve_pairs or _default_solve_pairs
     for k, lo, hi in zip(multi, starts, ends, strict=True):
         tr, ms = groups.clusters[k].tracks, groups.clusters[k].measurements
         idx = order[lo:hi]
         a, b = np.searchsorted(tr, rows[idx]), np.searchsorted(ms, cols[idx])
+        if len(tr) * len(ms) > max_dense:  # checked before any N × M allocation
+            row_major = np.lexsort((b, a))
+            idx, a, b = idx[row_major], a[row_major], b[row_major]
+            b0, pb = solve_pairs(int(k), tr, ms, a, b, L_pairs[idx], miss[tr])
+            beta0[tr] = b0
+            pair_beta[idx] = pb
+            continue
         L = np.zeros((len(tr), len(ms)))
         L[a, b] = L_pairs[idx]
         beta = solve(int(k), tr, ms, L, miss[tr])
         beta0[tr] = beta[:, 0]
         pair_beta[idx] = beta[a, 1 + b]
     return beta0, pair_beta
+
+
+def _default_solve_pairs(k, tracks, measurements, a, b, L_values, miss):
+    from jointtrack.association.budget import fallback_pair_marginals
+
+    res = fallback_pair_marginals(a, b, L_values, miss, len(measurements), reason="dense_budget")
+    return res.beta0, res.pair_beta
 
 
 def has_feasible_event(L, miss) -> bool:

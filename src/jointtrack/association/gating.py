@@ -426,6 +426,9 @@ def likelihood_ratios(gating: Gating, P_D, clutter_density) -> tuple[np.ndarray,
 # whitened distance d²_ij itself (≲ √cond(S)·ε ≈ 3e-8 at the singularity limit of
 # _cholesky_checked), so that no pair the dense computation would gate is ever missed.
 _RADIUS_SLACK = 1e-4
+#: Largest number of candidate pairs listed by the KD-tree ball query (about
+#: 100 bytes each downstream); past it each gate keeps its nearest returns.
+MAX_CANDIDATES = 2**21
 
 
 @dataclass(frozen=True)
@@ -566,6 +569,16 @@ def _ball_candidates(
         extent = 2.0 * max(np.abs(z).max(), np.abs(z_pred).max()) + radius.max()
     p_norm = 2.0 if extent < 1e150 else np.inf
     tree = cKDTree(z)
+    # count before listing: where everything coincides the lists are N·M long. The
+    # slab |x − x_i| ≤ r_i holds the ball: its count (two binary searches) is a cheap
+    # upper bound, and only past the budget are the balls counted on the tree
+    if n * m > MAX_CANDIDATES and (
+        slab_count(z[:, 0], z_pred[:, 0], radius) + m * int((~finite).sum()) > MAX_CANDIDATES
+    ):
+        counts = tree.query_ball_point(z_pred, radius, p=p_norm, return_length=True)
+        total = int(counts.sum()) + m * int((~finite).sum())
+        if total > MAX_CANDIDATES:
+            return _nearest_candidates(tree, z_pred, radius, p_norm, total)
     hits = tree.query_ball_point(z_pred, radius, p=p_norm, return_sorted=True)
     if not finite.all():  # λ_max overflowed: every measurement is a candidate
         everything = list(range(m))
@@ -575,6 +588,49 @@ def _ball_candidates(
     total = int(counts.sum())
     cols = np.fromiter(itertools.chain.from_iterable(hits), dtype=np.int64, count=total)
     rows = np.repeat(np.arange(n, dtype=np.int64), counts)
+    return rows, cols
+
+
+def slab_count(points, centres, half_width) -> int:
+    """Σ_i #{j : |points[j] − centres[i]| ≤ half_width[i]} (1-D), an upper bound on ball counts."""
+    if points.size == 0 or centres.size == 0:
+        return 0
+    xs = np.sort(points)
+    half_width = np.broadcast_to(half_width, centres.shape)
+    order = np.argsort(centres)  # sorted needles: the searches walk memory in order
+    c, w = centres[order], half_width[order]
+    with np.errstate(invalid="ignore", over="ignore"):
+        hi = np.searchsorted(xs, c + w, side="right")
+        lo = np.searchsorted(xs, c - w, side="left")
+    return int((hi - lo).sum())
+
+
+def _nearest_candidates(tree, z_pred, radius, p_norm, total):
+    """Each track's k nearest measurements within its ball, k·N ≤ MAX_CANDIDATES.
+
+    Used only when the balls hold more than :data:`MAX_CANDIDATES` pairs (e.g. thousands
+    of tracks and returns on one spot), where the full gate lists would not fit in
+    memory: each gate keeps its ``k`` nearest returns (an approximation, logged).
+    """
+    import logging
+
+    n = z_pred.shape[0]
+    k = max(1, min(MAX_CANDIDATES // n, tree.n))
+    logging.getLogger("jointtrack.association").warning(
+        "gating: %d candidate (track, return) pairs exceed the budget of %d; each of the "
+        "%d gates keeps its %d nearest returns",
+        total,
+        MAX_CANDIDATES,
+        n,
+        k,
+    )
+    r = np.where(np.isfinite(radius), radius, np.inf)
+    d, idx = tree.query(z_pred, k=k, p=p_norm)
+    d, idx = d.reshape(n, k), idx.reshape(n, k)
+    keep = (d <= r[:, None]) & (idx < tree.n)  # tree.n: fewer than k returns
+    rows = np.repeat(np.arange(n, dtype=np.int64), keep.sum(axis=1))
+    cols = np.sort(np.where(keep, idx, tree.n), axis=1)  # sorted per track, misses last
+    cols = cols[cols < tree.n].astype(np.int64)
     return rows, cols
 
 
@@ -594,6 +650,12 @@ def gate_pairs(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> PairGating:
        factors (batched forward substitution), and the pairs with d² ≤ γ kept.
 
     Cost O((N + M) log M + candidates) time and O(N + M + candidates) memory.
+    The candidates are counted before they are listed (a slab bound, then the
+    tree's ball counts): past :data:`MAX_CANDIDATES` (e.g. thousands of tracks and
+    returns piled on one spot, where the lists are N·M long) each gate keeps only
+    its nearest ``MAX_CANDIDATES // N`` returns within its ball, with a warning on
+    the ``jointtrack.association`` logger — an approximation that keeps memory
+    bounded.
 
     With a ``residual`` function (e.g. a wrapped bearing) Euclidean balls do not
     bound the gate, so it falls back to the dense :func:`gate_measurements` and

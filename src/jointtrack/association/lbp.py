@@ -64,6 +64,15 @@ was 1e-16 (mostly trees) but the 90th percentile 0.09 and the worst 0.49 (BP
 can lock onto a single event). Damping did not help. Prefer an exact method
 there.
 
+Messages live on the gated pairs (one μ and one ν per pair, the pairs in
+row-major order plus a column-major permutation), so memory is O(N + M + P)
+for P gated pairs: :func:`lbp_pair_marginals` takes the pairs directly, for
+clusters whose N × M matrix would not fit (the last-but-one tier of
+:func:`jointtrack.association.budget.fallback_pair_marginals`), and scales each
+track by a power of two instead of the dense scaling, whose assignment solve is
+limited to N + M ≤ 4000 (:func:`lbp_marginals` refuses larger clusters with
+:class:`~jointtrack.errors.ExactLimitError`).
+
 BP is exact when the gating graph is a forest (no cycles); on loopy (dense)
 clusters it is an approximation. Measured here (``tests/test_association_approx``):
 on 200 random dense 5×10 clusters, ``L = 5·U[0,1]``, ``miss = 0.1``, the
@@ -79,12 +88,12 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from jointtrack.assignment._checks import as_float, as_int
-from jointtrack.assignment.scaling import scale_problem
+from jointtrack.assignment._checks import _as_real_array, as_float, as_int, as_weights
+from jointtrack.assignment.scaling import GROUP_SCALING_MAX, scale_problem
 from jointtrack.association._validate import check_cluster, require_feasible_event
-from jointtrack.errors import InfeasibleAssignmentError
+from jointtrack.errors import ExactLimitError, InfeasibleAssignmentError
 
-__all__ = ["LBPInfo", "lbp_marginals"]
+__all__ = ["LBPInfo", "lbp_marginals", "lbp_pair_marginals"]
 
 #: Positive factors are kept ≥ this after scaling (events below it are negligible).
 _FLOOR = 2.0**-400
@@ -125,17 +134,23 @@ def _g(x, c):
 
 
 @numba.njit(cache=True)
-def _lbp_kernel(W, m, v, A, B, tol, max_iter, certified):
-    """Synchronous BP sweeps on scaled weights W (N×M), miss weights m (N), unused weights v (M)."""
-    n, mm = W.shape
-    nu = np.empty((n, mm))
-    for i in range(n):
-        for j in range(mm):
-            nu[i, j] = 1.0 / v[j]
-    nu_new = np.empty((n, mm))
-    mu = np.zeros((n, mm))
-    pre = np.empty(mm + 1)
-    pre_c = np.empty(n + 1)
+def _lbp_pairs_kernel(indptr, W, m, v, col_ptr, col_perm, cols, A, B, tol, max_iter, certified):
+    """Synchronous BP sweeps on the gated pairs: one message pair (μ, ν) per pair.
+
+    Pairs are in row-major order (track ``i``'s pairs are ``indptr[i]:indptr[i+1]``,
+    columns increasing); ``col_perm[col_ptr[j]:col_ptr[j+1]]`` lists measurement
+    ``j``'s pairs by increasing track. ``W`` (P,) scaled weights, ``m`` (N,) miss
+    weights, ``v`` (M,) unused weights. Memory O(N + M + P): the same recursion
+    and summation order as on the dense N × M matrix (ungated entries add 0.0).
+    """
+    n = m.shape[0]
+    mm = v.shape[0]
+    npairs = W.shape[0]
+    nu = np.empty(npairs)
+    for p in range(npairs):
+        nu[p] = 1.0 / v[cols[p]]
+    nu_new = np.empty(npairs)
+    mu = np.zeros(npairs)
     it = 0
     d = np.inf
     bound = np.inf
@@ -145,44 +160,50 @@ def _lbp_kernel(W, m, v, A, B, tol, max_iter, certified):
         alpha0 = (A / (1.0 + A)) * (B / (1.0 + B))
     while it < max_iter:
         it += 1
-        # track → measurement: leave-one-out sums by prefix/suffix (no cancellation)
+        # track → measurement: leave-one-out sums by prefix/suffix (no cancellation);
+        # the prefix sums are kept in nu_new, overwritten by the next pass
         for i in range(n):
-            pre[0] = 0.0
-            for j in range(mm):
-                pre[j + 1] = pre[j] + W[i, j] * nu[i, j]
+            lo = indptr[i]
+            hi = indptr[i + 1]
+            acc = 0.0
+            for p in range(lo, hi):
+                nu_new[p] = acc
+                acc += W[p] * nu[p]
             suf = 0.0
-            for j in range(mm - 1, -1, -1):
-                w = W[i, j]
-                if w > 0.0:
-                    den = m[i] + pre[j] + suf
-                    mu[i, j] = w / den if den > 0.0 else np.inf
-                else:
-                    mu[i, j] = 0.0
-                suf += w * nu[i, j]
+            for p in range(hi - 1, lo - 1, -1):
+                w = W[p]
+                den = m[i] + nu_new[p] + suf
+                mu[p] = w / den if den > 0.0 else np.inf
+                suf += w * nu[p]
         # measurement → track
         for j in range(mm):
-            pre_c[0] = 0.0
-            for i in range(n):
-                pre_c[i + 1] = pre_c[i] + mu[i, j]
+            lo = col_ptr[j]
+            hi = col_ptr[j + 1]
+            acc = 0.0
+            for q in range(lo, hi):
+                p = col_perm[q]
+                nu_new[p] = acc
+                acc += mu[p]
             suf = 0.0
-            for i in range(n - 1, -1, -1):
-                nu_new[i, j] = 1.0 / (v[j] + pre_c[i] + suf)
-                suf += mu[i, j]
-        # change over gated edges in the log metric
-        d = 0.0
-        for i in range(n):
-            for j in range(mm):
-                if W[i, j] > 0.0:
-                    a = nu[i, j]
-                    b = nu_new[i, j]
-                    if a != b:
-                        if a > 0.0 and b > 0.0:
-                            x = abs(np.log(b) - np.log(a))
-                        else:
-                            x = np.inf
-                        if x > d:
-                            d = x
-                nu[i, j] = nu_new[i, j]
+            for q in range(hi - 1, lo - 1, -1):
+                p = col_perm[q]
+                pre = nu_new[p]
+                nu_new[p] = 1.0 / (v[j] + pre + suf)
+                suf += mu[p]
+        # change in the log metric: the largest ratio, one log per sweep
+        q = 1.0
+        for p in range(npairs):
+            a = nu[p]
+            b = nu_new[p]
+            if a != b:
+                if a > 0.0 and b > 0.0:
+                    x = b / a if b > a else a / b
+                else:
+                    x = np.inf
+                if x > q:
+                    q = x
+            nu[p] = b
+        d = np.log(q)
         if certified:
             if d == 0.0:
                 bound = 0.0
@@ -201,6 +222,66 @@ def _lbp_kernel(W, m, v, A, B, tol, max_iter, certified):
                 converged = True
                 break
     return nu, it, converged, d, bound
+
+
+def _pair_layout(rows, cols, n, mm):
+    """Row pointer of row-sorted pairs, and the column-major permutation with its pointer."""
+    indptr = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(rows, minlength=n), out=indptr[1:])
+    col_perm = np.argsort(cols, kind="stable").astype(np.int64)  # rows stay increasing
+    col_ptr = np.zeros(mm + 1, np.int64)
+    np.cumsum(np.bincount(cols, minlength=mm), out=col_ptr[1:])
+    return indptr, col_perm, col_ptr
+
+
+def _run_pairs(rows, cols, W, m, v, A, B, tol, max_iter, certified):
+    """:func:`_lbp_pairs_kernel` on row-major sorted pairs (rows, cols)."""
+    indptr, col_perm, col_ptr = _pair_layout(rows, cols, m.shape[0], v.shape[0])
+    return _lbp_pairs_kernel(
+        indptr, W, m, v, col_ptr, col_perm, cols, A, B, tol, max_iter, certified
+    )
+
+
+def _lbp_kernel(W, m, v, A, B, tol, max_iter, certified):
+    """Dense face of :func:`_lbp_pairs_kernel`: messages ν as an N × M array (1/v off the gate)."""
+    rows, cols = np.nonzero(W > 0.0)
+    nu_p, it, conv, d, bound = _run_pairs(
+        rows.astype(np.int64),
+        cols.astype(np.int64),
+        W[rows, cols],
+        m,
+        v,
+        A,
+        B,
+        tol,
+        max_iter,
+        certified,
+    )
+    nu = np.broadcast_to(1.0 / v, W.shape).copy()
+    nu[rows, cols] = nu_p
+    return nu, it, conv, d, bound
+
+
+def _row_max(base, rows, values):
+    """``max(base[i], values of row i)`` for row-sorted ``rows`` (no slow ufunc.at)."""
+    top = base.copy()
+    if rows.size:
+        starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+        r = rows[starts]
+        top[r] = np.maximum(top[r], np.maximum.reduceat(values, starts))
+    return top
+
+
+def _certificate(rows, cols, w, n, mm):
+    """Williams & Lau's A and B: the largest leave-one-out row and column sums of ``w``."""
+    out = []
+    for idx, size in ((rows, n), (cols, mm)):
+        tot = np.bincount(idx, w, minlength=size)
+        low = np.full(size, np.inf)
+        np.minimum.at(low, idx, w)
+        has = np.bincount(idx, minlength=size) > 0
+        out.append(float((tot - np.where(has, low, 0.0)).max()) if size else 0.0)
+    return out[0], out[1]
 
 
 def lbp_marginals(L, miss, *, tol: float = 1e-9, max_iter: int = 1000):
@@ -237,6 +318,9 @@ def lbp_marginals(L, miss, *, tol: float = 1e-9, max_iter: int = 1000):
     ValueError
         bad input (see ``check_cluster``), ``tol`` not a positive finite number,
         ``max_iter`` not a whole number ≥ 1.
+    ExactLimitError
+        N + M > 4000, above the dense scaling's limit (use
+        :func:`lbp_pair_marginals` on the gated pairs).
     InfeasibleAssignmentError
         no joint event has positive weight.
     """
@@ -253,38 +337,140 @@ def lbp_marginals(L, miss, *, tol: float = 1e-9, max_iter: int = 1000):
     if mm == 0 or not gated.any():
         beta[:, 0] = 1.0
         return beta, LBPInfo(0, True, 0.0, 0.0, certified)
+    if n + mm > GROUP_SCALING_MAX:
+        raise ExactLimitError(
+            f"a dense cluster of {n} tracks and {mm} measurements is above the dense LBP "
+            f"scaling's limit (tracks + measurements ≤ {GROUP_SCALING_MAX}); use "
+            "lbp_pair_marginals on its gated pairs"
+        )
     W, m, v = _scaled(L, miss)
+    rows, cols = (a.astype(np.int64) for a in np.nonzero(gated))
+    b0, bp, info = _lbp_pairs(rows, cols, W[rows, cols], m, v, certified, tol, max_iter)
+    beta[:, 0] = b0
+    beta[rows, cols + 1] = bp
+    return beta, info
+
+
+def _lbp_pairs(rows, cols, W, m, v, certified, tol, max_iter):
+    """BP on scaled row-major pairs; ``(beta0 (N,), pair beta (P,), LBPInfo)``."""
+    n, mm = m.shape[0], v.shape[0]
+    A = B = np.inf
     if certified:
         # A, B are invariant under the scaling: compute them on the scaled problem
         with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-            w = W / (m[:, None] * v[None, :])
-            big = np.where(gated, w, np.inf)
-            rows = w.sum(axis=1) - np.where(gated.any(axis=1), big.min(axis=1), 0.0)
-            cols = w.sum(axis=0) - np.where(gated.any(axis=0), big.min(axis=0), 0.0)
-        A = float(rows.max())
-        B = float(cols.max())
+            A, B = _certificate(rows, cols, W / (m[rows] * v[cols]), n, mm)
         if not (np.isfinite(A) and np.isfinite(B)):
             certified = False
-    if not certified:
-        A = B = np.inf
-    nu, it, conv, d, bound = _lbp_kernel(W, m, v, A, B, tol, max_iter, certified)
+            A = B = np.inf
+    nu, it, conv, d, bound = _run_pairs(rows, cols, W, m, v, A, B, tol, max_iter, certified)
     if not certified:
         bound = np.inf
-    un = np.empty((n, mm + 1))
-    un[:, 0] = m
-    un[:, 1:] = W * nu
-    # each row by a power of two so that its largest belief is in [0.5, 1)
+    # each track's beliefs by a power of two so that the largest is in [0.5, 1)
+    un = W * nu
+    top = _row_max(m, rows, un)
     with np.errstate(invalid="ignore"):
-        _, e = np.frexp(un.max(axis=1))
-    un = np.ldexp(un, -e[:, None])
-    tot = un.sum(axis=1)
-    if not np.all(tot > 0) or not np.all(np.isfinite(un)):  # pragma: no cover - guarded
+        _, e = np.frexp(top)
+    u0 = np.ldexp(m, -e)
+    un = np.ldexp(un, -e[rows])
+    tot = u0 + np.bincount(rows, un, minlength=n)
+    if not (np.all(tot > 0) and np.all(np.isfinite(tot))):  # pragma: no cover - guarded
         raise InfeasibleAssignmentError(
             "belief propagation degenerated (a certainly detected track lost every "
             "measurement); use method='exact'"
         )
-    beta = un / tot[:, None]
-    return beta, LBPInfo(int(it), bool(conv), float(d), float(bound), certified)
+    info = LBPInfo(int(it), bool(conv), float(d), float(bound), certified)
+    return u0 / tot, un / tot[rows], info
+
+
+def lbp_pair_marginals(
+    rows, cols, L_values, miss, n_measurements: int, *, tol: float = 1e-9, max_iter: int = 1000
+):
+    """:func:`lbp_marginals` on the gated pairs of a cluster too large for an N × M matrix.
+
+    The same Williams & Lau recursion, stopping rule and :class:`LBPInfo`, with
+    one message pair per gated pair: memory O(N + M + P) and time
+    O(sweeps · P) for P gated pairs, however large N · M. Instead of the dense
+    power-of-two row/column scaling of :func:`lbp_marginals` (an assignment
+    solve on the (N+M)-node expansion), each track's weights are scaled by a
+    power of two so that its largest one (miss or likelihood ratio) is in
+    [0.5, 1) — exact, since μ and the beliefs are invariant under a scaling of
+    one track's weights — and positive factors below 2^-400 of their track's
+    largest are raised to 2^-400, so that messages stay in range (μ ≤ 2^400,
+    every belief ≥ 2^-820 of its track's largest). Only events weighing
+    ≲ 2^-400 of their track's best change. Joint feasibility is not checked
+    (only that every ``miss = 0`` track has a gated pair); BP on a cluster
+    without a feasible event degenerates and raises.
+
+    Parameters
+    ----------
+    rows, cols : (P,) int arrays
+        track (0..N−1) and measurement (0..n_measurements−1) of each gated pair,
+        each pair at most once, any order.
+    L_values : (P,) likelihood ratios of the pairs (pairs with 0 are not gated).
+    miss : (N,) miss weights 1 − P_D P_G, in [0, 1].
+    n_measurements : int
+        M, the number of measurements of the cluster.
+    tol, max_iter
+        as :func:`lbp_marginals`.
+
+    Returns
+    -------
+    beta0 : (N,) probability that each track has no measurement.
+    pair_beta : (P,) probability of each pair, aligned with ``rows``/``cols``.
+    info : LBPInfo
+
+    Raises
+    ------
+    ValueError
+        bad input, named; ``rows``/``cols`` out of range or a pair listed twice.
+    InfeasibleAssignmentError
+        a ``miss = 0`` track without a gated pair, or BP degenerated.
+    """
+    from jointtrack.association.clustering import _check_pairs
+
+    tol = as_float(tol, "tol", minimum=0.0, open_min=True)
+    max_iter = as_int(max_iter, "max_iter", minimum=1)
+    miss = _as_real_array(miss, "miss")
+    if miss.ndim != 1:
+        raise ValueError(f"miss must be 1-D (one entry per track), got {miss.ndim} dimension(s)")
+    miss = as_weights(miss.reshape(1, -1), "miss")[0]
+    if np.any(miss > 1):
+        i = int(np.argmax(miss > 1))
+        raise ValueError(f"miss[{i}] = {miss[i]} is outside [0, 1]")
+    n, mm, rows, cols = _check_pairs(miss.shape[0], n_measurements, rows, cols)
+    vals = _as_real_array(L_values, "L_values")
+    if vals.ndim != 1 or vals.shape[0] != rows.shape[0]:
+        raise ValueError(
+            f"L_values must be 1-D with one entry per pair ({rows.shape[0]}), "
+            f"got shape {vals.shape}"
+        )
+    vals = as_weights(vals.reshape(1, -1), "L_values")[0]
+    key = rows * max(mm, 1) + cols
+    order = np.argsort(key, kind="stable")
+    if key.size and np.any(np.diff(key[order]) == 0):
+        raise ValueError("a (row, col) pair is listed twice")
+    beta0 = np.ones(n)
+    pair_beta = np.zeros(rows.shape[0])
+    gated = order[vals[order] > 0]
+    r, c, w = rows[gated], cols[gated], vals[gated]
+    has = np.bincount(r, minlength=n) > 0
+    if np.any((miss == 0) & ~has):
+        i = int(np.argmax((miss == 0) & ~has))
+        raise InfeasibleAssignmentError(
+            f"track {i} has miss = 0 (certainly detected) but no gated measurement: "
+            "no feasible joint association event exists"
+        )
+    certified = bool(np.all(miss > 0))
+    if r.size == 0:
+        return beta0, pair_beta, LBPInfo(0, True, 0.0, 0.0, certified)
+    _, e = np.frexp(_row_max(miss, r, w))
+    w = np.maximum(np.ldexp(w, -e[r]), _FLOOR)
+    m = np.ldexp(miss, -e)
+    m = np.where(m > 0, np.maximum(m, _FLOOR), 0.0)
+    b0, bp, info = _lbp_pairs(r, c, w, m, np.ones(mm), certified, tol, max_iter)
+    beta0[:] = b0
+    pair_beta[gated] = bp
+    return beta0, pair_beta, info
 
 
 def _scaled(L, miss):

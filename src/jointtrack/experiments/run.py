@@ -507,6 +507,8 @@ def _run(
 
     clusters: list = []  # [n_tracks, n_measurements, seconds] of multi-track confirmed clusters
     fallbacks: dict = {}  # reason → clusters solved by the approximation instead
+    tiers: dict = {}  # method (approximation, lbp-sparse, pda) → those clusters
+    coincident = [0]  # returns dropped as exact repeats of another of their scan
     elapsed_before = 0.0
     start = 0
     writer = _TrackWriter(out_dir, src.dim, fmt, scan_times=src.times)
@@ -521,6 +523,8 @@ def _run(
             _check_resume(resume, info, trk, src, identity, out_dir, fmt)
             clusters = list(info.get("clusters", []))
             fallbacks.update(info.get("fallbacks", {}))
+            tiers.update(info.get("fallback_tiers", {}))
+            coincident[0] = int(info.get("coincident_returns", 0))
             elapsed_before = float(info.get("elapsed_seconds", 0.0))
             if trk.config != cfg:
                 diff = sorted(k for k, v in cfg.to_dict().items() if trk.config.to_dict()[k] != v)
@@ -572,6 +576,8 @@ def _run(
                 "n_scans": int(trk.n_scans),
                 "clusters": clusters,
                 "fallbacks": dict(fallbacks),
+                "fallback_tiers": dict(tiers),
+                "coincident_returns": coincident[0],
                 "sensors": sensor_tables_to_run(sensor_tables),
                 "elapsed_seconds": seconds,
             }
@@ -618,15 +624,23 @@ def _run(
                         ):
                             if conf:
                                 clusters.append([int(n_tr), int(n_me), float(sec)])
-                        for reason, conf in zip(
-                            res.cluster_fallbacks, res.cluster_confirmed, strict=True
+                        for reason, method, conf in zip(
+                            res.cluster_fallbacks,
+                            res.cluster_methods,
+                            res.cluster_confirmed,
+                            strict=True,
                         ):
                             if reason:
-                                key = "refused" if reason.startswith("refused") else reason
+                                # the reason's kind (exact_max_tracks, refused, dense_budget)
+                                # and the tier that solved the cluster
+                                key = reason.split(":", 1)[0].split(";", 1)[0]
                                 # tentative-track clusters (clutter-born, in heavy clutter)
                                 # apart from the confirmed ones the experiment is about
                                 key += "" if conf else ", tentative tracks"
                                 fallbacks[key] = fallbacks.get(key, 0) + 1
+                                tier = method + ("" if conf else ", tentative tracks")
+                                tiers[tier] = tiers.get(tier, 0) + 1
+                        coincident[0] += res.n_coincident
                     writer.write_scan(t, res)  # the tracks after the time's last sensor
                     fault("scan", k)
                     n_done += 1
@@ -681,9 +695,15 @@ def _run(
             "method": cfg.association,
             "approximation": cfg.approximation,
             "fallbacks": dict(sorted(fallbacks.items())),
+            "fallback_tiers": dict(sorted(tiers.items())),
+            "coincident_returns": coincident[0],
             "fallbacks_note": "clusters solved by the approximation instead of the configured "
-            "method, by reason (exact_max_tracks, or refused by the exact engine's budget); "
-            "', tentative tracks' marks clusters of tentative tracks",
+            "method, by reason (exact_max_tracks, refused by the exact engine's budget, or "
+            "dense_budget: too large for an N × M matrix), and in fallback_tiers by the "
+            "method that solved them (the approximation, else lbp-sparse, else per-track "
+            "pda); ', tentative tracks' marks clusters of tentative tracks. "
+            "coincident_returns: returns dropped as exact repeats of another return of "
+            "their scan",
         }
     files = {"tracks": str(writer.path), "metrics": str(out_dir / "metrics.json")}
     if plots:

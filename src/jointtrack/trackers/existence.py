@@ -68,6 +68,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from jointtrack.association.gating import slab_count
+
 __all__ = ["existence_update", "merge_duplicates"]
 
 
@@ -89,6 +91,11 @@ def existence_update(r, beta0, weights, rows, pdg):
     return r_post, exists_missed / total, weights / total[rows]
 
 
+#: Largest number of candidate pairs listed for merging; past it each track is
+#: compared with its nearest neighbours only.
+_MAX_PAIRS = 2**22
+
+
 def merge_duplicates(x, P, ids, existence, confirmed, dim, threshold):
     """Which tracks to keep after merging statistical duplicates (see the module docstring).
 
@@ -105,7 +112,25 @@ def merge_duplicates(x, P, ids, existence, confirmed, dim, threshold):
     # candidate pairs by position; a duplicate is within a few σ of its twin
     var = np.einsum("nii->n", P[:, :dim, :dim])
     radius = 3.0 * np.sqrt(2.0 * threshold * np.quantile(var, 0.99))
-    pairs = cKDTree(x[:, :dim]).query_pairs(radius, output_type="ndarray")
+    tree = cKDTree(x[:, :dim])
+    # count before listing: tracks piled on one spot would give n²/2 pairs (a slab
+    # count along x bounds the ball counts cheaply; the tree counts only past it)
+    n_pairs = n * (n - 1) // 2
+    if n_pairs > _MAX_PAIRS:
+        n_pairs = (slab_count(x[:, 0], x[:, 0], radius) - n) // 2
+    if n_pairs > _MAX_PAIRS:
+        n_pairs = (
+            int(tree.query_ball_point(x[:, :dim], radius, return_length=True).sum()) - n
+        ) // 2
+    if n_pairs <= _MAX_PAIRS:
+        pairs = tree.query_pairs(radius, output_type="ndarray")
+    else:  # each track against its nearest neighbours only (memory O(n·k))
+        k = max(2, min(_MAX_PAIRS // n, n))
+        d, nb = tree.query(x[:, :dim], k=k)
+        a = np.repeat(np.arange(n), k - 1)
+        b = nb[:, 1:].ravel()
+        ok = (d[:, 1:].ravel() <= radius) & (b < n) & (a != b)
+        pairs = np.unique(np.sort(np.stack([a[ok], b[ok]], axis=1), axis=1), axis=0)
     if len(pairs) == 0:
         return keep, existence
     i, j = pairs[:, 0], pairs[:, 1]

@@ -20,16 +20,23 @@ from __future__ import annotations
 import logging
 import numbers
 import time as _time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.sparse import csr_array
 
 from jointtrack.assignment._checks import _as_real_array, as_float
-from jointtrack.association.budget import budgeted_marginals
+from jointtrack.association.budget import (
+    DENSE_MAX_ENTRIES,
+    budgeted_marginals,
+    fallback_pair_marginals,
+)
 from jointtrack.association.clustering import cluster_pair_marginals, clusters
 from jointtrack.association.clutter import cluster_heuristic_densities
 from jointtrack.association.gating import gate_pairs, likelihood_ratio_pairs
+from jointtrack.errors import CoincidentReturnsWarning
 from jointtrack.filters import (
     ekf_predict_measurement,
     pda_pairs_update,
@@ -79,7 +86,10 @@ class ScanResult:
     was a cluster of confirmed (True) or tentative (False) tracks and
     ``cluster_fallbacks`` why the approximation replaced the configured method
     (``""`` when it did not; ``"exact_max_tracks"`` for a cluster above the
-    budget; ``"refused: …"`` when the exact engine declined it).
+    budget; ``"refused: …"`` when the exact engine declined it;
+    ``"dense_budget: …"`` for a cluster too large for an N × M matrix).
+    ``n_coincident``: returns dropped because they repeated another return of
+    the scan exactly (see :meth:`JPDATracker.step`).
     """
 
     time: float
@@ -95,11 +105,33 @@ class ScanResult:
     cluster_methods: list = field(default_factory=list)
     cluster_confirmed: list = field(default_factory=list)
     cluster_fallbacks: list = field(default_factory=list)
+    n_coincident: int = 0
 
     @property
     def n_fallbacks(self) -> int:
         """Clusters solved by the approximation instead of the configured method."""
         return sum(1 for f in self.cluster_fallbacks if f)
+
+
+def _merge_coincident(z: np.ndarray, t: float) -> tuple[np.ndarray, int]:
+    """``z`` with each set of identical rows kept once (first occurrence, order kept)."""
+    if len(z) < 2:
+        return z, 0
+    x = np.sort(z[:, 0])
+    if not (x[1:] == x[:-1]).any():  # the usual scan: no tie in the first coordinate
+        return z, 0
+    _, first = np.unique(z, axis=0, return_index=True)
+    n_dropped = len(z) - len(first)
+    if n_dropped == 0:
+        return z, 0
+    warnings.warn(
+        f"scan at t={t}: {n_dropped} of {len(z)} returns repeat another return of the scan "
+        f"exactly (identical measurement vectors; a stuck or replayed detector?); each set of "
+        f"identical returns is treated as one return ({len(first)} kept)",
+        CoincidentReturnsWarning,
+        stacklevel=4,
+    )
+    return z[np.sort(first)], n_dropped
 
 
 @dataclass(frozen=True)
@@ -109,7 +141,9 @@ class ClusterRecord:
     ``L``, ``miss`` and ``beta`` are in the cluster convention of
     :func:`jointtrack.association.marginals` (β before the JIPDA existence
     conditioning); ``confirmed`` tells the confirmed-track pass from the
-    tentative one.
+    tentative one. For a cluster too large for dense matrices (method
+    ``"lbp-sparse"`` or ``"pda"`` with reason ``"dense_budget: …"``), ``L`` and
+    ``beta`` are :class:`scipy.sparse.csr_array` of the gated pairs.
     """
 
     track_ids: np.ndarray
@@ -265,6 +299,21 @@ class JPDATracker:
         scan (an ISO-8601 string, saved with the state); one run takes either
         numbers or datetimes, never both. ``ScanResult.time`` is in seconds.
 
+        Exactly coincident returns — identical measurement vectors within one
+        scan (a stuck or replayed detector) — are treated as one return: the
+        first of each set is kept, a
+        :class:`~jointtrack.errors.CoincidentReturnsWarning` names how many were
+        dropped, and ``ScanResult.n_coincident`` counts them. (Left in, 500
+        copies of one return would start hundreds of tracks.)
+
+        Clusters of any size are associated: past the exact budget by the
+        configured approximation, past that (or when a cluster's tracks ×
+        measurements exceed
+        :data:`~jointtrack.association.budget.DENSE_MAX_ENTRIES`) by sparse LBP,
+        then per-track PDA on the gated pairs
+        (:func:`~jointtrack.association.budget.fallback_pair_marginals`); each
+        cluster's method is in ``ScanResult.cluster_methods``.
+
         Atomic: if any stage raises (bad input, a failing model, an interrupt),
         the tracker is left exactly as it was before the call and the
         exception propagates, so the same scan can be retried. Only a step
@@ -333,6 +382,7 @@ class JPDATracker:
         if self.time is not None and not (t > self.time or (same_time_ok and t == self.time)):
             raise ValueError(f"scan times must increase: got t={t} after t={self.time}")
         dt = None if self.time is None else t - self.time
+        z, n_coincident = _merge_coincident(z, t)
 
         if dt is not None and dt > 0 and len(self.ids):
             self.x, self.P = predict(
@@ -425,6 +475,7 @@ class JPDATracker:
             cluster_methods=methods,
             cluster_confirmed=kinds,
             cluster_fallbacks=fallbacks,
+            n_coincident=n_coincident,
         )
 
     def _associate(self, tracks, z, loud, available=None):
@@ -479,7 +530,37 @@ class JPDATracker:
                 self.on_cluster(ClusterRecord(self.ids[tracks[tr]], Lc, mc, bc, dt_s, method, loud))
             return bc
 
-        beta0, weights = cluster_pair_marginals(groups, rows, cols, L_pairs, miss, solve)
+        def solve_pairs(k, tr, ms, a, b, vals, mc):
+            # too large for an N × M matrix: the tiers on the gated pairs, never dense
+            t0 = _time.perf_counter()
+            reason = (
+                f"dense_budget: {len(tr)} tracks × {len(ms)} measurements > "
+                f"{DENSE_MAX_ENTRIES} entries"
+            )
+            res = fallback_pair_marginals(a, b, vals, mc, len(ms), reason=reason)
+            dt_s = _time.perf_counter() - t0
+            self._log_fallback(len(tr), len(ms), loud, res.reason, res.method)
+            fallbacks.append(res.reason)
+            seconds.append(dt_s)
+            sizes.append((len(tr), len(ms)))
+            methods.append(res.method)
+            if self.on_cluster is not None:
+                shape = (len(tr), len(ms))
+                Lc = csr_array((vals, (a, b)), shape=shape)
+                bc = csr_array(
+                    (
+                        np.concatenate([res.beta0, res.pair_beta]),
+                        (np.concatenate([np.arange(len(tr)), a]), np.concatenate([0 * tr, b + 1])),
+                    ),
+                    shape=(len(tr), len(ms) + 1),
+                )
+                rec = ClusterRecord(self.ids[tracks[tr]], Lc, mc, bc, dt_s, res.method, loud)
+                self.on_cluster(rec)
+            return res.beta0, res.pair_beta
+
+        beta0, weights = cluster_pair_marginals(
+            groups, rows, cols, L_pairs, miss, solve, solve_pairs, DENSE_MAX_ENTRIES
+        )
         used = None
         if c.existence:
             used = weights.copy()  # unconditional: how much each pair explains its return
@@ -508,16 +589,21 @@ class JPDATracker:
             rng=self.rng,
         )
         if res.reason:
-            (log.warning if loud else log.debug)(
-                "exact association of a cluster of %d %s tracks and %d measurements not used "
-                "(%s): used %s",
-                len(Lc),
-                "confirmed" if loud else "tentative",
-                Lc.shape[1],
-                res.reason,
-                res.method,
-            )
+            self._log_fallback(len(Lc), Lc.shape[1], loud, res.reason, res.method)
         return res.beta, res.method, res.reason, _time.perf_counter() - t0
+
+    @staticmethod
+    def _log_fallback(n, m, loud, reason, method):
+        (log.warning if loud else log.debug)(
+            "%s association of a cluster of %d %s tracks and %d measurements not used "
+            "(%s): used %s",
+            "the configured" if reason.startswith("dense_budget") else "exact",
+            n,
+            "confirmed" if loud else "tentative",
+            m,
+            reason,
+            method,
+        )
 
     def _track_logic(self, hit):
         c = self.config
