@@ -428,6 +428,7 @@ def test_failed_step_leaves_the_tracker_unchanged():
 reals = st.floats(-1e100, 1e100, allow_subnormal=True)
 
 
+@pytest.mark.filterwarnings("ignore::jointtrack.errors.CoincidentReturnsWarning")
 @settings(max_examples=40, deadline=None)
 @given(
     z=st.lists(st.tuples(reals, reals), max_size=5),

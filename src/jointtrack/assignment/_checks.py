@@ -54,7 +54,7 @@ def _as_real_array(value, name: str) -> np.ndarray:
     if kind == "b":
         raise ValueError(f"{name} is boolean; pass numeric weights (e.g. {name}.astype(float))")
     if kind in "USV":  # numpy would parse "1.0" silently
-        raise ValueError(f"{name} holds strings (dtype {raw.dtype}); pass numbers")
+        raise ValueError(f"{name} holds strings (dtype {raw.dtype}); pass real numbers")
     if kind in "OUSV":
         # object arrays: huge Python ints, mixed types, ragged lists
         flat = raw.ravel() if raw.dtype.kind == "O" else ()
