@@ -215,3 +215,27 @@ def brute_grouped(W, null=None, row_counts=None, col_counts=None):
     P = [[acc[q][c] / (total * rc[q] * cc[c]) for c in range(C0)] for q in range(R0)]
     Pn = [accn[q] / (total * rc[q]) for q in range(R0)]
     return total, P, Pn
+
+
+def mixed_derivative_fraction(a, F) -> Fraction:
+    """Streit's ∂^M Ψ/∂β_1…∂β_M (0) at a0 = 0 in exact rationals, by enumeration.
+
+    Each factor takes one measurement (f_km) or none (f_k0), each measurement at
+    most one factor; a measurement no factor takes is clutter (a_m).
+    """
+    a = [Fraction(float(x)) for x in a]
+    F = [[Fraction(float(x)) for x in row] for row in np.asarray(F, float)]
+    M = len(a)
+    total = Fraction(0)
+    for choice in itertools.product(range(M + 1), repeat=len(F)):  # 0 = none
+        taken = [j for j in choice if j]
+        if len(taken) != len(set(taken)):
+            continue
+        w = Fraction(1)
+        for k, j in enumerate(choice):
+            w *= F[k][j]
+        for m in range(M):
+            if m + 1 not in taken:
+                w *= a[m]
+        total += w
+    return total

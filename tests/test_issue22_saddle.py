@@ -6,9 +6,7 @@ subnormal to 1e300 and exact zeros, Poisson means up to 1e6.
 
 from __future__ import annotations
 
-import itertools
 import math
-from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -17,7 +15,7 @@ from hypothesis import strategies as st
 from scipy.special import logsumexp
 from scipy.stats import norm, poisson
 
-from brute import log_fraction
+from brute import log_fraction, mixed_derivative_fraction
 from jointtrack.saddle import (
     ERROR_BOUNDS,
     ExactRangeError,
@@ -63,24 +61,7 @@ def problems(draw, max_k=3, max_m=3):
 # --------------------------------------------------------------------------- references
 
 
-def brute_I(a, F) -> Fraction:
-    """∂^M Ψ/∂β_1…∂β_M (0) at a0 = 0 in exact rationals: every assignment of measurements."""
-    a = [Fraction(float(x)) for x in a]
-    F = [[Fraction(float(x)) for x in row] for row in np.asarray(F, float)]
-    M = len(a)
-    total = Fraction(0)
-    for choice in itertools.product(range(M + 1), repeat=len(F)):  # 0 = none
-        taken = [j for j in choice if j]
-        if len(taken) != len(set(taken)):
-            continue
-        w = Fraction(1)
-        for k, j in enumerate(choice):
-            w *= F[k][j]
-        for m in range(M):
-            if m + 1 not in taken:
-                w *= a[m]
-        total += w
-    return total
+brute_I = mixed_derivative_fraction  # exact rational ∂^M Ψ (tests/brute.py)
 
 
 def _span(a, F) -> float:

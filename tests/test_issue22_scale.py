@@ -109,6 +109,8 @@ def test_sparse_lbp_tier_is_exact_on_forests(case):
     beta0, pair_beta, info = lbp_pair_marginals(rows, cols, L[rows, cols], miss, L.shape[1])
     assert info.converged
     ref = exact_beta(L, miss)
+    if info.floored:  # BP ran on a nearby problem (reported); exactness is not claimed
+        return
     np.testing.assert_allclose(beta0, ref[:, 0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(pair_beta, ref[rows, cols + 1], rtol=0, atol=1e-9)
 
@@ -365,3 +367,19 @@ def test_lbp_pair_marginals_refuses_bad_input_by_name():
         lbp_pair_marginals([0], [3], [1.0], [0.5], 1)
     with pytest.raises(ValueError, match="miss"):
         lbp_pair_marginals([0], [0], [1.0], [1.5], 1)
+
+
+def test_sparse_lbp_reports_weights_its_scaling_had_to_floor():
+    """Per-track power-of-two scaling cannot keep a miss weight 2^-400 below its track's
+    likelihood; the floor then changes the answer (here 2×), and info says so."""
+    L = np.array([[1.0], [2.0**100], [2.0**71], [1.0]])
+    miss = np.array([1.0, 2.0**-300, 2.0**-300, 1.0])
+    rows, cols = np.nonzero(L)
+    ref = exact_beta(L, miss)
+    beta0, _, info = lbp_pair_marginals(rows, cols, L[rows, cols], miss, 1)
+    assert info.floored == 1
+    assert abs(beta0[1] - ref[1, 0]) > 1e-9  # the floor moved it: not silent any more
+    res = fallback_pair_marginals(rows, cols, L[rows, cols], miss, 1, reason="test")
+    assert res.method == "lbp-sparse" and "raised to 2^-400" in res.reason
+    beta0, _, info = lbp_pair_marginals(rows, cols, L[rows, cols], np.ones(4), 1)
+    assert info.floored == 0

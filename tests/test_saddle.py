@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import itertools
 import math
-from fractions import Fraction
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from brute import log_fraction
+from brute import log_fraction, mixed_derivative_fraction
 from jointtrack.assignment import assignment_sum
 from jointtrack.association import exact_log_normalizer
 from jointtrack.saddle import (
@@ -35,22 +34,7 @@ def brute_log_I(a0, a, F) -> float:
     Each factor takes one measurement (f_km) or none (f_k0), each measurement at
     most one factor; a measurement no factor takes is clutter (a_m).
     """
-    a = [Fraction(float(x)) for x in a]
-    F = [[Fraction(float(x)) for x in row] for row in np.asarray(F, float)]
-    K, M = len(F), len(a)
-    total = Fraction(0)
-    for choice in itertools.product(range(M + 1), repeat=K):  # 0 = none, j = measurement j
-        taken = [j for j in choice if j]
-        if len(taken) != len(set(taken)):
-            continue
-        w = Fraction(1)
-        for k, j in enumerate(choice):
-            w *= F[k][j]
-        for m in range(M):
-            if m + 1 not in taken:
-                w *= a[m]
-        total += w
-    return a0 + log_fraction(total)
+    return a0 + log_fraction(mixed_derivative_fraction(a, F))
 
 
 def feasible(F) -> bool:

@@ -222,9 +222,13 @@ def fallback_pair_marginals(
     if n_pairs <= max_pairs:
         try:
             sweeps = int(min(1000, max(10, max_work // max(n_pairs, 1))))
-            beta0, pair_beta, _info = lbp_pair_marginals(
+            beta0, pair_beta, info = lbp_pair_marginals(
                 rows, cols, L_values, miss, n_measurements, max_iter=sweeps
             )
+            if info.floored:  # BP ran on a nearby problem: say so (LBPInfo.floored)
+                note = f"{info.floored} weights raised to 2^-400 of their track's largest"
+                log.warning("association: sparse LBP for a cluster: %s", note)
+                reason = f"{reason + '; ' if reason else ''}{note}"
             return PairMarginals(beta0, pair_beta, "lbp-sparse", reason)
         except InfeasibleAssignmentError as exc:  # BP degenerated; PDA re-checks feasibility
             why = f"lbp-sparse failed: {exc}"

@@ -83,7 +83,7 @@ needs ≈ 37 sweeps and 0.3 ms for a certified tol = 1e-9.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
@@ -116,6 +116,16 @@ class LBPInfo:
         messages to the BP fixed point (``inf`` when not certified).
     certified : bool
         the contraction bound was available (all ``miss > 0``).
+    floored : int
+        weights that :func:`lbp_pair_marginals`' per-track power-of-two scaling
+        left below 2^-400 of their track's largest and that were raised to it
+        (so the messages stay in range). 0: BP ran on the problem as given.
+        Otherwise BP ran on a nearby problem and the marginals may differ from
+        BP's on the given one by more than ``error_bound`` (a factor ≤ 2 on
+        probabilities that small here, but O(1) where two tracks compete with
+        miss weights both far below their likelihoods); the dense
+        :func:`lbp_marginals`, whose dual scaling keeps every weight that
+        matters near 1, does not need this.
     """
 
     iterations: int
@@ -123,6 +133,7 @@ class LBPInfo:
     max_change: float
     error_bound: float
     certified: bool
+    floored: int = 0
 
 
 @numba.njit(cache=True)
@@ -464,10 +475,16 @@ def lbp_pair_marginals(
     if r.size == 0:
         return beta0, pair_beta, LBPInfo(0, True, 0.0, 0.0, certified)
     _, e = np.frexp(_row_max(miss, r, w))
-    w = np.maximum(np.ldexp(w, -e[r]), _FLOOR)
+    w = np.ldexp(w, -e[r])
     m = np.ldexp(miss, -e)
+    # the floor keeps μ = w / (m + …) ≤ 2^400; without a dual scaling it can bind on
+    # weights that matter, so how often it did is reported (LBPInfo.floored)
+    floored = int(np.count_nonzero(w < _FLOOR) + np.count_nonzero((m > 0) & (m < _FLOOR)))
+    w = np.maximum(w, _FLOOR)
     m = np.where(m > 0, np.maximum(m, _FLOOR), 0.0)
     b0, bp, info = _lbp_pairs(r, c, w, m, np.ones(mm), certified, tol, max_iter)
+    if floored:
+        info = replace(info, floored=floored)
     beta0[:] = b0
     pair_beta[gated] = bp
     return beta0, pair_beta, info
