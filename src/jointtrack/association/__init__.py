@@ -66,6 +66,7 @@ _LAZY = {
     "union_sample_density": "clutter",
     "LBPInfo": "lbp",
     "lbp_marginals": "lbp",
+    "lbp_pair_marginals": "lbp",
     "mcmc_marginals": "mcmc",
     "KBestHypotheses": "kbest",
     "kbest_hypotheses": "kbest",
