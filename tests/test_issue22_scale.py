@@ -10,7 +10,6 @@
 
 from __future__ import annotations
 
-import itertools
 import json
 import subprocess
 import sys
@@ -24,6 +23,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from brute import brute_assignment
 from jointtrack.association.budget import budgeted_marginals, fallback_pair_marginals
 from jointtrack.association.clustering import clusters
 from jointtrack.association.lbp import lbp_marginals, lbp_pair_marginals
@@ -34,28 +34,9 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 
 
 def exact_beta(L, miss) -> np.ndarray:
-    """β of every joint event, in rational arithmetic (tiny clusters only)."""
-    L = np.asarray(L, float)
-    n, m = L.shape
-    F = [[Fraction(float(x)) for x in row] for row in L]
-    M0 = [Fraction(float(x)) for x in miss]
-    acc = [[Fraction(0)] * (m + 1) for _ in range(n)]
-    total = Fraction(0)
-    for a in itertools.product(range(m + 1), repeat=n):
-        used = [j for j in a if j]
-        if len(used) != len(set(used)):
-            continue
-        w = Fraction(1)
-        for i, j in enumerate(a):
-            w *= F[i][j - 1] if j else M0[i]
-            if w == 0:
-                break
-        if w == 0:
-            continue
-        total += w
-        for i, j in enumerate(a):
-            acc[i][j] += w
-    return np.array([[float(x / total) for x in row] for row in acc])
+    """β = [null | P] of the cluster, from the shared rational brute force (tiny clusters)."""
+    _, P, Pn = brute_assignment(L, miss)
+    return np.column_stack([np.array(Pn, float), np.array(P, float)])
 
 
 # ------------------------------------------------------------------ item 3: the tiers
