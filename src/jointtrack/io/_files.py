@@ -298,12 +298,14 @@ def load_columns(
     return path, cols, extras, lines, n_rows
 
 
-def check_integer(path, err, v: np.ndarray, name: str, lines) -> np.ndarray:
+def check_integer(
+    path, err, v: np.ndarray, name: str, lines, *, advice: str = "renumber the ids"
+) -> np.ndarray:
     """int64 ids of a numeric column: integral, and within ±2^53.
 
     The column was parsed as float64, which holds every integer only up to 2^53;
     beyond, distinct ids would merge silently (and past 2^63 not fit int64), so
-    they are refused naming the row.
+    they are refused naming the row, with ``advice``.
     """
     bad = ~np.isfinite(v) | (v != np.round(v))
     if bad.any():
@@ -316,7 +318,7 @@ def check_integer(path, err, v: np.ndarray, name: str, lines) -> np.ndarray:
             err,
             path,
             f"value {float(v[i])!r} is beyond ±2^53, where distinct integer ids would merge "
-            "as numbers; renumber the ids",
+            f"as numbers; {advice}",
             i,
             lines,
             name,

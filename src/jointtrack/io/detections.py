@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from jointtrack.io._files import (
+    check_integer,
     load_columns,
     out_path,
     parquet_is_numeric,
@@ -658,19 +659,14 @@ def _sensor_column(path, err, raw, lines) -> np.ndarray:
 
 def _integral_floats(path, err, v: np.ndarray, lines) -> np.ndarray:
     """int64 ids from float ones: integral and within ±2^53 (where floats are exact)."""
-    bad = np.flatnonzero(~np.isfinite(v) | (v != np.round(v)) | (np.abs(v) > 2.0**53))
-    if bad.size:
-        i = int(bad[0])
-        raise row_error(
-            err,
-            path,
-            f"sensor id {float(v[i])!r} is not an integer within ±2^53 as a number (floats "
-            "beyond merge distinct ids); write integer ids as integers, or use text ids",
-            i,
-            lines,
-            "sensor",
-        )
-    return v.astype(np.int64)
+    return check_integer(
+        path,
+        err,
+        v,
+        "sensor",
+        lines,
+        advice="write integer ids as integers, or use text ids",
+    )
 
 
 def _check_time_order(path, err, t: np.ndarray, origin, lines) -> None:
