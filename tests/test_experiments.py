@@ -220,7 +220,7 @@ def test_paper_tables_match_the_shared_reference():
 
 
 def test_record_clusters_sees_confirmed_clusters_and_restores():
-    import jointtrack.trackers.jpda as jpda
+    import jointtrack.trackers.base as jpda  # the shared layer calls the core
     from jointtrack.experiments.run import start_truth_tracks
     from jointtrack.trackers import JPDATracker
 

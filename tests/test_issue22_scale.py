@@ -167,7 +167,7 @@ def test_dense_lbp_refusal_goes_to_the_sparse_tier():
 
 def test_tracker_step_on_a_giant_cluster_returns_with_the_tier_counted(monkeypatch):
     """A cluster above the dense budget is solved on its pairs; the step returns."""
-    import jointtrack.trackers.jpda as jpda
+    import jointtrack.trackers.base as jpda  # the shared layer holds the dense budget
 
     monkeypatch.setattr(jpda, "DENSE_MAX_ENTRIES", 50)
     rng = np.random.default_rng(1)
@@ -188,7 +188,7 @@ def test_tracker_step_on_a_giant_cluster_returns_with_the_tier_counted(monkeypat
 
 
 def test_run_metrics_count_the_tier_of_each_fallback(monkeypatch, tmp_path):
-    import jointtrack.trackers.jpda as jpda
+    import jointtrack.trackers.base as jpda  # the shared layer holds the dense budget
     from jointtrack.experiments.run import run_detections
     from jointtrack.scenarios import crossing
 

@@ -20,8 +20,8 @@ import sys
 import numpy as np
 import pytest
 
+import jointtrack.trackers.base as tracker_base
 import jointtrack.trackers.initiation as initiation
-import jointtrack.trackers.jpda as jpda
 from jointtrack.scenarios import many_targets
 from jointtrack.trackers import JPDATracker, TrackerConfig
 
@@ -67,7 +67,7 @@ def _constant_density_counts(n, n_scans=12, skip=5):
     )
     gate_log, init_log = [], []
     scan = [0]
-    real_gate, real_cand = jpda.gate_pairs, initiation._candidates
+    real_gate, real_cand = tracker_base.gate_pairs, initiation._candidates
 
     def gate(*args, **kw):
         g = real_gate(*args, **kw)
@@ -83,7 +83,7 @@ def _constant_density_counts(n, n_scans=12, skip=5):
     logging.disable(logging.WARNING)
     try:
         with pytest.MonkeyPatch.context() as mp:
-            mp.setattr(jpda, "gate_pairs", gate)
+            mp.setattr(tracker_base, "gate_pairs", gate)
             mp.setattr(initiation, "_candidates", cand)
             for k, (t, z) in enumerate(zip(sc.times, sc.detections, strict=True)):
                 scan[0] = k

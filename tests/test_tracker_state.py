@@ -13,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import jointtrack.trackers.base as base_module
 import jointtrack.trackers.jpda as jpda_module
 from jointtrack.errors import ExactLimitError
 from jointtrack.scenarios import crossing
@@ -55,7 +56,8 @@ def _warm_tracker(n_scans=12, **kw):
     return trk, sc
 
 
-# every stage of a scan, as the name the tracker module looks it up by
+# every stage of a scan, as the name the tracker module (or the shared tracker layer,
+# jointtrack.trackers.base) looks it up by
 STAGES = [
     "predict",
     "predict_measurement",
@@ -90,7 +92,8 @@ def test_failing_stage_leaves_state_unchanged_and_retry_matches(stage, monkeypat
     if stage.startswith("_"):
         monkeypatch.setattr(JPDATracker, stage, boom)
     else:
-        monkeypatch.setattr(jpda_module, stage, boom)
+        module = jpda_module if hasattr(jpda_module, stage) else base_module
+        monkeypatch.setattr(module, stage, boom)
     with pytest.raises(Injected):
         trk.step(sc.times[k], sc.detections[k])
     monkeypatch.undo()
@@ -153,13 +156,13 @@ def test_size_fallback_is_counted():
 
 def test_miss_model_sets_the_no_detection_weight(monkeypatch):
     seen = {}
-    real = jpda_module.budgeted_marginals
+    real = base_module.budgeted_marginals
 
     def spy(L, miss, **kw):
         seen["miss"] = np.array(miss)
         return real(L, miss, **kw)
 
-    monkeypatch.setattr(jpda_module, "budgeted_marginals", spy)
+    monkeypatch.setattr(base_module, "budgeted_marginals", spy)
     x0 = np.array([[0.0, 0, 1, 0], [5.0, 0, 1, 0]])
     for model, expected in (("1-pd*pg", 1 - 0.9 * 0.99), ("1-pd", 1 - 0.9)):
         cfg = TrackerConfig(clutter_density=1e-4, p_d=0.9, p_g=0.99, miss_model=model)

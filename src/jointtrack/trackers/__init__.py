@@ -7,13 +7,15 @@
 state-file format.
 """
 
+from jointtrack.trackers.base import ClusterRecord, ScanResult, ScanTracker
 from jointtrack.trackers.config import TrackerConfig
 from jointtrack.trackers.history import TrackHistory
-from jointtrack.trackers.jpda import ClusterRecord, JPDATracker, ScanResult
+from jointtrack.trackers.jpda import JPDATracker
 from jointtrack.trackers.state_io import StateFileError
 
 __all__ = [
     "ClusterRecord",
+    "ScanTracker",
     "JPDATracker",
     "ScanResult",
     "StateFileError",

@@ -18,144 +18,27 @@ one association call per multi-track cluster — no per-track Python objects.
 from __future__ import annotations
 
 import logging
-import numbers
-import time as _time
-import warnings
-from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
-from scipy.sparse import csr_array
 
 from jointtrack.assignment._checks import _as_real_array, as_float
-from jointtrack.association.budget import (
-    DENSE_MAX_ENTRIES,
-    budgeted_marginals,
-    fallback_pair_marginals,
-)
-from jointtrack.association.clustering import cluster_pair_marginals, clusters
+from jointtrack.association.clustering import clusters
 from jointtrack.association.clutter import cluster_heuristic_densities
-from jointtrack.association.gating import gate_pairs, likelihood_ratio_pairs
-from jointtrack.errors import CoincidentReturnsWarning
-from jointtrack.filters import (
-    ekf_predict_measurement,
-    pda_pairs_update,
-    predict,
-    predict_measurement,
-)
-from jointtrack.models import (
-    ConstantAcceleration,
-    ConstantVelocity,
-    LinearPosition,
-    RangeBearing,
-)
+from jointtrack.association.gating import likelihood_ratio_pairs
+from jointtrack.filters import pda_pairs_update, predict
+from jointtrack.trackers.base import ClusterRecord, ScanResult, ScanTracker
 from jointtrack.trackers.config import TrackerConfig
 from jointtrack.trackers.existence import existence_update, merge_duplicates
-from jointtrack.trackers.history import (
-    TrackHistory,
-    is_datetime,
-    iso_from_ns,
-    ns_from_iso,
-    scan_time_ns,
-)
+from jointtrack.trackers.history import TrackHistory, is_datetime
 from jointtrack.trackers.initiation import pair_returns
-from jointtrack.trackers.sensors import Sensor
-from jointtrack.trackers.state_io import (
-    StateFileError,
-    covariance_problem,
-    read_state,
-    validate_tracker_arrays,
-    write_state,
-)
+from jointtrack.trackers.state_io import covariance_problem, validate_tracker_arrays
 
 __all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackHistory", "TrackerConfig"]
 
 log = logging.getLogger("jointtrack.tracker")
 
 
-@dataclass(frozen=True)
-class ScanResult:
-    """What one call of :meth:`JPDATracker.step` did.
-
-    The confirmed tracks after the update: ``ids`` (K,), ``x`` (K, n),
-    ``P`` (K, n, n), ``existence`` (K,) (1.0 without JIPDA). ``time`` is in
-    seconds — for datetime scans, seconds after the tracker's ``time_origin``.
-    ``cluster_sizes`` lists (tracks, measurements) of every multi-track
-    cluster, ``cluster_seconds`` the association time of each,
-    ``cluster_methods`` the method used, ``cluster_confirmed`` whether it
-    was a cluster of confirmed (True) or tentative (False) tracks and
-    ``cluster_fallbacks`` why the approximation replaced the configured method
-    (``""`` when it did not; ``"exact_max_tracks"`` for a cluster above the
-    budget; ``"refused: …"`` when the exact engine declined it;
-    ``"dense_budget: …"`` for a cluster too large for an N × M matrix).
-    ``n_coincident``: returns dropped because they repeated another return of
-    the scan exactly (see :meth:`JPDATracker.step`).
-    """
-
-    time: float
-    ids: np.ndarray
-    x: np.ndarray
-    P: np.ndarray
-    existence: np.ndarray
-    n_tentative: int
-    n_measurements: int
-    n_unassociated: int
-    cluster_sizes: list = field(default_factory=list)
-    cluster_seconds: list = field(default_factory=list)
-    cluster_methods: list = field(default_factory=list)
-    cluster_confirmed: list = field(default_factory=list)
-    cluster_fallbacks: list = field(default_factory=list)
-    n_coincident: int = 0
-
-    @property
-    def n_fallbacks(self) -> int:
-        """Clusters solved by the approximation instead of the configured method."""
-        return sum(1 for f in self.cluster_fallbacks if f)
-
-
-def _merge_coincident(z: np.ndarray, t: float) -> tuple[np.ndarray, int]:
-    """``z`` with each set of identical rows kept once (first occurrence, order kept)."""
-    if len(z) < 2:
-        return z, 0
-    x = np.sort(z[:, 0])
-    if not (x[1:] == x[:-1]).any():  # the usual scan: no tie in the first coordinate
-        return z, 0
-    _, first = np.unique(z, axis=0, return_index=True)
-    n_dropped = len(z) - len(first)
-    if n_dropped == 0:
-        return z, 0
-    warnings.warn(
-        f"scan at t={t}: {n_dropped} of {len(z)} returns repeat another return of the scan "
-        f"exactly (identical measurement vectors; a stuck or replayed detector?); each set of "
-        f"identical returns is treated as one return ({len(first)} kept)",
-        CoincidentReturnsWarning,
-        stacklevel=4,
-    )
-    return z[np.sort(first)], n_dropped
-
-
-@dataclass(frozen=True)
-class ClusterRecord:
-    """One multi-track cluster as the association engine saw it (for ``on_cluster``).
-
-    ``L``, ``miss`` and ``beta`` are in the cluster convention of
-    :func:`jointtrack.association.marginals` (β before the JIPDA existence
-    conditioning); ``confirmed`` tells the confirmed-track pass from the
-    tentative one. For a cluster too large for dense matrices (method
-    ``"lbp-sparse"`` or ``"pda"`` with reason ``"dense_budget: …"``), ``L`` and
-    ``beta`` are :class:`scipy.sparse.csr_array` of the gated pairs.
-    """
-
-    track_ids: np.ndarray
-    L: np.ndarray
-    miss: np.ndarray
-    beta: np.ndarray
-    seconds: float
-    method: str
-    confirmed: bool
-
-
-class JPDATracker:
+class JPDATracker(ScanTracker):
     """Multi-target JPDA tracker (see the module docstring).
 
     >>> import numpy as np
@@ -165,6 +48,9 @@ class JPDATracker:
     ...     result = trk.step(t, z)        # confirmed tracks in result.ids / result.x
     >>> table = trk.history()              # every confirmed estimate: a TrackHistory
     """
+
+    KIND = "jpda"
+    CONFIG = TrackerConfig
 
     def __init__(
         self,
@@ -178,62 +64,23 @@ class JPDATracker:
     ):
         """Build a tracker from ``config`` and, optionally, model objects.
 
-        ``motion``: any object with ``state_dim``, ``transition(dt)`` and
-        ``noise(dt)`` (default: :class:`~jointtrack.models.ConstantVelocity` or
-        :class:`~jointtrack.models.ConstantAcceleration` from ``config.motion``).
-        ``sensor``: a linear model with an ``H`` matrix and ``R`` (default
-        :class:`~jointtrack.models.LinearPosition`), or a nonlinear one with
-        ``h``, ``jacobian``, ``residual`` and ``R`` (EKF; default
-        :class:`~jointtrack.models.RangeBearing` for ``config.sensor =
-        "range-bearing"``); for initiation it must also provide
-        ``position_and_covariance(z)``. ``sensors`` (optional): ``{id: Sensor}``
-        (:class:`~jointtrack.trackers.sensors.Sensor`, or a bare model) for
-        multi-sensor runs, selected per scan by ``step(t, z, sensor=id)``.
-        ``on_cluster(record)`` (optional) is
-        called with a :class:`ClusterRecord` for every multi-track cluster; it
-        is not part of the saved state. ``keep_history``: record every confirmed
-        estimate for :meth:`history` (turn off for memory-bound runs; it can be
-        switched at any time through the ``keep_history`` attribute).
+        The arguments are those of :class:`~jointtrack.trackers.base.ScanTracker`:
+        ``motion`` and ``sensor`` model objects (default: built from ``config``),
+        ``sensors`` ``{id: Sensor}`` for multi-sensor runs (``step(t, z,
+        sensor=id)``), ``on_cluster(record)`` called with a
+        :class:`ClusterRecord` for every multi-track cluster, and
+        ``keep_history`` (record every confirmed estimate for :meth:`history`).
         """
-        self.config = config or TrackerConfig()
-        self.on_cluster = on_cluster
-        self.keep_history = bool(keep_history)
-        # (time, ids, x, P, existence) per successful scan; outside the saved and
-        # restored state: appended only after a step succeeded
-        self._history_rows: list[tuple] = []
+        super().__init__(
+            config,
+            motion=motion,
+            sensor=sensor,
+            sensors=sensors,
+            on_cluster=on_cluster,
+            keep_history=keep_history,
+        )
         c = self.config
-        if motion is None:
-            model = ConstantVelocity if c.motion == "cv" else ConstantAcceleration
-            motion = model(dim=c.dim, q=c.process_noise)
-        for attr in ("state_dim", "transition", "noise"):
-            if not hasattr(motion, attr):
-                raise ValueError(f"motion model {motion!r} has no {attr!r}")
-        self._motion = motion
-        n = int(motion.state_dim)
-        if n < 2 * c.dim:
-            raise ValueError(
-                f"motion model state_dim = {n} cannot hold position and velocity in {c.dim}-D"
-            )
-        if sensor is None:
-            if c.sensor == "position":
-                sensor = LinearPosition(c.dim, c.measurement_noise, state_dim=n)
-            else:
-                sensor = RangeBearing(
-                    [c.range_noise, c.bearing_noise],
-                    sensor_position=c.sensor_position,
-                    state_dim=n,
-                )
-        # id None: the configuration's sensor; further ids from ``sensors``
-        self._sensors = {None: Sensor(sensor)}
-        for sid, spec in (sensors or {}).items():
-            if not isinstance(spec, Sensor):
-                spec = Sensor(spec)
-            self._sensors[sid] = spec
-        self._activate(None)
-        self.rng = np.random.default_rng(c.seed)
-        self.time: float | None = None
-        # ISO-8601 UTC instant of t = 0 when the scans are datetimes (set by the first one)
-        self.time_origin: str | None = None
+        n = self.state_dim
         self.x = np.zeros((0, n))
         self.P = np.zeros((0, n, n))
         self.ids = np.zeros(0, np.int64)
@@ -246,143 +93,11 @@ class JPDATracker:
         self.seeds = np.zeros((0, c.dim))
         self.seed_covs = np.zeros((0, c.dim, c.dim))
         self.seed_times = np.zeros(0)  # scan time of each seed
-        self.next_id = 1
-        self.n_scans = 0
-
-    def add_sensor(self, sensor_id, sensor) -> None:
-        """Register (or replace) a sensor for ``step(t, z, sensor=sensor_id)``.
-
-        ``sensor``: a :class:`~jointtrack.trackers.sensors.Sensor` or a bare
-        measurement model. Sensors are configuration, not state: after
-        :meth:`load`, register them again.
-        """
-        if sensor_id is None:
-            raise ValueError("sensor_id None is the configuration's own sensor")
-        self._sensors[sensor_id] = sensor if isinstance(sensor, Sensor) else Sensor(sensor)
-
-    @property
-    def state_dim(self) -> int:
-        """Length of a track state (from the motion model)."""
-        return int(self._motion.state_dim)
-
-    @property
-    def default_sensor(self) -> Sensor:
-        """The sensor built from the configuration (used when ``step`` names none)."""
-        return self._sensors[None]
-
-    def _activate(self, sensor_id) -> None:
-        """Make ``sensor_id``'s model, P_D and clutter density the ones this scan uses."""
-        try:
-            spec = self._sensors[sensor_id]
-        except (KeyError, TypeError):
-            known = ", ".join(str(k) for k in self._sensors if k is not None) or "none"
-            raise ValueError(
-                f"unknown sensor {sensor_id!r}; this tracker's sensors: {known}"
-            ) from None
-        c = self.config
-        self._sensor = spec.model
-        self._linear, self._mdim = spec.linear, spec.measurement_dim
-        self._p_d = c.p_d if spec.p_d is None else float(spec.p_d)
-        self._clutter = c.clutter_density if spec.clutter_density is None else spec.clutter_density
 
     # ------------------------------------------------------------------ scan
-    def step(self, t: float, z, sensor=None) -> ScanResult:
-        """Process the measurements ``z`` (M, dim) taken at time ``t``.
-
-        ``sensor``: the id of the sensor that took the scan (see ``sensors`` in
-        the constructor); scans of different sensors may share a time, and are
-        then processed one after another without prediction between them.
-
-        ``t``: a number (seconds), a ``datetime.datetime`` (naive = UTC, or
-        timezone-aware) or a ``numpy.datetime64``. Datetimes are converted to
-        seconds after ``time_origin``, the instant of the run's first datetime
-        scan (an ISO-8601 string, saved with the state); one run takes either
-        numbers or datetimes, never both. ``ScanResult.time`` is in seconds.
-
-        Exactly coincident returns — identical measurement vectors within one
-        scan (a stuck or replayed detector) — are treated as one return: the
-        first of each set is kept, a
-        :class:`~jointtrack.errors.CoincidentReturnsWarning` names how many were
-        dropped, and ``ScanResult.n_coincident`` counts them. (Left in, 500
-        copies of one return would start hundreds of tracks.)
-
-        Clusters of any size are associated: past the exact budget by the
-        configured approximation, past that (or when a cluster's tracks ×
-        measurements exceed
-        :data:`~jointtrack.association.budget.DENSE_MAX_ENTRIES`) by sparse LBP,
-        then per-track PDA on the gated pairs
-        (:func:`~jointtrack.association.budget.fallback_pair_marginals`); each
-        cluster's method is in ``ScanResult.cluster_methods``.
-
-        Atomic: if any stage raises (bad input, a failing model, an interrupt),
-        the tracker is left exactly as it was before the call and the
-        exception propagates, so the same scan can be retried. Only a step
-        that succeeded adds rows to :meth:`history`.
-        """
-        saved = self.state_dict()
-        try:
-            self._activate(sensor)
-            result = self._step(t, z, sensor is not None)
-        except BaseException:
-            self._restore(saved)
-            raise
-        if self._history_rows and self._history_rows[-1][0][:1].tolist() == [result.time]:
-            # another sensor's scan at the same time: its update supersedes the rows
-            self._history_rows.pop()
-        if self.keep_history and len(result.ids):
-            order = np.argsort(result.ids, kind="stable")
-            self._history_rows.append(
-                (
-                    np.full(len(order), result.time),
-                    result.ids[order],  # fancy indexing: copies, so callers may
-                    result.x[order],  # change the ScanResult's arrays freely
-                    result.P[order],
-                    np.asarray(result.existence, dtype=float)[order],
-                )
-            )
-        return result
-
-    def _scan_time(self, t) -> float:
-        """Seconds of a scan time; fixes ``time_origin`` at the first datetime scan."""
-        if is_datetime(t):
-            if self.time is not None and self.time_origin is None:
-                raise ValueError(
-                    f"scan time {t!r} is a datetime, but this run's earlier scan times were "
-                    "numbers; one run takes either numbers (seconds) or datetimes, not both"
-                )
-            ns = scan_time_ns(t)
-            if self.time_origin is None:
-                self.time_origin = iso_from_ns(ns)  # restored by step() if the scan fails
-            return (ns - ns_from_iso(self.time_origin)) / 1e9
-        if self.time_origin is not None:
-            raise ValueError(
-                f"scan time {t!r} is a number, but this run's scan times are datetimes "
-                f"(time_origin {self.time_origin}); one run takes either numbers (seconds) "
-                "or datetimes, not both"
-            )
-        if not isinstance(t, numbers.Number | np.ndarray):  # str, None, date, …
-            raise TypeError(
-                "scan time t must be a number (seconds), a datetime.datetime or a "
-                f"numpy.datetime64, got {type(t).__name__}"
-            )
-        # bools, complex numbers, ints beyond the float range, NaN/inf: ValueError naming t
-        return as_float(t, "scan time t")
-
     def _step(self, t, z, same_time_ok=False) -> ScanResult:
         c = self.config
-        t = self._scan_time(t)
-        z = _as_real_array(z, "measurements z")  # no complex, bool, string or huge-int z
-        mdim = self._mdim
-        if z.size == 0:
-            z = z.reshape(0, mdim)
-        if z.ndim != 2 or z.shape[1] != mdim:
-            raise ValueError(f"measurements must have shape (M, {mdim}), got {z.shape}")
-        if not np.all(np.isfinite(z)):
-            raise ValueError(f"scan at t={t} has a non-finite measurement")
-        if self.time is not None and not (t > self.time or (same_time_ok and t == self.time)):
-            raise ValueError(f"scan times must increase: got t={t} after t={self.time}")
-        dt = None if self.time is None else t - self.time
-        z, n_coincident = _merge_coincident(z, t)
+        t, z, dt, n_coincident = self._check_scan(t, z, same_time_ok)
 
         if dt is not None and dt > 0 and len(self.ids):
             self.x, self.P = predict(
@@ -440,11 +155,9 @@ class JPDATracker:
             rows = np.concatenate(pair_rows) if pair_rows else np.zeros(0, np.int64)
             cols = np.concatenate(pair_cols) if pair_cols else np.zeros(0, np.int64)
             w = np.concatenate(pair_w) if pair_w else np.zeros(0)
-            if self._linear:
-                model = {"H": self._sensor.H, "R": self._sensor.R}
-            else:
-                model = {"model": self._sensor}
-            self.x, self.P = pda_pairs_update(self.x, self.P, z, beta0, rows, cols, w, **model)
+            self.x, self.P = pda_pairs_update(
+                self.x, self.P, z, beta0, rows, cols, w, **self._measurement_model()
+            )
             self._track_logic(hit)
             keep, self.existence = merge_duplicates(
                 self.x, self.P, self.ids, self.existence, self.confirmed, c.dim, c.merge_threshold
@@ -495,13 +208,7 @@ class JPDATracker:
         """
         c = self.config
         n, M = len(tracks), len(z)
-        x, P = self.x[tracks], self.P[tracks]
-        if self._linear:
-            z_pred, S = predict_measurement(x, P, self._sensor.H, self._sensor.R)
-            g = gate_pairs(z_pred, S, z, P_G=c.p_g)
-        else:
-            z_pred, S = ekf_predict_measurement(x, P, self._sensor)
-            g = gate_pairs(z_pred, S, z, P_G=c.p_g, residual=self._sensor.residual)
+        g = self._gate(self.x[tracks], self.P[tracks], z)
         groups = clusters(g)
         if self._clutter is not None:
             lam = self._clutter
@@ -518,48 +225,8 @@ class JPDATracker:
         pdg = c.detection_in_gate(self._p_d)
         miss = 1.0 - r * pdg
         rows, cols = g.rows, g.cols
-        sizes, seconds, methods, fallbacks = [], [], [], []
-
-        def solve(k, tr, ms, Lc, mc):
-            bc, method, reason, dt_s = self._cluster_marginals(Lc, mc, loud)
-            fallbacks.append(reason)
-            seconds.append(dt_s)
-            sizes.append((len(tr), len(ms)))
-            methods.append(method)
-            if self.on_cluster is not None:
-                self.on_cluster(ClusterRecord(self.ids[tracks[tr]], Lc, mc, bc, dt_s, method, loud))
-            return bc
-
-        def solve_pairs(k, tr, ms, a, b, vals, mc):
-            # too large for an N × M matrix: the tiers on the gated pairs, never dense
-            t0 = _time.perf_counter()
-            reason = (
-                f"dense_budget: {len(tr)} tracks × {len(ms)} measurements > "
-                f"{DENSE_MAX_ENTRIES} entries"
-            )
-            res = fallback_pair_marginals(a, b, vals, mc, len(ms), reason=reason)
-            dt_s = _time.perf_counter() - t0
-            self._log_fallback(len(tr), len(ms), loud, res.reason, res.method)
-            fallbacks.append(res.reason)
-            seconds.append(dt_s)
-            sizes.append((len(tr), len(ms)))
-            methods.append(res.method)
-            if self.on_cluster is not None:
-                shape = (len(tr), len(ms))
-                Lc = csr_array((vals, (a, b)), shape=shape)
-                bc = csr_array(
-                    (
-                        np.concatenate([res.beta0, res.pair_beta]),
-                        (np.concatenate([np.arange(len(tr)), a]), np.concatenate([0 * tr, b + 1])),
-                    ),
-                    shape=(len(tr), len(ms) + 1),
-                )
-                rec = ClusterRecord(self.ids[tracks[tr]], Lc, mc, bc, dt_s, res.method, loud)
-                self.on_cluster(rec)
-            return res.beta0, res.pair_beta
-
-        beta0, weights = cluster_pair_marginals(
-            groups, rows, cols, L_pairs, miss, solve, solve_pairs, DENSE_MAX_ENTRIES
+        beta0, weights, groups, info = self._pair_marginals(
+            self.ids[tracks], g, L_pairs, miss, loud, groups
         )
         used = None
         if c.existence:
@@ -570,39 +237,8 @@ class JPDATracker:
             (rows, cols, weights),
             g.n_gated > 0,
             groups.unassociated,
-            (sizes, seconds, methods, fallbacks),
+            info,
             used,
-        )
-
-    def _cluster_marginals(self, Lc, mc, loud):
-        """β of one multi-track cluster by the configured method under the exact
-        budget (:func:`~jointtrack.association.budget.budgeted_marginals`), each
-        fallback to the approximation logged."""
-        c = self.config
-        t0 = _time.perf_counter()
-        res = budgeted_marginals(
-            Lc,
-            mc,
-            method=c.association,
-            approximation=c.approximation,
-            max_tracks=c.exact_max_tracks,
-            rng=self.rng,
-        )
-        if res.reason:
-            self._log_fallback(len(Lc), Lc.shape[1], loud, res.reason, res.method)
-        return res.beta, res.method, res.reason, _time.perf_counter() - t0
-
-    @staticmethod
-    def _log_fallback(n, m, loud, reason, method):
-        (log.warning if loud else log.debug)(
-            "%s association of a cluster of %d %s tracks and %d measurements not used "
-            "(%s): used %s",
-            "the configured" if reason.startswith("dense_budget") else "exact",
-            n,
-            "confirmed" if loud else "tentative",
-            m,
-            reason,
-            method,
         )
 
     def _track_logic(self, hit):
@@ -769,43 +405,6 @@ class JPDATracker:
             self.time = t0
         return ids
 
-    # -------------------------------------------------------------- history
-    def history(self) -> TrackHistory:
-        """Every confirmed estimate this tracker produced: a :class:`TrackHistory`.
-
-        One row per (scan time, track id) with ``time`` (seconds; after
-        ``time_origin`` for datetime scans), ``track_id``, ``x`` (n,), ``P``
-        (n, n) and ``existence``: the ``ScanResult`` of every successful
-        :meth:`step` since the tracker was built (or :meth:`clear_history`).
-        Not part of the saved state: after :meth:`load` it starts empty.
-        Raises RuntimeError if recording is off (``keep_history=False``) and
-        nothing was recorded.
-        """
-        if not self.keep_history and not self._history_rows:
-            raise RuntimeError(
-                "this tracker does not record its history (JPDATracker(keep_history=False))"
-            )
-        n = self._motion.state_dim
-        if len(self._history_rows) > 1:  # consolidate, so repeated calls are cheap
-            self._history_rows = [
-                tuple(np.concatenate(cols) for cols in zip(*self._history_rows, strict=True))
-            ]
-        if self._history_rows:
-            time, ids, x, P, existence = self._history_rows[0]
-        else:
-            time, ids, x, P, existence = (
-                np.zeros(0),
-                np.zeros(0, np.int64),
-                np.zeros((0, n)),
-                np.zeros((0, n, n)),
-                np.zeros(0),
-            )
-        return TrackHistory(time, ids, x, P, existence, time_origin=self.time_origin)
-
-    def clear_history(self) -> None:
-        """Forget the recorded history (the tracker state is unchanged)."""
-        self._history_rows = []
-
     # ------------------------------------------------------------ save/load
     _ARRAYS = (
         "x",
@@ -820,94 +419,8 @@ class JPDATracker:
         "seed_covs",
         "seed_times",
     )
-    _SCALARS = ("time", "next_id", "n_scans", "time_origin")
     # state key -> attribute (``history()`` is the track-history method)
     _ATTRS = {"history": "hit_history"}
 
-    @classmethod
-    def _attr(cls, name: str) -> str:
-        return cls._ATTRS.get(name, name)
-
-    def state_dict(self) -> dict:
-        """Everything needed to continue the run identically (copies of plain types and arrays).
-
-        The track history (:meth:`history`) is not part of it.
-        """
-        state = {
-            name: np.array(getattr(self, self._attr(name)), copy=True) for name in self._ARRAYS
-        }
-        state.update({name: getattr(self, name) for name in self._SCALARS})
-        state["config"] = self.config.to_dict()
-        state["rng"] = self.rng.bit_generator.state
-        return state
-
-    def _restore(self, state: dict) -> None:
-        """Put back a :meth:`state_dict` (used by :meth:`step` when a stage fails)."""
-        for name in self._ARRAYS:
-            setattr(self, self._attr(name), state[name])
-        for name in self._SCALARS:
-            setattr(self, name, state[name])
-        self.rng.bit_generator.state = state["rng"]
-
-    def save(self, path, *, run=None) -> Path:
-        """Write the tracker state to ``path`` (see :mod:`jointtrack.trackers.state_io`).
-
-        A versioned, checksummed ``.npz`` archive of plain arrays with a JSON
-        header, written atomically (temporary file, fsync, rename); never pickle.
-        ``time_origin`` (datetime scans) is saved with the state; the track
-        history (:meth:`history`) is not.
-        """
-        scalars = {
-            "time": None if self.time is None else float(self.time),
-            "next_id": int(self.next_id),
-            "n_scans": int(self.n_scans),
-            "time_origin": self.time_origin,
-        }
-        arrays = {name: getattr(self, self._attr(name)) for name in self._ARRAYS}
-        # ``run``: a caller's JSON-able bookkeeping, saved atomically with the state
-        return write_state(
-            path, arrays, self.config.to_dict(), scalars, self.rng.bit_generator.state, run=run
-        )
-
-    @classmethod
-    def load(cls, path, *, keep_history: bool = True) -> JPDATracker:
-        """Restore a tracker written by :meth:`save`; the run continues identically.
-
-        The track history is not saved: :meth:`history` of the loaded tracker
-        starts empty and records the scans stepped after loading
-        (``keep_history`` as in the constructor). ``time_origin`` is restored,
-        so a datetime run continues on the same time axis.
-
-        Raises
-        ------
-        ValueError
-            (:class:`~jointtrack.trackers.state_io.StateFileError`) for a missing,
-            damaged, truncated, foreign, wrong-version or pickle file, or values
-            that a tracker cannot hold (including a configuration with missing
-            settings: they are never filled with defaults); the message names the
-            file and the problem.
-        """
-        arrays, config, scalars, rng = read_state(path)
-        try:  # complete: a missing setting is damage, not a default
-            cfg = TrackerConfig.from_dict(config, complete=True)
-        except (TypeError, ValueError, OverflowError, RecursionError) as exc:
-            raise StateFileError(f"{path}: invalid tracker configuration ({exc})") from None
-        trk = cls(cfg, keep_history=keep_history)
-        validate_tracker_arrays(path, arrays, scalars, trk._motion.state_dim, cfg.dim)
-        origin = scalars.get("time_origin")  # absent in files of numeric-time runs
-        if origin is not None:
-            try:
-                iso_from_ns(ns_from_iso(origin))
-            except (TypeError, ValueError, OverflowError) as exc:
-                raise StateFileError(f"{path}: invalid scalar 'time_origin' ({exc})") from None
-        for name in cls._ARRAYS:
-            setattr(trk, cls._attr(name), arrays[name])
-        trk.time_origin = origin
-        trk.time = scalars["time"]
-        trk.next_id = scalars["next_id"]
-        trk.n_scans = scalars["n_scans"]
-        try:
-            trk.rng.bit_generator.state = rng
-        except (TypeError, ValueError, KeyError, OverflowError) as exc:
-            raise StateFileError(f"{path}: invalid random-generator state ({exc})") from None
-        return trk
+    def _validate_state(self, path, arrays: dict, scalars: dict) -> None:
+        validate_tracker_arrays(path, arrays, scalars, self.state_dim, self.config.dim)
