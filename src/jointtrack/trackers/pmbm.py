@@ -1,0 +1,770 @@
+"""PMB and PMBM trackers: Poisson birth, multi-Bernoulli tracks, global hypotheses.
+
+The Poisson multi-Bernoulli mixture (PMBM) is the conjugate prior of the
+standard point-target model (A. F. García-Fernández, J. L. Williams,
+K. Granström and L. Svensson, "Poisson multi-Bernoulli mixture filter: direct
+derivation and implementation", *IEEE Transactions on Aerospace and Electronic
+Systems* 54(4):1883–1901, 2018; J. L. Williams, "Marginal multi-Bernoulli
+filters: RFS derivation of MHT, JIPDA, and association-based MeMBer", *IEEE
+Transactions on Aerospace and Electronic Systems* 51(3):1664–1687, 2015):
+
+* a **Poisson** intensity D(x) of targets never detected — a Gaussian mixture
+  (prior, Gaussian birth) plus, with the uniform birth model, a constant
+  density per unit area (births anywhere, for scenes and data with no birth
+  model); predicted with P_S and birth (García-Fernández et al. eq. (12)),
+  thinned by (1 − P_D) at each update (eq. (19));
+* **Bernoulli** components (existence r, Gaussian density) for targets detected
+  at least once, one *track* per measurement that ever started one; a track's
+  single-target hypotheses are "missed" (r(1 − P_D)/(1 − r P_D), weight
+  1 − r P_D, eq. (20)–(21)) or "measurement j" (r = 1, Kalman update, weight
+  r P_D g_j, eq. (22)–(23)); each measurement also starts a new track whose
+  Bernoulli is the Poisson posterior against it, with weight
+  ρ_j = λ_c + e_j, e_j = P_D ∫ g_j D, and existence e_j / ρ_j (eq. (24)–(27)),
+  or no Bernoulli when the measurement went to a prior track;
+* **global hypotheses**: which single-target hypothesis of each track holds,
+  with weights ∝ the product of the chosen single-target weights (eq. (28)).
+
+Dividing every event weight by Π_j ρ_j puts one scan's association in the
+cluster convention of :func:`jointtrack.association.marginals`: likelihood
+ratios L_ij = r_i P_D g_ij / ρ_j, miss weights 1 − r_i P_D; a measurement whose
+column is unused is a new target or clutter with weight 1. So:
+
+* :class:`PMBTracker` (track-oriented PMB, Williams 2015 §IV) keeps one global
+  hypothesis: the marginal association probabilities of every Bernoulli come
+  **exactly** from the assignment-sum core, cluster by cluster, with the
+  package's budget and LBP fallback (J. L. Williams and R. A. Lau,
+  "Approximate evaluation of marginal association probabilities with belief
+  propagation", *IEEE T-AES* 50(4), 2014) — the same
+  :meth:`~jointtrack.trackers.base.ScanTracker._pair_marginals` as the JPDA
+  tracker; the probability that measurement j is a new target is
+  1 − Σ_i β_ij. Each Bernoulli's mixture over its hypotheses is then merged to
+  one Bernoulli (Williams 2015 eq. (58)–(60)).
+* :class:`PMBMTracker` keeps up to ``max_hypotheses`` global hypotheses; from
+  each prior hypothesis of normalised weight w_h the ⌈max_hypotheses · w_h⌉
+  best new ones come from Murty's algorithm on the package's one LSAP
+  (:func:`jointtrack.association.kbest_hypotheses`), per cluster of tracks
+  that share gated measurements, the clusters' ranked lists combined exactly
+  (García-Fernández et al. §V). Estimator 1 of that paper (§VI-A): the
+  Bernoullis with r ≥ ``r_estimate`` in the most probable global hypothesis.
+  A track keeps the id it was born with.
+
+Approximations, each with its knob in :class:`~jointtrack.trackers.pmbm_config.PMBMConfig`:
+
+* **gating** (``p_g``, default 0.9999): pairs outside the gate are not
+  hypotheses; their weight is at most 1e-4 of a gated pair's relative to the
+  miss. With p_g = 1 every pair is kept (the tests compare with full
+  enumeration that way).
+* **Gaussian sums collapsed**: PMB merges each Bernoulli's mixture (the
+  defining PMB approximation); a new Bernoulli's Poisson posterior is one
+  Gaussian by moment matching (both filters).
+* **pruning**: Bernoullis with r < ``r_prune`` (1e-5), Poisson components
+  with weight < ``poisson_prune`` (1e-5), global hypotheses with normalised
+  weight < ``hypothesis_prune`` (1e-4) and beyond ``max_hypotheses`` (200);
+  Poisson components within ``poisson_merge`` (squared Mahalanobis distance 4)
+  merged.
+* **uniform birth** ignores the edges of ``birth_region`` (a measurement
+  inside it gets the full density, one outside none).
+
+What they cost on the coalescence scene is measured in
+``benchmarks/RESULTS.md`` ("PMBM and PMB").
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+
+import numpy as np
+from scipy.sparse import coo_array
+from scipy.sparse.csgraph import connected_components
+
+from jointtrack.association.gating import likelihood_ratio_pairs
+from jointtrack.association.kbest import kbest_hypotheses
+from jointtrack.errors import InfeasibleAssignmentError
+from jointtrack.filters import ekf_update, pda_pairs_update, predict, update
+from jointtrack.trackers.base import ScanResult, ScanTracker
+from jointtrack.trackers.existence import existence_update
+from jointtrack.trackers.pmbm_config import PMBMConfig
+from jointtrack.trackers.poisson import moment_match, prune_and_merge
+from jointtrack.trackers.state_io import MAX_ID, StateFileError, covariance_problem
+
+__all__ = ["PMBMConfig", "PMBMTracker", "PMBTracker"]
+
+
+class _PoissonTracker(ScanTracker):
+    """The Poisson part and the Bernoulli arithmetic both filters share."""
+
+    CONFIG = PMBMConfig
+    _POISSON = ("poisson_w", "poisson_m", "poisson_P", "undetected_density")
+
+    def __init__(
+        self,
+        config: PMBMConfig | None = None,
+        *,
+        motion=None,
+        sensor=None,
+        sensors=None,
+        keep_history: bool = True,
+    ):
+        """Build a tracker from ``config`` and, optionally, model objects.
+
+        ``motion``, ``sensor``, ``sensors`` and ``keep_history`` are those of
+        :class:`~jointtrack.trackers.jpda.JPDATracker`. The tracker starts from
+        nothing: the prior Poisson intensity of the configuration (``prior_weight``
+        or ``prior_density``) stands for the targets present before the first scan.
+        """
+        super().__init__(
+            config, motion=motion, sensor=sensor, sensors=sensors, keep_history=keep_history
+        )
+        c = self.config
+        n = self.state_dim
+        if c.birth_model == "gaussian" and n != len(c.birth_means[0]):
+            raise ValueError(
+                f"birth_means have length {len(c.birth_means[0])}, but the motion model's "
+                f"state_dim is {n}"
+            )
+        self._birth_w = np.asarray(c.birth_weights, float).reshape(-1)
+        self._birth_m = np.asarray(c.birth_means, float).reshape(-1, n)
+        self._birth_P = np.asarray(c.birth_covs, float).reshape(-1, n, n)
+        if c.birth_model == "gaussian":
+            total = self._birth_w.sum()
+            share = self._birth_w / total if total > 0 else self._birth_w
+            self.poisson_w = c.prior_weight * share
+            self.poisson_m, self.poisson_P = self._birth_m.copy(), self._birth_P.copy()
+            u0 = 0.0
+        else:
+            self.poisson_w, self.poisson_m = np.zeros(0), np.zeros((0, n))
+            self.poisson_P = np.zeros((0, n, n))
+            steady = c.birth_density / (1.0 - c.p_survive * (1.0 - c.p_d))
+            u0 = steady if c.prior_density is None else c.prior_density
+        self.undetected_density = np.array([u0])
+        keep = self.poisson_w > 0
+        self.poisson_w = self.poisson_w[keep]
+        self.poisson_m, self.poisson_P = self.poisson_m[keep], self.poisson_P[keep]
+
+    # ------------------------------------------------------------------ Poisson
+    def _predict_poisson(self, F, Q) -> None:
+        """Survival and birth of the undetected intensity (García-Fernández et al. eq. (12))."""
+        c = self.config
+        if len(self.poisson_w):
+            self.poisson_m, self.poisson_P = predict(self.poisson_m, self.poisson_P, F, Q)
+        self.poisson_w = c.p_survive * self.poisson_w
+        if c.birth_model == "gaussian":
+            self.poisson_w = np.concatenate([self.poisson_w, self._birth_w])
+            self.poisson_m = np.concatenate([self.poisson_m, self._birth_m])
+            self.poisson_P = np.concatenate([self.poisson_P, self._birth_P])
+        else:
+            self.undetected_density = c.p_survive * self.undetected_density + c.birth_density
+
+    def _uniform_births(self, z):
+        """``(e, x, P)``: the uniform part's P_D ∫ g_j D and posterior of every return.
+
+        The uniform density u per unit area, seen through the sensor: a
+        return's position ``pos`` (covariance ``C``) gets P_D · u · |det J|,
+        J = ∂pos/∂z, so that the density is per unit of measurement volume
+        (|det J| = √(det C / det R); 1 for a position sensor). The posterior
+        is the return's position with zero-mean velocity of per-axis σ =
+        max_speed / 2 (acceleration σ = max_acceleration / 2).
+        """
+        c = self.config
+        n, d, M = self.state_dim, c.dim, len(z)
+        u = float(self.undetected_density[0])
+        x = np.zeros((M, n))
+        P = np.zeros((M, n, n))
+        if M == 0 or c.birth_model != "uniform" or u == 0.0:
+            return np.zeros(M), x, P
+        pos, cov = self._sensor.position_and_covariance(z)
+        x[:, :d] = pos
+        P[:, :d, :d] = cov
+        idx = np.arange(d, 2 * d)
+        P[:, idx, idx] = (c.max_speed / 2.0) ** 2
+        if n > 2 * d:
+            a = np.arange(2 * d, min(3 * d, n))
+            P[:, a, a] = (c.max_acceleration / 2.0) ** 2
+        jac = np.sqrt(np.linalg.det(cov) / np.linalg.det(self._sensor.R))
+        e = self._p_d * u * jac
+        if c.birth_region is not None:
+            box = np.asarray(c.birth_region)
+            inside = ((pos >= box[:, 0]) & (pos <= box[:, 1])).all(axis=1)
+            e = np.where(inside, e, 0.0)
+        return e, x, P
+
+    def _pair_update(self, x, P, z):
+        """Kalman (or EKF) update of each state ``x[k]`` with its own return ``z[k]``."""
+        if not len(x):
+            return x.copy(), P.copy()
+        if self._linear:
+            return update(x, P, z, self._sensor.H, self._sensor.R)
+        return ekf_update(x, P, z, self._sensor)
+
+    def _poisson_detection(self, z):
+        """Everything the undetected targets say about the returns ``z``.
+
+        Returns ``(rho, e, x_new, P_new)``: ρ_j = λ_c + e_j, the weight of
+        "return j is clutter or a first detection"; e_j = P_D ∫ g_j(x) D(x) dx
+        (García-Fernández et al. eq. (25)); and the moment-matched posterior
+        of the new Bernoulli started by return j (eq. (26)).
+        """
+        M = len(z)
+        e_u, x_u, P_u = self._uniform_births(z)
+        weights, groups, xs, Ps = [e_u], [np.arange(M)], [x_u], [P_u]
+        if len(self.poisson_w) and M:
+            g = self._gate(self.poisson_m, self.poisson_P, z)
+            w = np.exp(np.log(self.poisson_w[g.rows]) + math.log(self._p_d) + g.log_g)
+            xu, Pu = self._pair_update(self.poisson_m[g.rows], self.poisson_P[g.rows], z[g.cols])
+            weights.append(w)
+            groups.append(g.cols)
+            xs.append(xu)
+            Ps.append(Pu)
+        e, x_new, P_new = moment_match(
+            np.concatenate(weights), np.concatenate(groups), np.concatenate(xs),
+            np.concatenate(Ps), M,
+        )  # fmt: skip
+        rho = self._clutter + e
+        return rho, e, x_new, P_new
+
+    def _thin_and_prune_poisson(self) -> None:
+        """(1 − P_D) thinning of the undetected (eq. (19)), then pruning and merging."""
+        c = self.config
+        miss = 1.0 - self._p_d
+        self.undetected_density = miss * self.undetected_density
+        self.poisson_w, self.poisson_m, self.poisson_P = prune_and_merge(
+            miss * self.poisson_w,
+            self.poisson_m,
+            self.poisson_P,
+            prune=c.poisson_prune,
+            merge=c.poisson_merge,
+            cap=c.max_poisson_components,
+        )
+
+    def _pair_weights(self, r, g, rho):
+        """Likelihood ratios L = r P_D g / ρ of the gated pairs and miss weights 1 − r P_D."""
+        L, _ = likelihood_ratio_pairs(g, self._p_d * r, rho)
+        return L, 1.0 - self._p_d * r
+
+    # --------------------------------------------------------------- checks
+    def _validate_common(self, path, arrays, spec, lengths):
+        """Dtype/shape/finiteness of ``spec`` {name: (kind, shape with names)}."""
+
+        def bad(what):
+            return StateFileError(f"{path}: {what}")
+
+        for name, (kind, shape) in spec.items():
+            if name not in arrays:
+                raise bad(f"missing field {name!r}")
+            a = arrays[name]
+            if a.dtype.kind != kind or a.ndim != len(shape):
+                raise bad(f"field {name!r} has dtype {a.dtype} and {a.ndim} dimension(s)")
+            want = tuple(lengths.setdefault(s, a.shape[i]) if isinstance(s, str) else s
+                         for i, s in enumerate(shape))  # fmt: skip
+            if a.shape != want:
+                raise bad(f"field {name!r} has shape {a.shape}, expected {want}")
+            if kind == "f" and not np.isfinite(a).all():
+                raise bad(f"field {name!r} has non-finite values")
+        for name, (_, shape) in spec.items():
+            if len(shape) == 3:
+                problem = covariance_problem(arrays[name])
+                if problem:
+                    raise bad(f"field {name!r} holds a covariance that {problem}")
+        for name in ("poisson_w", "undetected_density"):
+            if (arrays[name] < 0).any():
+                raise bad(f"field {name!r} has negative values")
+        if arrays["undetected_density"].shape != (1,):
+            raise bad("field 'undetected_density' must hold one number")
+
+    @staticmethod
+    def _check_counters(path, scalars, ids):
+        for name in ("next_id", "n_scans"):
+            v = scalars.get(name)
+            if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= MAX_ID:
+                raise StateFileError(f"{path}: scalar {name!r} must be an integer in [0, 2**62]")
+        if (ids < 1).any() or len(np.unique(ids)) != len(ids):
+            raise StateFileError(f"{path}: field 'ids' must hold distinct positive track ids")
+        if len(ids) and scalars["next_id"] <= int(ids.max()):
+            raise StateFileError(f"{path}: scalar 'next_id' is not above every track id")
+        t = scalars.get("time")
+        if t is not None and (
+            not isinstance(t, int | float) or isinstance(t, bool) or not math.isfinite(float(t))
+        ):
+            raise StateFileError(f"{path}: scalar 'time' must be a finite number or null")
+
+
+class PMBTracker(_PoissonTracker):
+    """Track-oriented Poisson multi-Bernoulli tracker (Williams 2015; module docstring).
+
+    >>> import numpy as np
+    >>> from jointtrack.trackers.pmbm import PMBTracker, PMBMConfig
+    >>> trk = PMBTracker(PMBMConfig(clutter_density=1e-4, birth_density=1e-6))
+    >>> for t in range(5):
+    ...     result = trk.step(float(t), np.array([[10.0 * t, 0.0], [500.0, 3.0 * t]]))
+    >>> len(result.ids)                   # both targets found from nothing
+    2
+    """
+
+    KIND = "pmb"
+    _ARRAYS = ("x", "P", "ids", "existence", *_PoissonTracker._POISSON)
+
+    def __init__(self, config=None, *, motion=None, sensor=None, sensors=None, keep_history=True):
+        super().__init__(
+            config, motion=motion, sensor=sensor, sensors=sensors, keep_history=keep_history
+        )
+        n = self.state_dim
+        self.x, self.P = np.zeros((0, n)), np.zeros((0, n, n))
+        self.ids, self.existence = np.zeros(0, np.int64), np.zeros(0)
+
+    def _step(self, t, z, same_time_ok=False) -> ScanResult:
+        c = self.config
+        t, z, dt, n_coincident = self._check_scan(t, z, same_time_ok)
+        if dt is not None and dt > 0:
+            F, Q = self._motion.transition(dt), self._motion.noise(dt)
+            if len(self.ids):
+                self.x, self.P = predict(self.x, self.P, F, Q)
+            self.existence = c.p_survive * self.existence
+            self._predict_poisson(F, Q)
+        rho, e, x_new, P_new = self._poisson_detection(z)
+        M, N = len(z), len(self.ids)
+        taken = np.zeros(M)  # P(return j came from a prior Bernoulli)
+        info = ([], [], [], [])
+        gated = np.zeros(M, bool)
+        if N and M:
+            g = self._gate(self.x, self.P, z)
+            L, miss = self._pair_weights(self.existence, g, rho)
+            beta0, w, _, info = self._pair_marginals(self.ids, g, L, miss, True)
+            taken = np.bincount(g.cols, w, minlength=M)
+            # Williams 2015 eq. (58)–(60): each Bernoulli's mixture, merged
+            self.existence, b0, wc = existence_update(self.existence, beta0, w, g.rows, self._p_d)
+            self.x, self.P = pda_pairs_update(
+                self.x, self.P, z, b0, g.rows, g.cols, wc, **self._measurement_model()
+            )
+            gated[g.cols] = True
+        elif N:  # nothing measured: every Bernoulli missed
+            r = self.existence
+            self.existence = r * (1.0 - self._p_d) / (1.0 - r * self._p_d)
+        r_new = np.clip(1.0 - taken, 0.0, 1.0) * e / rho
+        self._thin_and_prune_poisson()
+        born = r_new > max(c.r_prune, 0.0)
+        k = int(born.sum())
+        self.x = np.concatenate([self.x, x_new[born]])
+        self.P = np.concatenate([self.P, P_new[born]])
+        self.existence = np.concatenate([self.existence, r_new[born]])
+        self.ids = np.concatenate([self.ids, np.arange(self.next_id, self.next_id + k)])
+        self.next_id += k
+        keep = self.existence >= c.r_prune
+        self.x, self.P = self.x[keep], self.P[keep]
+        self.ids, self.existence = self.ids[keep], self.existence[keep]
+        self.time = t
+        self.n_scans += 1
+        report = self.existence >= c.r_estimate
+        sizes, seconds, methods, fallbacks = info
+        return ScanResult(
+            time=t,
+            ids=self.ids[report].copy(),
+            x=self.x[report].copy(),
+            P=self.P[report].copy(),
+            existence=self.existence[report].copy(),
+            n_tentative=int((~report).sum()),
+            n_measurements=M,
+            n_unassociated=int((~gated).sum()),
+            cluster_sizes=sizes,
+            cluster_seconds=seconds,
+            cluster_methods=methods,
+            cluster_confirmed=[True] * len(sizes),
+            cluster_fallbacks=fallbacks,
+            n_coincident=n_coincident,
+        )
+
+    def _validate_state(self, path, arrays, scalars):
+        n = self.state_dim
+        spec = {
+            "x": ("f", ("N", n)),
+            "P": ("f", ("N", n, n)),
+            "ids": ("i", ("N",)),
+            "existence": ("f", ("N",)),
+            "poisson_w": ("f", ("C",)),
+            "poisson_m": ("f", ("C", n)),
+            "poisson_P": ("f", ("C", n, n)),
+            "undetected_density": ("f", (1,)),
+        }
+        self._validate_common(path, arrays, spec, {})
+        r = arrays["existence"]
+        if ((r < 0) | (r > 1)).any():
+            raise StateFileError(f"{path}: field 'existence' has values outside [0, 1]")
+        self._check_counters(path, scalars, arrays["ids"])
+
+
+def _ranked_options(log_w, k):
+    """Indices of the ``k`` largest ``log_w`` (best first) and their values."""
+    order = np.argsort(-log_w, kind="stable")[:k]
+    return order, log_w[order]
+
+
+def _combine_ranked(a_w, a_idx, b_w, b_idx, k):
+    """The k best sums of two ranked lists (independent clusters), best first.
+
+    ``a_w`` (A,), ``b_w`` (B,) log weights sorted descending; ``a_idx`` (A, ·)
+    and ``b_idx`` (B, ·) the choices behind them. Exact: a best-first search
+    over the A × B grid (each sum is found before any smaller one).
+    """
+    if len(a_w) * len(b_w) <= 4 * k:
+        s = (a_w[:, None] + b_w[None, :]).ravel()
+        top = np.argsort(-s, kind="stable")[:k]
+        i, j = np.divmod(top, len(b_w))
+    else:
+        heap = [(-(a_w[0] + b_w[0]), 0, 0)]
+        seen = {(0, 0)}
+        out = []
+        while heap and len(out) < k:
+            neg, i0, j0 = heapq.heappop(heap)
+            out.append((i0, j0))
+            for i1, j1 in ((i0 + 1, j0), (i0, j0 + 1)):
+                if i1 < len(a_w) and j1 < len(b_w) and (i1, j1) not in seen:
+                    seen.add((i1, j1))
+                    heapq.heappush(heap, (-(a_w[i1] + b_w[j1]), i1, j1))
+        i, j = (np.array(v, np.int64) for v in zip(*out, strict=True))
+    return a_w[i] + b_w[j], np.concatenate([a_idx[i], b_idx[j]], axis=1)
+
+
+class PMBMTracker(_PoissonTracker):
+    """Poisson multi-Bernoulli mixture tracker (García-Fernández et al. 2018; module docstring).
+
+    State: single-target hypotheses (``sth_*``: existence, mean, covariance,
+    track), the ids of the tracks, and the global hypotheses ``hyp`` (H, T)
+    — for each track the index of its single-target hypothesis, −1 where the
+    track has no Bernoulli in that hypothesis — with log weights ``hyp_logw``.
+
+    >>> import numpy as np
+    >>> from jointtrack.trackers.pmbm import PMBMTracker, PMBMConfig
+    >>> trk = PMBMTracker(PMBMConfig(clutter_density=1e-4, birth_density=1e-6))
+    >>> for t in range(5):
+    ...     result = trk.step(float(t), np.array([[10.0 * t, 0.0], [500.0, 3.0 * t]]))
+    >>> len(result.ids)
+    2
+    """
+
+    KIND = "pmbm"
+    _ARRAYS = (
+        "sth_r",
+        "sth_x",
+        "sth_P",
+        "sth_track",
+        "track_ids",
+        "hyp",
+        "hyp_logw",
+        *_PoissonTracker._POISSON,
+    )
+
+    def __init__(self, config=None, *, motion=None, sensor=None, sensors=None, keep_history=True):
+        super().__init__(
+            config, motion=motion, sensor=sensor, sensors=sensors, keep_history=keep_history
+        )
+        n = self.state_dim
+        self.sth_r, self.sth_x, self.sth_P = np.zeros(0), np.zeros((0, n)), np.zeros((0, n, n))
+        self.sth_track = np.zeros(0, np.int64)
+        self.track_ids = np.zeros(0, np.int64)
+        self.hyp = np.zeros((1, 0), np.int64)  # one global hypothesis with no track
+        self.hyp_logw = np.zeros(1)
+
+    @property
+    def n_hypotheses(self) -> int:
+        """Number of global hypotheses kept."""
+        return len(self.hyp_logw)
+
+    def hypothesis_weights(self) -> np.ndarray:
+        """Normalised weights of the global hypotheses (sum 1)."""
+        w = np.exp(self.hyp_logw - self.hyp_logw.max())
+        return w / w.sum()
+
+    def _step(self, t, z, same_time_ok=False) -> ScanResult:
+        c = self.config
+        t, z, dt, n_coincident = self._check_scan(t, z, same_time_ok)
+        if dt is not None and dt > 0:
+            F, Q = self._motion.transition(dt), self._motion.noise(dt)
+            if len(self.sth_r):
+                self.sth_x, self.sth_P = predict(self.sth_x, self.sth_P, F, Q)
+            self.sth_r = c.p_survive * self.sth_r
+            self._predict_poisson(F, Q)
+        rho, e, x_new, P_new = self._poisson_detection(z)
+        M, S, T = len(z), len(self.sth_r), len(self.track_ids)
+        p_d = self._p_d
+        # single-target hypotheses after the update (eq. (20)–(27)): children of STH s
+        # are "missed" (index s) and "return j" (index S + pair); new track j is T + j
+        # with hypothesis S + P + j
+        if S and M:
+            g = self._gate(self.sth_x, self.sth_P, z)
+            rows, cols = g.rows, g.cols
+            L, miss = self._pair_weights(self.sth_r, g, rho)
+            x_det, P_det = self._pair_update(self.sth_x[rows], self.sth_P[rows], z[cols])
+        else:
+            rows = cols = np.zeros(0, np.int64)
+            L, miss = np.zeros(0), 1.0 - p_d * self.sth_r
+            x_det, P_det = np.zeros((0, self.state_dim)), np.zeros((0,) + self.sth_P.shape[1:])
+        n_pairs = len(rows)
+        with np.errstate(divide="ignore"):
+            log_L = np.log(L)
+        r_miss = self.sth_r * (1.0 - p_d) / (1.0 - p_d * self.sth_r)
+        r_new = e / rho
+        child_r = np.concatenate([r_miss, np.ones(n_pairs), r_new])
+        child_x = np.concatenate([self.sth_x, x_det, x_new])
+        child_P = np.concatenate([self.sth_P, P_det, P_new])
+        child_track = np.concatenate([self.sth_track, self.sth_track[rows], T + np.arange(M)])
+        # pair index of (STH, return): pairs are sorted by STH, then return
+        start = np.searchsorted(rows, np.arange(S + 1))
+        new_rows, new_logw = self._hypotheses_after(
+            z, rows, cols, L, log_L, miss, start, S, T, n_pairs
+        )
+        # prune and cap the global hypotheses (by normalised weight)
+        new_logw = new_logw - new_logw.max()
+        w = np.exp(new_logw)
+        w /= w.sum()
+        keep = np.flatnonzero(w >= c.hypothesis_prune)
+        keep = keep[np.argsort(-w[keep], kind="stable")][: c.max_hypotheses]
+        hyp, logw = new_rows[keep], new_logw[keep]
+        # Bernoullis too unlikely to exist are dropped from every hypothesis
+        hyp = np.where((hyp >= 0) & (child_r[np.maximum(hyp, 0)] >= c.r_prune), hyp, -1)
+        # hypotheses that became identical are one hypothesis
+        hyp, inverse = np.unique(hyp, axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        top = np.zeros(len(hyp))
+        np.maximum.at(top, inverse, logw)  # logsumexp per group, relative to its max
+        acc = np.zeros(len(hyp))
+        np.add.at(acc, inverse, np.exp(logw - top[inverse]))
+        logw = top + np.log(acc)
+        # keep only referenced hypotheses and tracks, renumbered
+        used = np.unique(hyp[hyp >= 0])
+        track_used = np.zeros(T + M, bool)
+        track_used[child_track[used]] = True
+        track_map = np.cumsum(track_used) - 1
+        sth_map = np.full(len(child_r), -1)
+        sth_map[used] = np.arange(len(used))
+        cols_kept = np.flatnonzero(track_used)
+        hyp = hyp[:, cols_kept]
+        self.hyp = np.where(hyp >= 0, sth_map[np.maximum(hyp, 0)], -1)
+        self.hyp_logw = logw - logw.max()
+        self.sth_r, self.sth_x, self.sth_P = child_r[used], child_x[used], child_P[used]
+        self.sth_track = track_map[child_track[used]]
+        born = cols_kept[cols_kept >= T]
+        new_ids = np.arange(self.next_id, self.next_id + len(born))
+        self.next_id += len(born)
+        self.track_ids = np.concatenate([self.track_ids[cols_kept[cols_kept < T]], new_ids])
+        order = np.argsort(-self.hyp_logw, kind="stable")
+        self.hyp, self.hyp_logw = self.hyp[order], self.hyp_logw[order]
+        self._thin_and_prune_poisson()
+        self.time = t
+        self.n_scans += 1
+        # estimator 1: the Bernoullis of the best global hypothesis with r ≥ r_estimate
+        best = self.hyp[0]
+        present = np.flatnonzero(best >= 0)
+        s = best[present]
+        report = self.sth_r[s] >= c.r_estimate
+        s, tracks = s[report], present[report]
+        gated = np.zeros(M, bool)
+        gated[cols] = True
+        return ScanResult(
+            time=t,
+            ids=self.track_ids[tracks].copy(),
+            x=self.sth_x[s].copy(),
+            P=self.sth_P[s].copy(),
+            existence=self.sth_r[s].copy(),
+            n_tentative=int(len(present) - len(s)),
+            n_measurements=M,
+            n_unassociated=int((~gated).sum()),
+            n_coincident=n_coincident,
+        )
+
+    def _hypotheses_after(self, z, rows, cols, L, log_L, miss, start, S, T, n_pairs):
+        """Rows (H', T + M) of child-hypothesis indices and log weights of the new hypotheses.
+
+        From each prior global hypothesis h the ⌈max_hypotheses · w_h⌉ best
+        association events; event weight = prior weight × Π chosen
+        single-target weights / Π_j ρ_j (a factor common to all events).
+
+        Tracks that share no gated return are independent, so the events are
+        ranked per *cluster* of tracks (connected through the gated returns of
+        any of their single-target hypotheses) and the ranked lists combined
+        exactly (:func:`_combine_ranked`). A cluster's ranking depends only on
+        which single-target hypotheses it holds, so it is computed once per
+        distinct tuple across the global hypotheses — a single track by sorting
+        its options, several by Murty's algorithm on the package's LSAP
+        (:func:`~jointtrack.association.kbest_hypotheses`). Tracks that gate no
+        return are missed in every event (their miss weight is a constant of
+        the hypothesis).
+        """
+        c = self.config
+        M = len(z)
+        hyp = self.hyp
+        H = len(hyp)
+        k_h = np.maximum(1, np.ceil(c.max_hypotheses * self.hypothesis_weights())).astype(np.int64)
+        with np.errstate(divide="ignore"):
+            log_miss = np.log(miss)
+        track_of_pair = self.sth_track[rows]
+        pair_tracks = np.unique(track_of_pair)
+        # clusters of the tracks that gate something (over all their hypotheses)
+        if len(pair_tracks):
+            local = np.searchsorted(pair_tracks, track_of_pair)
+            n_pt = len(pair_tracks)
+            graph = coo_array((np.ones(n_pairs), (local, n_pt + cols)), shape=(n_pt + M, n_pt + M))
+            _, label = connected_components(graph, directed=False)
+            label = label[:n_pt]
+        else:
+            label = np.zeros(0, np.int64)
+        # every track that gates nothing is missed: a constant per hypothesis
+        quiet = np.ones(T, bool)
+        quiet[pair_tracks] = False
+        hq = hyp[:, quiet]
+        const = np.where(hq >= 0, log_miss[np.maximum(hq, 0)], 0.0).sum(axis=1)
+        ranked = []  # per cluster: (tracks, inverse (H,), [(w, child, taken) per tuple])
+        for lab in np.unique(label):
+            tracks = pair_tracks[label == lab]
+            tuples, inv = np.unique(hyp[:, tracks], axis=0, return_inverse=True)
+            inv = inv.reshape(-1)
+            k_u = np.zeros(len(tuples), np.int64)
+            np.maximum.at(k_u, inv, k_h)
+            lists = [
+                self._rank_cluster(tup, k, rows, cols, L, log_L, log_miss, start, S)
+                for tup, k in zip(tuples, k_u, strict=True)
+            ]
+            ranked.append((tracks, inv, lists))
+        cluster_tracks = np.concatenate([r[0] for r in ranked]) if ranked else np.zeros(0, np.int64)
+        new_track_hyp = S + n_pairs + np.arange(M)
+        out_rows, out_logw = [], []
+        for h in range(H):
+            if not np.isfinite(const[h]):
+                continue  # a track that must be detected gated nothing
+            # payload per cluster: [child (n_c) | taken (n_c)], in cluster order
+            w = np.zeros(1)
+            payload = np.zeros((1, 0), np.int64)
+            for _, inv, lists in ranked:
+                w2, child2, taken2 = lists[inv[h]]
+                if len(w2) == 0:
+                    w = w[:0]
+                    break
+                p2 = np.concatenate([child2, taken2], axis=1)
+                if len(w2) == 1:  # one event: a constant of this hypothesis
+                    w = w + w2[0]
+                    payload = np.concatenate(
+                        [payload, np.broadcast_to(p2, (len(w), p2.shape[1]))], axis=1
+                    )
+                else:
+                    w, payload = _combine_ranked(w, payload, w2, p2, int(k_h[h]))
+            if len(w) == 0:
+                continue
+            child = np.empty((len(w), len(cluster_tracks)), np.int64)
+            taken = np.empty_like(child)
+            off = at = 0
+            for tracks, _, _ in ranked:
+                n_c = len(tracks)
+                child[:, at : at + n_c] = payload[:, off : off + n_c]
+                taken[:, at : at + n_c] = payload[:, off + n_c : off + 2 * n_c]
+                off += 2 * n_c
+                at += n_c
+            if len(w) == 0:
+                continue
+            E = len(w)
+            new = np.empty((E, T + M), np.int64)
+            new[:, :T] = hyp[h]
+            new[:, cluster_tracks] = child
+            new[:, T:] = new_track_hyp
+            e_idx, t_idx = np.nonzero(taken >= 0)
+            new[e_idx, T + taken[e_idx, t_idx]] = -1
+            out_rows.append(new)
+            out_logw.append(self.hyp_logw[h] + const[h] + w)
+        if not out_rows:
+            raise InfeasibleAssignmentError(
+                "no global hypothesis has an association event of positive weight "
+                "(P_D = 1 and a track with existence 1 that gates no return?)"
+            )
+        return np.concatenate(out_rows), np.concatenate(out_logw)
+
+    @staticmethod
+    def _rank_cluster(tup, k, rows, cols, L, log_L, log_miss, start, S):
+        """The ``k`` best events of one cluster holding single-target hypotheses ``tup``.
+
+        ``tup`` (n,): the cluster's single-target hypothesis per track (−1 =
+        the track has no Bernoulli here). Returns ``(w (K,), child (K, n),
+        taken (K, n))``, best first: the events' log weights, each track's
+        child hypothesis (its own index when missed or absent, S + pair when
+        it takes a return) and the return it takes (−1 for none).
+        """
+        n = len(tup)
+        here = np.flatnonzero(tup >= 0)
+        sths = tup[here]
+        spans = [np.arange(start[s], start[s + 1]) for s in sths]
+        pairs = np.concatenate(spans) if spans else np.zeros(0, np.int64)
+        base_child = np.broadcast_to(tup, (1, n)).copy()
+        none = np.full((1, n), -1, np.int64)
+        if len(pairs) == 0:
+            w = log_miss[sths].sum()
+            return (np.array([w]) if np.isfinite(w) else np.zeros(0)), base_child, none
+        row_local = np.repeat(np.arange(len(sths)), [len(sp) for sp in spans])
+        if len(sths) == 1:
+            opts = np.concatenate([[log_miss[sths[0]]], log_L[pairs]])
+            order = np.argsort(-opts, kind="stable")[:k]
+            order = order[np.isfinite(opts[order])]
+            child = np.repeat(base_child, len(order), axis=0)
+            taken = np.repeat(none, len(order), axis=0)
+            det = order > 0
+            child[det, here[0]] = S + pairs[order[det] - 1]
+            taken[det, here[0]] = cols[pairs[order[det] - 1]]
+            return opts[order], child, taken
+        ms = np.unique(cols[pairs])
+        Lc = np.zeros((len(sths), len(ms)))
+        col_local = np.searchsorted(ms, cols[pairs])
+        Lc[row_local, col_local] = L[pairs]
+        try:
+            kb = kbest_hypotheses(Lc, np.exp(log_miss[sths]), k=int(k))
+        except InfeasibleAssignmentError:
+            return np.zeros(0), np.zeros((0, n), np.int64), np.zeros((0, n), np.int64)
+        a = kb.assignments  # (K, len(sths)): 0 miss, j + 1 local return j
+        K = len(a)
+        child = np.repeat(base_child, K, axis=0)
+        taken = np.repeat(none, K, axis=0)
+        # pair index of (sths[i], ms[a − 1]) for the detections
+        pair_of = np.full((len(sths), len(ms)), -1, np.int64)
+        pair_of[row_local, col_local] = pairs
+        ev, i = np.nonzero(a > 0)
+        p = pair_of[i, a[ev, i] - 1]
+        child[ev, here[i]] = S + p
+        taken[ev, here[i]] = cols[p]
+        return kb.log_weights, child, taken
+
+    def _validate_state(self, path, arrays, scalars):
+        n = self.state_dim
+        spec = {
+            "sth_r": ("f", ("S",)),
+            "sth_x": ("f", ("S", n)),
+            "sth_P": ("f", ("S", n, n)),
+            "sth_track": ("i", ("S",)),
+            "track_ids": ("i", ("T",)),
+            "hyp": ("i", ("H", "T")),
+            "hyp_logw": ("f", ("H",)),
+            "poisson_w": ("f", ("C",)),
+            "poisson_m": ("f", ("C", n)),
+            "poisson_P": ("f", ("C", n, n)),
+            "undetected_density": ("f", (1,)),
+        }
+        lengths: dict = {}
+        self._validate_common(path, arrays, spec, lengths)
+
+        def bad(what):
+            return StateFileError(f"{path}: {what}")
+
+        r = arrays["sth_r"]
+        if ((r < 0) | (r > 1)).any():
+            raise bad("field 'sth_r' has values outside [0, 1]")
+        S, T = len(r), len(arrays["track_ids"])
+        tr = arrays["sth_track"]
+        if ((tr < 0) | (tr >= T)).any():
+            raise bad("field 'sth_track' names a track that does not exist")
+        hyp = arrays["hyp"]
+        if len(hyp) == 0:
+            raise bad("field 'hyp' holds no global hypothesis")
+        if ((hyp < -1) | (hyp >= S)).any():
+            raise bad("field 'hyp' names a single-target hypothesis that does not exist")
+        cols = np.broadcast_to(np.arange(T), hyp.shape)
+        ok = hyp < 0
+        ok |= tr[np.maximum(hyp, 0)] == cols
+        if not ok.all():
+            raise bad("field 'hyp' puts a single-target hypothesis under another track")
+        if arrays["hyp_logw"].max() != 0.0:
+            raise bad("field 'hyp_logw' is not normalised to a best hypothesis of 0")
+        self._check_counters(path, scalars, arrays["track_ids"])

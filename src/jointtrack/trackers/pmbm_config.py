@@ -1,0 +1,290 @@
+"""Configuration of the PMB and PMBM trackers: one frozen dataclass of plain numbers.
+
+The motion, sensor and association fields mean exactly what they mean in
+:class:`~jointtrack.trackers.config.TrackerConfig` (and are checked by the same
+field checks); the rest describe the Poisson intensity of undetected targets,
+the pruning and capping of the mixture, and the estimator. See
+:mod:`jointtrack.trackers.pmbm` for the filters.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from jointtrack.trackers.config import TrackerConfig, check_field, config_from_dict
+
+__all__ = ["BIRTH_MODELS", "PMBMConfig"]
+
+#: Kinds of birth (and prior) intensity of undetected targets.
+BIRTH_MODELS = ("uniform", "gaussian")
+
+#: Fields shared with TrackerConfig, checked by its field checks.
+_SHARED = (
+    "dim",
+    "motion",
+    "process_noise",
+    "measurement_noise",
+    "sensor",
+    "sensor_position",
+    "range_noise",
+    "bearing_noise",
+    "p_d",
+    "p_g",
+    "association",
+    "exact_max_tracks",
+    "approximation",
+    "max_speed",
+    "max_acceleration",
+    "p_survive",
+    "seed",
+)
+
+
+@dataclass(frozen=True)
+class PMBMConfig:
+    """Everything that defines a PMB or PMBM tracker; plain numbers, TOML-friendly.
+
+    Attributes
+    ----------
+    dim, motion, process_noise, measurement_noise, sensor, sensor_position,
+    range_noise, bearing_noise, p_d, p_survive, association, exact_max_tracks,
+    approximation, seed :
+        as in :class:`~jointtrack.trackers.config.TrackerConfig`.
+    p_g : gate probability P_G of the chi-square gates (default 0.9999: the
+        Poisson multi-Bernoulli weights have no gate factor, so the gate only
+        cuts pairs whose weight is negligible; 1 = no gating).
+    clutter_density : λ_c, false returns per unit measurement volume per scan
+        (must be known: the Poisson/clutter split of every return depends on it).
+    birth_model : ``"uniform"`` (default) — new targets appear uniformly in
+        position (``birth_region``, or anywhere when it is None) at
+        ``birth_density`` per unit area (volume) per scan, with zero-mean
+        Gaussian velocity of per-axis σ = ``max_speed``/2 (acceleration σ =
+        ``max_acceleration``/2 for ``motion = "ca"``); or ``"gaussian"`` — a
+        Gaussian mixture ``birth_weights``, ``birth_means``, ``birth_covs`` in
+        the state layout of the motion model (positions, then velocities).
+    birth_density : uniform births per unit area (volume) per scan.
+    birth_region : None (unbounded) or ``((xmin, xmax), (ymin, ymax)[, (zmin, zmax)])``.
+    prior_density : undetected targets per unit area at the first scan
+        (uniform model; None = the steady state of birth, survival and
+        missed detection, birth_density / (1 − P_S (1 − P_D))).
+    birth_weights, birth_means, birth_covs : the Gaussian birth mixture.
+    prior_weight : λ₀, the expected number of undetected targets at the first
+        scan (Gaussian model), with the birth mixture's normalised density.
+    poisson_prune : Gaussian components of the undetected intensity with a
+        weight below this are dropped.
+    poisson_merge : components closer than this squared Mahalanobis distance
+        are merged (moment matching; 0 = never).
+    max_poisson_components : cap on the Gaussian components kept (largest first).
+    r_prune : Bernoulli components with existence below this are dropped.
+    r_estimate : Bernoullis reported as targets have existence ≥ this
+        (PMBM: in the most probable global hypothesis; estimator 1 of
+        García-Fernández et al. 2018).
+    max_hypotheses : PMBM cap on global hypotheses (the k of Murty's algorithm
+        is ⌈max_hypotheses · w_h⌉ for a prior hypothesis of weight w_h).
+    hypothesis_prune : PMBM global hypotheses with a normalised weight below
+        this are dropped.
+
+    Every field is checked on construction; a bad value raises ValueError
+    naming the field.
+    """
+
+    dim: int = 2
+    motion: str = "cv"
+    process_noise: float = 1.0
+    measurement_noise: float | tuple = 100.0
+    sensor: str = "position"
+    sensor_position: tuple = (0.0, 0.0)
+    range_noise: float = 25.0
+    bearing_noise: float = 1e-4
+    p_d: float = 0.9
+    p_g: float = 0.9999
+    p_survive: float = 0.99
+    clutter_density: float = 1e-4
+    association: str = "exact"
+    exact_max_tracks: int = 16
+    approximation: str = "lbp"
+    max_speed: float = 50.0
+    max_acceleration: float = 10.0
+    birth_model: str = "uniform"
+    birth_density: float = 1e-7
+    birth_region: tuple | None = None
+    prior_density: float | None = None
+    birth_weights: tuple = ()
+    birth_means: tuple = ()
+    birth_covs: tuple = ()
+    prior_weight: float = 0.0
+    poisson_prune: float = 1e-5
+    poisson_merge: float = 4.0
+    max_poisson_components: int = 100
+    r_prune: float = 1e-5
+    r_estimate: float = 0.4
+    max_hypotheses: int = 200
+    hypothesis_prune: float = 1e-4
+    seed: int | None = 0
+
+    def __post_init__(self):
+        for name in _SHARED:
+            try:
+                value = check_field(name, getattr(self, name))
+            except ValueError as exc:
+                raise ValueError(str(exc).replace("TrackerConfig:", "PMBMConfig:")) from None
+            object.__setattr__(self, name, value)
+        try:
+            noise = TrackerConfig(dim=self.dim, measurement_noise=self.measurement_noise)
+        except ValueError as exc:
+            raise ValueError(str(exc).replace("TrackerConfig:", "PMBMConfig:")) from None
+        object.__setattr__(self, "measurement_noise", noise.measurement_noise)
+        if self.sensor != "position" and self.dim != 2:
+            raise _fail("sensor", "'position' in 3-D (range-bearing is 2-D)", self.sensor)
+        set_ = object.__setattr__
+        set_(self, "clutter_density", _positive("clutter_density", self.clutter_density))
+        if self.birth_model not in BIRTH_MODELS:
+            raise _fail("birth_model", " or ".join(map(repr, BIRTH_MODELS)), self.birth_model)
+        set_(self, "birth_density", _non_negative("birth_density", self.birth_density))
+        set_(self, "birth_region", _region(self.birth_region, self.dim))
+        if self.prior_density is not None:
+            set_(self, "prior_density", _non_negative("prior_density", self.prior_density))
+        set_(self, "prior_weight", _non_negative("prior_weight", self.prior_weight))
+        self._check_gaussian_birth()
+        for name in ("poisson_prune", "r_prune", "hypothesis_prune"):
+            v = _non_negative(name, getattr(self, name))
+            if v >= 1:
+                raise _fail(name, "a number in [0, 1)", v)
+            set_(self, name, v)
+        set_(self, "poisson_merge", _non_negative("poisson_merge", self.poisson_merge))
+        for name in ("max_poisson_components", "max_hypotheses"):
+            set_(self, name, _count(name, getattr(self, name)))
+        r = _non_negative("r_estimate", self.r_estimate)
+        if not 0 < r <= 1:
+            raise _fail("r_estimate", "a number in (0, 1]", r)
+        set_(self, "r_estimate", r)
+
+    def _check_gaussian_birth(self) -> None:
+        n = (3 if self.motion == "ca" else 2) * self.dim
+        w, m, P = self.birth_weights, self.birth_means, self.birth_covs
+        for name, v in (("birth_weights", w), ("birth_means", m), ("birth_covs", P)):
+            if isinstance(v, str | bytes) or not isinstance(v, list | tuple | np.ndarray):
+                raise _fail(name, "a list", v)
+        try:
+            wa = np.asarray(w, dtype=np.float64).reshape(-1)
+            ma = np.asarray(m, dtype=np.float64)
+            Pa = np.asarray(P, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise _fail("birth_means", "lists of numbers", (w, m, P)) from None
+        k = len(wa)
+        if self.birth_model == "gaussian" and k == 0:
+            raise _fail("birth_weights", "at least one component for birth_model 'gaussian'", w)
+        if ma.shape != (k, n) or Pa.shape != (k, n, n):
+            raise _fail(
+                "birth_means",
+                f"{k} means of length {n} and {k} covariances {n} × {n} (one per weight; the "
+                f"state is {n}-D for motion {self.motion!r} in {self.dim}-D)",
+                (np.shape(m), np.shape(P)),
+            )
+        for name, a in (("birth_weights", wa), ("birth_means", ma), ("birth_covs", Pa)):
+            if not np.isfinite(a).all() or a.dtype.kind != "f":
+                raise _fail(name, "finite numbers", a.tolist())
+        if (wa < 0).any():
+            raise _fail("birth_weights", "non-negative", w)
+        for i, C in enumerate(Pa):
+            if not np.allclose(C, C.T, rtol=1e-12, atol=0.0):
+                raise _fail("birth_covs", f"symmetric (component {i})", C.tolist())
+            try:
+                np.linalg.cholesky(C)
+            except np.linalg.LinAlgError:
+                raise _fail(
+                    "birth_covs", f"positive definite (component {i})", C.tolist()
+                ) from None
+        set_ = object.__setattr__
+        set_(self, "birth_weights", tuple(float(v) for v in wa))
+        set_(self, "birth_means", tuple(tuple(float(v) for v in row) for row in ma))
+        set_(self, "birth_covs", tuple(tuple(tuple(float(v) for v in r) for r in C) for C in Pa))
+
+    def measurement_covariance(self) -> np.ndarray:
+        """R of the position sensor as a (dim, dim) array (from ``measurement_noise``)."""
+        return TrackerConfig(
+            dim=self.dim, measurement_noise=self.measurement_noise
+        ).measurement_covariance()
+
+    @classmethod
+    def from_dict(cls, d: dict, *, complete: bool = False) -> PMBMConfig:
+        """Build from a (TOML) mapping; unknown keys are an error naming them.
+
+        Missing keys take their defaults, unless ``complete=True`` (a saved
+        configuration): then they are an error.
+        """
+        return config_from_dict(cls, d, "PMBM tracker", complete=complete)
+
+    @classmethod
+    def from_tracker_config(cls, cfg: TrackerConfig, **overrides) -> PMBMConfig:
+        """The shared motion, sensor and association settings of a :class:`TrackerConfig`.
+
+        ``cfg.clutter_density`` must be known (or given in ``overrides``).
+        """
+        shared = {name: getattr(cfg, name) for name in _SHARED}
+        if cfg.clutter_density is not None:
+            shared["clutter_density"] = cfg.clutter_density
+        shared.update(overrides)
+        return cls(**shared)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _fail(name: str, want: str, value) -> ValueError:
+    return ValueError(f"PMBMConfig: {name} must be {want}, got {value!r}")
+
+
+def _number(name: str, v, want: str) -> float:
+    if isinstance(v, bool | np.bool_) or not isinstance(v, numbers.Real):
+        raise _fail(name, want, v)
+    try:
+        v = float(v)
+    except OverflowError:
+        raise _fail(name, want, v) from None
+    if not math.isfinite(v):
+        raise _fail(name, want, v)
+    return v
+
+
+def _positive(name: str, v) -> float:
+    v = _number(name, v, "a positive finite number")
+    if v <= 0:
+        raise _fail(name, "a positive finite number", v)
+    return v
+
+
+def _non_negative(name: str, v) -> float:
+    v = _number(name, v, "a finite number ≥ 0")
+    if v < 0:
+        raise _fail(name, "a finite number ≥ 0", v)
+    return v
+
+
+def _count(name: str, v) -> int:
+    if isinstance(v, bool | np.bool_) or not isinstance(v, numbers.Integral) or not 1 <= v <= 10**6:
+        raise _fail(name, "an integer in [1, 1000000]", v)
+    return int(v)
+
+
+def _region(v, dim: int):
+    if v is None:
+        return None
+    want = f"None or {dim} (min, max) pairs with min < max"
+    if isinstance(v, str | bytes) or not isinstance(v, list | tuple | np.ndarray) or len(v) != dim:
+        raise _fail("birth_region", want, v)
+    out = []
+    for pair in v:
+        if isinstance(pair, str | bytes) or not isinstance(pair, list | tuple | np.ndarray):
+            raise _fail("birth_region", want, v)
+        if len(pair) != 2:
+            raise _fail("birth_region", want, v)
+        lo, hi = (_number("birth_region", a, want) for a in pair)
+        if not lo < hi:
+            raise _fail("birth_region", want, v)
+        out.append((lo, hi))
+    return tuple(out)
