@@ -295,10 +295,10 @@ class PMBTracker(_PoissonTracker):
     >>> import numpy as np
     >>> from jointtrack.trackers.pmbm import PMBTracker, PMBMConfig
     >>> trk = PMBTracker(PMBMConfig(clutter_density=1e-4, birth_density=1e-6))
-    >>> for t in range(5):
+    >>> for t in range(8):                # a target moving at 10 m/s, one at 3 m/s
     ...     result = trk.step(float(t), np.array([[10.0 * t, 0.0], [500.0, 3.0 * t]]))
-    >>> len(result.ids)                   # both targets found from nothing
-    2
+    >>> result.ids.tolist()               # both found from nothing, ids from their birth
+    [1, 2]
     """
 
     KIND = "pmb"
@@ -435,10 +435,10 @@ class PMBMTracker(_PoissonTracker):
     >>> import numpy as np
     >>> from jointtrack.trackers.pmbm import PMBMTracker, PMBMConfig
     >>> trk = PMBMTracker(PMBMConfig(clutter_density=1e-4, birth_density=1e-6))
-    >>> for t in range(5):
+    >>> for t in range(8):
     ...     result = trk.step(float(t), np.array([[10.0 * t, 0.0], [500.0, 3.0 * t]]))
-    >>> len(result.ids)
-    2
+    >>> result.ids.tolist()
+    [1, 2]
     """
 
     KIND = "pmbm"

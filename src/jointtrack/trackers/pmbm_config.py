@@ -178,6 +178,8 @@ class PMBMConfig:
         k = len(wa)
         if self.birth_model == "gaussian" and k == 0:
             raise _fail("birth_weights", "at least one component for birth_model 'gaussian'", w)
+        if k == 0 and ma.size == 0 and Pa.size == 0:
+            ma, Pa = ma.reshape(0, n), Pa.reshape(0, n, n)
         if ma.shape != (k, n) or Pa.shape != (k, n, n):
             raise _fail(
                 "birth_means",
