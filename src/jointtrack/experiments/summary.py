@@ -114,8 +114,9 @@ def _run_metrics(
         metrics["time_unit"] = "seconds since time_origin (tracks file, plots, notes)"
     sigma = src.sigma
     mo = dict(metrics_opts or {})
-    c = float(mo.get("c", 5.0 * sigma))
-    p = float(mo.get("p", 2.0))
+    own = getattr(src, "metric_defaults", None) or {}  # the scenario's, e.g. coalescence's c = 10
+    c = float(mo.get("c", own.get("c", 5.0 * sigma)))
+    p = float(mo.get("p", own.get("p", 2.0)))
     gamma = float(mo.get("switch_penalty", 0.0))
     convention = str(mo.get("switch_convention", "partner"))
     series = None
