@@ -8,6 +8,7 @@ initiate them. Short Bojilov runs (6–8 scans) keep the file fast.
 
 from __future__ import annotations
 
+import io
 import json
 
 import numpy as np
@@ -18,7 +19,7 @@ from cli_checks import one_line_error
 from jointtrack.cli import app
 from jointtrack.experiments.config import RunConfigError, load_config, start_setting
 from jointtrack.experiments.run import run_scenario
-from jointtrack.experiments.summary import start_description
+from jointtrack.experiments.summary import start_description, summary_tables, tracks_line
 from jointtrack.io import read_tracks, write_detections
 from jointtrack.scenarios import crossing
 
@@ -69,6 +70,51 @@ def test_start_from_nothing_initiates_the_tracks(tmp_path):
     # a track initiated from the detections cannot be confirmed at the first scan
     tr = read_tracks(out / "tracks.csv")
     assert not np.any(tr["time"] == 0.0)
+    # the summary says how well the targets were followed (issue 23 item 5)
+    assert "coverage" in r.output and "breaks" in r.output
+    row = _summary_row(m, "tracks")
+    t = m["tracks"]
+    for part in (
+        f"coverage {t['coverage']:.3g}",
+        f"{t['n_breaks']} breaks",
+        f"{t['n_id_switches']} identity switches",
+    ):
+        assert part in row, row
+
+
+def _summary_row(metrics: dict, name: str) -> str:
+    """The text of one row of the run summary's main table, rendered wide (no wrap)."""
+    from rich.console import Console
+
+    console = Console(width=400, record=True, file=io.StringIO())
+    console.print(summary_tables(metrics)[0])
+    rows = [ln for ln in console.export_text().splitlines() if ln.strip("│ ").startswith(name)]
+    assert len(rows) == 1, rows
+    return " ".join(rows[0].split())
+
+
+def test_tracks_row_gives_coverage_breaks_and_switches_before_targets_tracked():
+    # issue 23 item 5: every target was tracked at some scan, but only for half the
+    # truth-scans, with breaks and identity switches; "5/5 targets tracked" alone hid it
+    tr = {
+        "n_tracks": 12,
+        "n_true_tracks": 7,
+        "n_false_tracks": 5,
+        "n_truths": 5,
+        "n_truths_tracked": 5,
+        "n_breaks": 5,
+        "n_fragmentations": 4,
+        "n_id_switches": 7,
+        "coverage": 0.49,
+        "rmse": 3.2,
+        "gate": 50.0,
+    }
+    line = tracks_line(tr)
+    for part in ("coverage 0.49", "5 breaks", "7 identity switches", "for 5 targets"):
+        assert part in line, line
+    # the count of targets tracked is still there, but qualified: after the coverage
+    assert line.index("coverage") < line.index("5/5 targets tracked at some scan")
+    assert tracks_line({**tr, "coverage": float("nan")}).count("coverage –") == 1
 
 
 def test_the_flag_overrides_the_config_and_both_spellings_agree(tmp_path):

@@ -59,11 +59,21 @@ def _seed_value(seed):
     return None
 
 
-def _pos_float(x, name: str, allow_zero: bool = False) -> float:
+def _real(x, name: str) -> float:
+    """``x`` as a float; a bool, a complex, a non-number or an int beyond the float
+    range raises ValueError naming ``name`` (``float(True)`` would pass as 1.0)."""
+    if isinstance(x, bool | np.bool_) or isinstance(x, complex | np.complexfloating):
+        raise ValueError(f"{name} must be a real number, got {x!r}")
     try:
-        x = float(x)
+        return float(x)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a number, got {x!r}") from None
+    except OverflowError:
+        raise ValueError(f"{name} must be finite, got an integer beyond the float range") from None
+
+
+def _pos_float(x, name: str, allow_zero: bool = False) -> float:
+    x = _real(x, name)
     ok = math.isfinite(x) and (x >= 0 if allow_zero else x > 0)
     if not ok:
         raise ValueError(f"{name} must be finite and {'>= 0' if allow_zero else '> 0'}, got {x}")
@@ -71,10 +81,7 @@ def _pos_float(x, name: str, allow_zero: bool = False) -> float:
 
 
 def _prob(x, name: str, allow_zero: bool = False) -> float:
-    try:
-        x = float(x)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {x!r}") from None
+    x = _real(x, name)
     if not ((0 <= x if allow_zero else 0 < x) and x <= 1):
         raise ValueError(f"{name} must be in {'[0, 1]' if allow_zero else '(0, 1]'}, got {x}")
     return x
