@@ -62,6 +62,11 @@ Approximations, each with its knob in :class:`~jointtrack.trackers.pmbm_config.P
   weight < ``hypothesis_prune`` (1e-4) and beyond ``max_hypotheses`` (200);
   Poisson components within ``poisson_merge`` (squared Mahalanobis distance 4)
   merged.
+* **recycling** (``r_recycle``, 0.1): Bernoullis (PMBM: tracks in every
+  global hypothesis) with existence below it become Gaussian components of
+  the Poisson intensity (J. L. Williams, "Hybrid Poisson and multi-Bernoulli
+  filters", *15th International Conference on Information Fusion*, 2012):
+  clutter-born Bernoullis then cost no association work.
 * **uniform birth** ignores the edges of ``birth_region`` (a measurement
   inside it gets the full density, one outside none).
 
@@ -223,18 +228,22 @@ class _PoissonTracker(ScanTracker):
         rho = self._clutter + e
         return rho, e, x_new, P_new
 
-    def _thin_and_prune_poisson(self) -> None:
-        """(1 − P_D) thinning of the undetected (eq. (19)), then pruning and merging."""
+    def _thin_and_prune_poisson(self, recycled=None) -> None:
+        """(1 − P_D) thinning of the undetected (eq. (19)), recycling, pruning and merging.
+
+        ``recycled``: ``(w, m, P)`` of posterior Bernoullis moved into the
+        intensity (weight = existence; Williams 2012), added after the thinning.
+        """
         c = self.config
         miss = 1.0 - self._p_d
         self.undetected_density = miss * self.undetected_density
+        w, m, P = miss * self.poisson_w, self.poisson_m, self.poisson_P
+        if recycled is not None and len(recycled[0]):
+            w = np.concatenate([w, recycled[0]])
+            m = np.concatenate([m, recycled[1]])
+            P = np.concatenate([P, recycled[2]])
         self.poisson_w, self.poisson_m, self.poisson_P = prune_and_merge(
-            miss * self.poisson_w,
-            self.poisson_m,
-            self.poisson_P,
-            prune=c.poisson_prune,
-            merge=c.poisson_merge,
-            cap=c.max_poisson_components,
+            w, m, P, prune=c.poisson_prune, merge=c.poisson_merge, cap=c.max_poisson_components
         )
 
     def _pair_weights(self, r, g, rho):
@@ -329,7 +338,8 @@ class PMBTracker(_PoissonTracker):
         if N and M:
             g = self._gate(self.x, self.P, z)
             L, miss = self._pair_weights(self.existence, g, rho)
-            beta0, w, _, info = self._pair_marginals(self.ids, g, L, miss, True)
+            # loud=False: fallbacks are logged at debug level and reported in the result
+            beta0, w, _, info = self._pair_marginals(self.ids, g, L, miss, False)
             taken = np.bincount(g.cols, w, minlength=M)
             # Williams 2015 eq. (58)–(60): each Bernoulli's mixture, merged
             self.existence, b0, wc = existence_update(self.existence, beta0, w, g.rows, self._p_d)
@@ -341,17 +351,18 @@ class PMBTracker(_PoissonTracker):
             r = self.existence
             self.existence = r * (1.0 - self._p_d) / (1.0 - r * self._p_d)
         r_new = np.clip(1.0 - taken, 0.0, 1.0) * e / rho
-        self._thin_and_prune_poisson()
-        born = r_new > max(c.r_prune, 0.0)
-        k = int(born.sum())
-        self.x = np.concatenate([self.x, x_new[born]])
-        self.P = np.concatenate([self.P, P_new[born]])
-        self.existence = np.concatenate([self.existence, r_new[born]])
-        self.ids = np.concatenate([self.ids, np.arange(self.next_id, self.next_id + k)])
-        self.next_id += k
-        keep = self.existence >= c.r_prune
-        self.x, self.P = self.x[keep], self.P[keep]
-        self.ids, self.existence = self.ids[keep], self.existence[keep]
+        x = np.concatenate([self.x, x_new])
+        P = np.concatenate([self.P, P_new])
+        r = np.concatenate([self.existence, r_new])
+        ids = np.concatenate([self.ids, np.zeros(M, np.int64)])  # new: numbered below
+        weak = (r < c.r_recycle) & (r >= c.r_prune)
+        self._thin_and_prune_poisson((r[weak], x[weak], P[weak]))
+        keep = (r >= c.r_prune) & ~weak
+        self.x, self.P, self.existence, ids = x[keep], P[keep], r[keep], ids[keep]
+        born = ids == 0
+        ids[born] = np.arange(self.next_id, self.next_id + int(born.sum()))
+        self.next_id += int(born.sum())
+        self.ids = ids
         self.time = t
         self.n_scans += 1
         report = self.existence >= c.r_estimate
@@ -368,7 +379,7 @@ class PMBTracker(_PoissonTracker):
             cluster_sizes=sizes,
             cluster_seconds=seconds,
             cluster_methods=methods,
-            cluster_confirmed=[True] * len(sizes),
+            cluster_confirmed=[False] * len(sizes),
             cluster_fallbacks=fallbacks,
             n_coincident=n_coincident,
         )
@@ -521,6 +532,7 @@ class PMBMTracker(_PoissonTracker):
         hyp, logw = new_rows[keep], new_logw[keep]
         # Bernoullis too unlikely to exist are dropped from every hypothesis
         hyp = np.where((hyp >= 0) & (child_r[np.maximum(hyp, 0)] >= c.r_prune), hyp, -1)
+        recycled = self._recycle(hyp, logw, child_r, child_x, child_P)
         # hypotheses that became identical are one hypothesis
         hyp, inverse = np.unique(hyp, axis=0, return_inverse=True)
         inverse = inverse.reshape(-1)
@@ -548,7 +560,7 @@ class PMBMTracker(_PoissonTracker):
         self.track_ids = np.concatenate([self.track_ids[cols_kept[cols_kept < T]], new_ids])
         order = np.argsort(-self.hyp_logw, kind="stable")
         self.hyp, self.hyp_logw = self.hyp[order], self.hyp_logw[order]
-        self._thin_and_prune_poisson()
+        self._thin_and_prune_poisson(recycled)
         self.time = t
         self.n_scans += 1
         # estimator 1: the Bernoullis of the best global hypothesis with r ≥ r_estimate
@@ -570,6 +582,34 @@ class PMBMTracker(_PoissonTracker):
             n_unassociated=int((~gated).sum()),
             n_coincident=n_coincident,
         )
+
+    def _recycle(self, hyp, logw, child_r, child_x, child_P):
+        """Tracks whose existence is below ``r_recycle`` in every hypothesis go to the intensity.
+
+        Each such track's single-target hypotheses become Gaussian components
+        of the Poisson intensity with weight r × (total weight of the global
+        hypotheses holding them) (Williams 2012); the track is removed from
+        every hypothesis (``hyp`` is changed in place). Returns ``(w, m, P)``.
+        """
+        c = self.config
+        n = self.state_dim
+        none = (np.zeros(0), np.zeros((0, n)), np.zeros((0, n, n)))
+        if c.r_recycle <= 0 or hyp.shape[1] == 0:
+            return none
+        present = hyp >= 0
+        r_of = np.where(present, child_r[np.maximum(hyp, 0)], 0.0)
+        weak = (r_of < c.r_recycle).all(axis=0) & present.any(axis=0)
+        if not weak.any():
+            return none
+        wn = np.exp(logw - logw.max())
+        wn /= wn.sum()
+        sub = hyp[:, weak]
+        hh, tt = np.nonzero(sub >= 0)
+        s_idx = sub[hh, tt]
+        sths, inv = np.unique(s_idx, return_inverse=True)
+        w = np.bincount(inv.reshape(-1), wn[hh] * child_r[s_idx], minlength=len(sths))
+        hyp[:, weak] = -1
+        return w, child_x[sths], child_P[sths]
 
     def _hypotheses_after(self, z, rows, cols, L, log_L, miss, start, S, T, n_pairs):
         """Rows (H', T + M) of child-hypothesis indices and log weights of the new hypotheses.

@@ -80,6 +80,11 @@ class PMBMConfig:
         are merged (moment matching; 0 = never).
     max_poisson_components : cap on the Gaussian components kept (largest first).
     r_prune : Bernoulli components with existence below this are dropped.
+    r_recycle : Bernoullis (PMBM: tracks in every global hypothesis) with
+        existence below this are *recycled*: moved into the Poisson intensity
+        as Gaussian components of weight r (Williams 2012; 0 = never). A
+        clutter-born Bernoulli then costs no association work, and a real
+        target's evidence is kept in the intensity until it is strong.
     r_estimate : Bernoullis reported as targets have existence ≥ this
         (PMBM: in the most probable global hypothesis; estimator 1 of
         García-Fernández et al. 2018).
@@ -121,6 +126,7 @@ class PMBMConfig:
     poisson_merge: float = 4.0
     max_poisson_components: int = 100
     r_prune: float = 1e-5
+    r_recycle: float = 0.1
     r_estimate: float = 0.4
     max_hypotheses: int = 200
     hypothesis_prune: float = 1e-4
@@ -150,7 +156,7 @@ class PMBMConfig:
             set_(self, "prior_density", _non_negative("prior_density", self.prior_density))
         set_(self, "prior_weight", _non_negative("prior_weight", self.prior_weight))
         self._check_gaussian_birth()
-        for name in ("poisson_prune", "r_prune", "hypothesis_prune"):
+        for name in ("poisson_prune", "r_prune", "r_recycle", "hypothesis_prune"):
             v = _non_negative(name, getattr(self, name))
             if v >= 1:
                 raise _fail(name, "a number in [0, 1)", v)
