@@ -33,6 +33,7 @@ from jointtrack.trackers.config import check_field
 
 __all__ = [
     "DEFAULT_BIRTHS_PER_SCAN",
+    "DEFAULT_PRIOR_TARGETS",
     "JPDA_KINDS",
     "POISSON_KINDS",
     "SCENARIOS",
@@ -176,8 +177,8 @@ def load_config(path) -> RunConfig:
     )
     sensors = _sensor_tables(data.get("sensors", {}), str(path))
     pmbm = dict(data.get("pmbm", {}))
+    # which keys fit which kind is checked once the kind is known (--tracker wins over kind)
     check_pmbm_keys(pmbm, str(path))
-    check_kind_keys(options.get("kind"), tracker, pmbm, str(path))
     return RunConfig(
         tracker=tracker,
         scenario=scenario,
@@ -473,6 +474,11 @@ JPDA_ONLY_KEYS = (
 #: expected births per scan over the surveillance region when a scene states no birth
 #: model (every scene but ``many`` and ``coalescence``, and detection files)
 DEFAULT_BIRTHS_PER_SCAN = 0.01
+#: expected undetected targets over the region at the first scan (uniform birth model):
+#: runs start from nothing while the scenes' targets are there from the first scan, and
+#: the steady state of a small birth rate (PMBMConfig's default prior) would make the
+#: first detections of those targets look like clutter for many scans
+DEFAULT_PRIOR_TARGETS = 1.0
 
 
 def _pmbm_only_keys() -> tuple:
@@ -666,11 +672,21 @@ def make_pmbm_config(
         else:
             why = None
         if why:
-            notes.append(
-                f"PMB/PMBM birth model: uniform, {over['birth_density']:.4g} per unit "
-                f"{'area' if base.dim == 2 else 'volume'} per scan = {why} over the region "
-                f"({area:.4g})"
+            unit = "area" if base.dim == 2 else "volume"
+            text = (
+                f"PMB/PMBM birth model: uniform, {over['birth_density']:.4g} per unit {unit} "
+                f"per scan = {why} over the region ({area:.4g})"
             )
+            if "prior_density" not in pmbm:
+                p_s = float(user_tracker.get("p_survive", base.p_survive))
+                steady = over["birth_density"] / (1.0 - p_s * (1.0 - base.p_d))
+                over["prior_density"] = max(steady, DEFAULT_PRIOR_TARGETS / area)
+                text += (
+                    f"; prior {over['prior_density']:.4g} per unit {unit} at the first scan "
+                    f"(max of {DEFAULT_PRIOR_TARGETS:g} target over the region and the birth "
+                    "steady state)"
+                )
+            notes.append(text)
     if base.clutter_density is None and "clutter_density" not in pmbm:
         if scans is None:
             raise RunConfigError(
