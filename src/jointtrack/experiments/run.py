@@ -262,6 +262,9 @@ class _Source:
     # holds only what the user set and --resume --config compares like with like
     metric_defaults: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    # how the PMB/PMBM settings were chosen (birth model, clutter estimate): saved in the
+    # checkpoint, since a resumed run takes the checkpoint's settings as they are
+    tracker_notes: list = field(default_factory=list)
     kind: str = "position"  # of the scans: "position" or "range-bearing" ([r, θ] rows)
     sensor_ids: tuple | None = None  # per scan, the sensor id of each detection
     # metrics.json "scoring" (with a truth): how truth and tracks are compared
@@ -536,7 +539,7 @@ def _run(
 
     wall0 = time.perf_counter()
     console = console or Console(quiet=True)
-    notes = list(src.notes)
+    notes = list(src.notes) + list(src.tracker_notes)
 
     def warn(msg: str) -> None:
         notes.append(msg)
@@ -585,6 +588,9 @@ def _run(
                 )
             kind = saved_kind
             info = read_run(resume)
+            if not src.tracker_notes and isinstance(info, dict):
+                src.tracker_notes = [str(n) for n in info.get("tracker_notes") or []]
+                notes[len(src.notes) :] = src.tracker_notes + notes[len(src.notes) :]
             _check_resume(resume, info, trk, src, identity, out_dir, fmt)
             clusters = list(info.get("clusters", []))
             fallbacks.update(info.get("fallbacks", {}))
@@ -660,6 +666,7 @@ def _run(
                 "fallback_tiers": dict(tiers),
                 "coincident_returns": coincident[0],
                 "sensors": sensor_tables_to_run(sensor_tables),
+                "tracker_notes": list(src.tracker_notes),
                 "elapsed_seconds": seconds,
             }
 
@@ -935,7 +942,7 @@ def run_scenario(
         x0=scenario.truth_states[0] if start_from_truth else None,
         sigma=sigma,
         metric_defaults=scenario_metric_settings(scenario),
-        notes=notes,
+        tracker_notes=notes,
     )
     return _run(
         src,
@@ -1328,7 +1335,8 @@ def run_detections(
             region=region,
             scans=detections.scans if kind != "mixed" else None,
         )
-        notes.extend(pmbm_notes)
+    else:
+        pmbm_notes = []
     if options.get("resume") is not None:
         _check_resume_files(options["resume"], to_jsonable(identity, fallback="text"))
     src = _FileSource(
@@ -1345,6 +1353,7 @@ def run_detections(
         sigma=sigma,
         kind=plot_kind,
         scoring=scoring,
+        tracker_notes=pmbm_notes,
     )
     src.detections = detections  # stepped by _step_scan, sensors checked by _register_sensors
     return _run(src, cfg, out_dir, fmt=fmt, progress=progress, kind=tkind, **options)
