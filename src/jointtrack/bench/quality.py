@@ -375,9 +375,7 @@ def _series(qs: list[TrackingQuality], length: int, parts: list[dict] | None = N
     for key, attr in keys:
         m = np.full((len(qs), length), np.nan)
         for i, q in enumerate(qs):
-            v = getattr(q, attr) if key in ("truths", "true_tracks", "false_tracks", "gospa") else (
-                parts[i][attr]
-            )
+            v = parts[i][attr] if key.startswith("gospa_") else getattr(q, attr)
             m[i, : v.size] = v
         with np.errstate(all="ignore"):
             ok = ~np.all(np.isnan(m), axis=0)
