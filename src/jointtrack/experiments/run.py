@@ -73,6 +73,10 @@ Config file (``--config FILE``, TOML)
     n_scans = 20           # any keyword of the scenario function, e.g.
     clutter_per_scan = 5   # bojilov: clutter_density (β), n_scans, speeds, …
 
+    [pmbm]                 # --tracker pmb|pmbm only: PMBMConfig fields that are not
+    r_estimate = 0.4       # [tracker] fields (birth_model, birth_density, prior_density,
+    max_hypotheses = 200   # birth_weights/means/covs, prior_weight, pruning, …)
+
     [metrics]
     c = 50.0               # GOSPA/OSPA cut-off (default 5σ; coalescence: 10, its paper's)
     switch_penalty = 0.0   # GOSPA identity-switch penalty
@@ -84,6 +88,35 @@ not match the detections (range–bearing detections without ``sensor =
 "range-bearing"``, or positions with it). ``tracks.csv`` holds Cartesian states
 for either sensor. ``--scenario``, ``--seed`` and ``--start-from`` on the command
 line override ``name``, ``seed`` and ``start_from``.
+
+Tracker kinds (``--tracker``, or ``[tracker] kind``)
+--------------------------------------------------
+``jipda`` (the default): :class:`~jointtrack.trackers.JPDATracker` with JIPDA
+existence (``existence = true``); ``jpda``: the same tracker with M-of-N
+confirmation (``existence = false``; setting ``existence`` against the kind is an
+error); ``pmb`` / ``pmbm``: :class:`~jointtrack.trackers.pmbm.PMBTracker` /
+:class:`~jointtrack.trackers.pmbm.PMBMTracker`; ``particle``: below.
+``metrics.json`` ``tracker.kind`` and the summary's ``tracker`` row name it.
+
+The PMB/PMBM settings (:func:`~jointtrack.experiments.config.make_pmbm_config`)
+share the derived JPDA settings above (motion, R, P_D, P_S, association,
+``max_speed`` …) except P_G, which is PMBMConfig's 0.9999 unless ``[tracker]``
+sets ``p_g`` (the scenes' 0.99 is a JPDA gate whose miss weight carries
+1 − P_D P_G; the Poisson weights have no gate factor). Birth model: coalescence's
+own Gaussian birth and prior (``scenario.info``, with its P_S); ``many``: uniform
+births at its birth rate over its region; the other scenes and detection files:
+uniform births of 0.01 per scan over the scene's region (the detections' bounding
+box), with a prior of one undetected target over the region at the first scan.
+Without a clutter density (a detections file without ``clutter_density``, or
+``"estimate"``) λ is estimated as (mean detections per scan) / (bounding-box area
+of the detections, in measurement coordinates) — an upper bound, since every
+detection counts as clutter; a note in ``metrics.json`` and the summary says so,
+and these notes are kept in the checkpoint. ``[tracker]`` keys of the JPDA track
+logic (``existence``, ``r_confirm``, ``confirm_m``, …) are refused with ``pmb``
+and ``pmbm``, a ``[pmbm]`` table with the JPDA kinds. They start from nothing
+(``--start-from truth`` is refused). Checkpoints hold the tracker's kind;
+``--resume`` rebuilds that kind and refuses a ``--tracker`` (or ``kind``) that
+differs.
 
 Particle tracker (``--tracker particle``)
 -----------------------------------------
