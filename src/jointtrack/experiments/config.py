@@ -592,7 +592,8 @@ def bounding_box_clutter(scans, dim: int) -> tuple[float, str]:
     note = (
         f"clutter density not given: estimated as {lam:.4g} = mean detections per scan "
         f"({len(allz) / max(len(pts), 1):.4g}) / bounding-box {'area' if dim == 2 else 'volume'} "
-        f"of the detections ({volume:.4g}) — an upper bound (every detection counted as clutter)"
+        f"of the detections in measurement coordinates ({volume:.4g}) — an upper bound (every "
+        "detection counted as clutter)"
     )
     return lam, note
 
