@@ -74,8 +74,9 @@ def bench_quality(
     quick: bool = typer.Option(False, "--quick", help="Fewer seeds and scans; about a minute."),
     out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
 ) -> None:
-    """Tracking quality from nothing: time to confirm, targets held, false tracks, GOSPA —
-    beside Stone Soup's tutorial JPDA tracker on the same detections."""
+    """Tracking quality from nothing — JIPDA, JPDA, PMB and PMBM beside Stone Soup's tutorial
+    JPDA tracker on the same detections: time to confirm, targets held, false tracks, GOSPA
+    and its parts per scan (PNG with --out)."""
     _run_bench("quality", quick, out)
 
 
