@@ -384,7 +384,7 @@ def test_cli_particle_run_from_a_config_file(tmp_path):
         (["--weights", "saddle"], ["--weights", "particle tracker only"]),
         (["--particles", "10"], ["--particles", "particle tracker only"]),
         (["--tracker", "jpda", "--weights", "exact"], ["--tracker jpda"]),
-        (["--tracker", "kalman"], ["--tracker must be jpda or particle"]),
+        (["--tracker", "kalman"], ["--tracker must be jpda or jipda or pmb or pmbm or particle"]),
         (["--tracker", "particle", "--weights", "fast"], ["--weights must be one of"]),
         (["--tracker", "particle", "--particles", "0"], ["--particles", "≥ 1"]),
         (["--tracker", "particle", "--scenario", "many"], ["born or die"]),

@@ -74,8 +74,9 @@ def bench_quality(
     quick: bool = typer.Option(False, "--quick", help="Fewer seeds and scans; about a minute."),
     out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
 ) -> None:
-    """Tracking quality from nothing: time to confirm, targets held, false tracks, GOSPA —
-    beside Stone Soup's tutorial JPDA tracker on the same detections."""
+    """Tracking quality from nothing — JIPDA, JPDA, PMB and PMBM beside Stone Soup's tutorial
+    JPDA tracker on the same detections: time to confirm, targets held, false tracks, GOSPA
+    and its parts per scan (PNG with --out)."""
     _run_bench("quality", quick, out)
 
 
@@ -177,10 +178,11 @@ def run_command(
         str | None,
         typer.Option(
             "--tracker",
-            metavar="[jpda|particle]",
-            help="jpda (default): the Kalman JPDA tracker; particle: particle JPDA of the "
-            "scenario's known targets, started from the truth (bojilov, crossing; no "
-            "checkpoints). Overrides kind in \\[tracker].",
+            metavar="[jipda|jpda|pmb|pmbm|particle]",
+            help="jipda (default): Kalman JPDA with JIPDA existence; jpda: Kalman JPDA with "
+            "M-of-N confirmation; pmb / pmbm: Poisson multi-Bernoulli (mixture), settings in "
+            "\\[pmbm]; particle: particle JPDA of the scenario's known targets, started from "
+            "the truth (bojilov, crossing; no checkpoints). Overrides kind in \\[tracker].",
         ),
     ] = None,
     weights: Annotated[
@@ -250,7 +252,19 @@ def run_command(
                     "continues a checkpointed Kalman JPDA run; the particle tracker has no "
                     "checkpoints"
                 )
+        given = runmod.load_config(config) if config is not None else runmod.RunConfig()
+        asked_kind = tracker if tracker is not None else given.tracker_options.get("kind")
+        saved_cfg = None
         if resume is not None:
+            saved_kind, saved_cfg = _checkpoint_tracker(resume)
+            if asked_kind is not None and asked_kind != saved_kind:
+                flag = "--tracker" if tracker is not None else f"--config {config} kind"
+                raise runmod.RunConfigError(
+                    f"{flag} {asked_kind} conflicts with the checkpoint {resume}, which holds "
+                    f"the state of a {saved_kind} tracker; omit it (--resume continues with "
+                    "the checkpoint's tracker)"
+                )
+            tracker = saved_kind
             detections, config, scenario, seed, out, fmt, checkpoint_every, restored = (
                 _from_checkpoint(
                     resume,
@@ -283,6 +297,14 @@ def run_command(
         particle = runmod.particle_options(
             tracker, weights, particles, cfg.tracker_options, cfg.tracker, source=cfg.source
         )
+        kind = None
+        if particle is None:
+            kind = runmod.tracker_kind(tracker, cfg.tracker_options, cfg.tracker)
+            runmod.check_kind_keys(kind, cfg.tracker, cfg.pmbm, cfg.source)
+        jpda_table = cfg.tracker
+        if kind in runmod.JPDA_KINDS:
+            jpda_table = runmod.jpda_kind_overrides(kind, cfg.tracker)
+        kind_opts = {} if particle is not None else {"tracker": kind, "pmbm": cfg.pmbm}
         if particle is not None:
             if detections is not None:
                 raise runmod.RunConfigError(
@@ -335,7 +357,7 @@ def run_command(
 
             dets = read_detections(detections)
             tracker_cfg = runmod.make_tracker_config(
-                {"dim": dets.dim}, cfg.tracker, source=cfg.source
+                {"dim": dets.dim}, jpda_table, source=cfg.source
             )
             runmod.check_sensor(tracker_cfg, dets.kind, str(detections), cfg.source)
             if tracker_cfg.dim != dets.dim:
@@ -351,8 +373,11 @@ def run_command(
                     highlight=False,
                     soft_wrap=True,
                 )
+            if kind in runmod.POISSON_KINDS:
+                # the [tracker] keys as the user set them (p_g: see make_pmbm_config)
+                tracker_cfg = saved_cfg if saved_cfg is not None else dict(cfg.tracker)
             metrics = runmod.run_detections(
-                dets, tracker_cfg, truth=truth, sensors=cfg.sensors, **common
+                dets, tracker_cfg, truth=truth, sensors=cfg.sensors, **kind_opts, **common
             )
         else:
             sc_table = dict(cfg.scenario)
@@ -368,7 +393,7 @@ def run_command(
             start = start_from if start_from is not None else table_start
             sc = runmod.make_scenario(name, sd, sc_table, source=cfg.source)
             tracker_cfg = runmod.make_tracker_config(
-                runmod.scenario_tracker_settings(sc), cfg.tracker, source=cfg.source
+                runmod.scenario_tracker_settings(sc), jpda_table, source=cfg.source
             )
             if tracker_cfg.dim != sc.dim:
                 raise runmod.RunConfigError(
@@ -376,12 +401,15 @@ def run_command(
                     f"{name} is {sc.dim}-D"
                 )
             runmod.check_sensor(tracker_cfg, "position", f"scenario {name}", cfg.source)
+            if kind in runmod.POISSON_KINDS:
+                tracker_cfg = saved_cfg if saved_cfg is not None else dict(cfg.tracker)
             metrics = runmod.run_scenario(
                 sc,
                 tracker_cfg,
                 scenario_kwargs=sc_table,
                 start_from=start,
                 particle=particle,
+                **kind_opts,
                 **common,
             )
     except KeyboardInterrupt:
@@ -502,10 +530,11 @@ def _from_checkpoint(
     table = {} if "detections" in inputs else dict(inputs.get("kwargs") or {})
     if "start_from_truth" in inputs:
         table["start_from_truth"] = inputs["start_from_truth"]
-    from jointtrack.trackers import JPDATracker
-
-    tracker = JPDATracker.load(resume).config.to_dict()  # exactly the checkpoint's settings
-    tracker = {k: list(v) if isinstance(v, tuple) else v for k, v in tracker.items()}
+    trk = runmod.load_tracker(resume)
+    tracker = {}  # a PMB/PMBM run continues with the checkpoint's PMBMConfig as it is
+    if runmod.tracker_kind_of(trk) in runmod.JPDA_KINDS:
+        tracker = trk.config.to_dict()  # exactly the checkpoint's settings
+        tracker = {k: list(v) if isinstance(v, tuple) else v for k, v in tracker.items()}
     restored = runmod.RunConfig(
         tracker=tracker,
         scenario=table,
@@ -545,6 +574,16 @@ def _from_checkpoint(
         checkpoint_every if checkpoint_every is not None else info.get("checkpoint_every"),
         restored,
     )
+
+
+def _checkpoint_tracker(resume):
+    """``(kind, config)`` of the tracker a checkpoint holds (config None for JPDA kinds,
+    whose settings are rebuilt from the checkpoint's table by :func:`_from_checkpoint`)."""
+    from jointtrack.experiments import run as runmod
+
+    trk = runmod.load_tracker(resume)
+    kind = runmod.tracker_kind_of(trk)
+    return kind, (trk.config if kind in runmod.POISSON_KINDS else None)
 
 
 def _truth_from_checkpoint(resume, truth):

@@ -36,6 +36,10 @@ area of an NCV filter with the *tracker's* q and the scene's σ
   targets on lanes 20 m apart drifting into one cluster, σ = 10, P_D = 0.9,
   81 scans (quick 41), exactly one false return per nominal 99 % gate of the
   truth's q (≈ 1.1 per gate of the tracker's larger q); c = 20.
+* **coalescence** — :func:`scenarios.coalescence`: Williams' four targets that
+  meet at the midpoint (one dies there), σ = 1, P_D = 0.9, Poisson(10) clutter
+  on [0, 300]², 81 scans (quick 21); c = 10, the GOSPA cut-off of
+  García-Fernández et al. (2018), whose PMBM set-up the scene mirrors.
 
 Trackers ("configurations")
 ---------------------------
@@ -47,6 +51,17 @@ q = 10⁻⁴, and a tracker is not told its targets are that benign),
 max_speed = 1.5 × the fastest true speed, p_g = 0.99; everything else is
 ``TrackerConfig``'s default.
 :data:`CONFIGURATIONS` lists (name, overrides) — add entries to compare more.
+
+The PMB and PMBM trackers (:data:`POISSON_CONFIGURATIONS`,
+:mod:`jointtrack.trackers.pmbm`) share those settings (P_G is their own 0.9999:
+their weights have no gate factor) with the birth model ``jointtrack run --tracker
+pmbm`` derives (:func:`jointtrack.bench.tracking_runs.poisson_config`): the paper's
+Gaussian birth and prior on coalescence; elsewhere uniform births of 0.01 per scan
+over the scene's region (0.2 per scan on births, the scene's own rate) with a
+prior of one undetected target over the region at the first scan. PMBM's cost grows
+with the global hypotheses it keeps, so each PMB/PMBM run has a time budget
+(``POISSON_BUDGET``: 120 s, quick 8 s) and is reported over the scans it completed,
+as Stone Soup's are.
 
 Stone Soup's tutorial JPDA tracker is the tracker of Stone Soup's example
 "Comparing Efficient Hypothesis Management (EHM) with probability associators"
@@ -108,7 +123,10 @@ every target confirmed within 10 scans of its first detection; held in
 per scan; mean GOSPA below Stone Soup's tutorial tracker on the same
 detections. With ``--out FILE`` the results are also written as JSON and a
 plot next to it (``<stem>_quality.png``): per scene, targets vs confirmed
-true and false tracks over time (mean over seeds) and GOSPA per scan.
+true and false tracks over time (mean over seeds) and GOSPA per scan; and
+``<stem>_gospa_parts.png``: per scene, GOSPA's three parts per scan —
+localisation, missed targets, false tracks (m², α = 2, p = 2; GOSPA² is their
+sum) — for every tracker, Stone Soup's included.
 """
 
 from __future__ import annotations
@@ -124,7 +142,7 @@ import numpy as np
 from rich.table import Table
 
 from jointtrack._console import make_console
-from jointtrack.bench.quality_plot import plot_quality
+from jointtrack.bench.quality_plot import plot_gospa_parts, plot_quality
 from jointtrack.bench.stonesoup_tracker import run_stonesoup, stonesoup_available
 from jointtrack.bench.tracking_runs import (
     TrackRun,
@@ -132,11 +150,12 @@ from jointtrack.bench.tracking_runs import (
     first_detections,
     physical_config,
     run_jointtrack,
+    run_poisson,
     tracker_gate_area,
 )
 from jointtrack.io import to_jsonable
-from jointtrack.metrics import TrackingQuality, tracking_quality
-from jointtrack.scenarios import abreast, bojilov, crossing, many_targets
+from jointtrack.metrics import TrackingQuality, gospa_series, tracking_quality
+from jointtrack.scenarios import abreast, bojilov, coalescence, crossing, many_targets
 
 #: (name, TrackerConfig overrides on top of :func:`physical_config`); the first is the
 #: configuration the targets are checked for.
@@ -144,7 +163,14 @@ CONFIGURATIONS: list[tuple[str, dict]] = [
     ("jointtrack (default)", {}),
     ("jointtrack two-point M-of-N", {"existence": False}),
 ]
+#: (name, kind) of the Poisson trackers, run with :func:`poisson_config` of the scene
+POISSON_CONFIGURATIONS: list[tuple[str, str]] = [
+    ("jointtrack PMB", "pmb"),
+    ("jointtrack PMBM", "pmbm"),
+]
 STONESOUP = "Stone Soup tutorial JPDA (EHM2)"
+#: seconds per PMB/PMBM run (full, quick): PMBM's cost grows with the hypotheses kept
+POISSON_BUDGET = {False: 120.0, True: 8.0}
 
 SEEDS_FULL = (0, 1, 2)
 SEEDS_QUICK = (0,)
@@ -208,6 +234,11 @@ def make_heavy(seed: int, quick: bool = False):
     return bojilov(1.0, seed, n_scans=41 if quick else 81)
 
 
+def make_coalescence(seed: int, quick: bool = False):
+    # odd: the targets meet at the midpoint step (n_steps + 1)/2
+    return coalescence(seed, n_steps=21 if quick else 81)
+
+
 SCENES: tuple[Scene, ...] = (
     Scene(
         "abreast",
@@ -230,6 +261,13 @@ SCENES: tuple[Scene, ...] = (
     ),
     Scene(
         "heavy clutter", "Bojilov's 5 lanes, β = 1 false return per gate, σ = 10", make_heavy, 20.0
+    ),
+    Scene(
+        "coalescence",
+        "4 targets meeting mid-run (Williams 2015), σ = 1, 10 clutter/scan; GOSPA c = 10 as "
+        "in García-Fernández et al. 2018",
+        make_coalescence,
+        10.0,
     ),
 )
 
@@ -307,18 +345,37 @@ def pool(qs: list[TrackingQuality], runs: list[TrackRun], n_full: list[int]) -> 
     )
 
 
-def _series(qs: list[TrackingQuality], length: int) -> dict:
-    """Per-scan means over seeds (NaN where no seed reached the scan), for the plot."""
+def gospa_parts(sc, run: TrackRun, gate: float) -> dict:
+    """Per scan (the scans the run completed) the GOSPA parts (α = 2, p = 2, c = ``gate``):
+    ``localisation``, ``missed``, ``false``, in m² (GOSPA² = their sum)."""
+    k = run.n_scans
+    scans = sc.times[:k]
+    tt, ti, tp = sc.truth_table()
+    keep = tt <= scans[-1] if k else np.zeros(tt.size, dtype=bool)
+    g = gospa_series(tt[keep], ti[keep], tp[keep], run.times, run.ids, run.positions, c=gate, p=2)
     out = {}
-    for key, attr in (
+    for name in ("localisation", "missed", "false"):
+        v = np.zeros(k)
+        v[np.searchsorted(scans, g.times)] = getattr(g, name)
+        out[name] = v
+    return out
+
+
+def _series(qs: list[TrackingQuality], length: int, parts: list[dict] | None = None) -> dict:
+    """Per-scan means over seeds (NaN where no seed reached the scan), for the plots."""
+    out = {}
+    keys = [
         ("truths", "n_truths_per_scan"),
         ("true_tracks", "n_associated_per_scan"),
         ("false_tracks", "n_false_per_scan"),
         ("gospa", "gospa_per_scan"),
-    ):
+    ]
+    if parts is not None:
+        keys += [(f"gospa_{n}", n) for n in ("localisation", "missed", "false")]
+    for key, attr in keys:
         m = np.full((len(qs), length), np.nan)
         for i, q in enumerate(qs):
-            v = getattr(q, attr)
+            v = parts[i][attr] if key.startswith("gospa_") else getattr(q, attr)
             m[i, : v.size] = v
         with np.errstate(all="ignore"):
             ok = ~np.all(np.isnan(m), axis=0)
@@ -459,7 +516,14 @@ def run(quick: bool = False, out: str | None = None) -> dict:
         results["stonesoup"] = stonesoup.__version__
     else:
         console.print(f"{STONESOUP}: not installed (pip install stonesoup==1.9.1); jointtrack only")
-    trackers = [n for n, _ in CONFIGURATIONS] + ([STONESOUP] if have_ss else [])
+    poisson_budget = POISSON_BUDGET[bool(quick)]
+    results["poisson_budget_seconds"] = poisson_budget
+    results["poisson_configurations"] = [[n, k] for n, k in POISSON_CONFIGURATIONS]
+    trackers = (
+        [n for n, _ in CONFIGURATIONS]
+        + [n for n, _ in POISSON_CONFIGURATIONS]
+        + ([STONESOUP] if have_ss else [])
+    )
     logging.disable(logging.WARNING)
     t_start = time.perf_counter()
     try:
@@ -470,6 +534,7 @@ def run(quick: bool = False, out: str | None = None) -> dict:
             for scene in SCENES:
                 qs: dict = {n: [] for n in trackers}
                 runs: dict = {n: [] for n in trackers}
+                parts: dict = {n: [] for n in trackers}
                 scenarios = []
                 for seed in seeds:
                     sc = scene.make(seed, quick)
@@ -479,6 +544,18 @@ def run(quick: bool = False, out: str | None = None) -> dict:
                         r = run_jointtrack(sc, physical_config(sc, **overrides))
                         runs[name].append(r)
                         qs[name].append(evaluate(sc, r, scene.gate))
+                        parts[name].append(gospa_parts(sc, r, scene.gate))
+                        bar.advance(task)
+                    for name, kind in POISSON_CONFIGURATIONS:
+                        bar.update(
+                            task,
+                            description=f"{scene.name}, seed {seed}: {name} "
+                            f"(≤ {poisson_budget:.0f} s)",
+                        )
+                        r = run_poisson(sc, kind, budget=poisson_budget)
+                        runs[name].append(r)
+                        qs[name].append(evaluate(sc, r, scene.gate))
+                        parts[name].append(gospa_parts(sc, r, scene.gate))
                         bar.advance(task)
                     if have_ss:
                         bar.update(
@@ -489,8 +566,9 @@ def run(quick: bool = False, out: str | None = None) -> dict:
                         r = run_stonesoup(sc, budget)
                         runs[STONESOUP].append(r)
                         qs[STONESOUP].append(evaluate(sc, r, scene.gate))
+                        parts[STONESOUP].append(gospa_parts(sc, r, scene.gate))
                         bar.advance(task)
-                per_scene[scene.name] = (scenarios, qs, runs)
+                per_scene[scene.name] = (scenarios, qs, runs, parts)
     finally:
         logging.disable(logging.NOTSET)
     wall = time.perf_counter() - t_start
@@ -498,7 +576,7 @@ def run(quick: bool = False, out: str | None = None) -> dict:
     default = CONFIGURATIONS[0][0]
     all_pass = True
     for scene in SCENES:
-        scenarios, qs, runs = per_scene[scene.name]
+        scenarios, qs, runs, parts = per_scene[scene.name]
         n_full = [sc.n_scans for sc in scenarios]
         rows = {n: pool(qs[n], runs[n], n_full) for n in trackers}
         res = dict(
@@ -511,7 +589,8 @@ def run(quick: bool = False, out: str | None = None) -> dict:
             clutter_per_gate=float(np.mean([clutter_per_gate(sc) for sc in scenarios])),
             rows=rows,
             series={
-                n: {k: v.tolist() for k, v in _series(qs[n], max(n_full)).items()} for n in trackers
+                n: {k: v.tolist() for k, v in _series(qs[n], max(n_full), parts[n]).items()}
+                for n in trackers
             },
         )
         if have_ss:
@@ -545,6 +624,9 @@ def run(quick: bool = False, out: str | None = None) -> dict:
         try:
             results["plot"] = str(plot_quality(results, png, CONFIGURATIONS[0][0], STONESOUP))
             console.print(f"quality plot: {png}")
+            png = Path(out).with_name(Path(out).stem + "_gospa_parts.png")
+            results["parts_plot"] = str(plot_gospa_parts(results, png, STONESOUP))
+            console.print(f"GOSPA parts per scan: {png}")
         except ImportError as exc:  # matplotlib is a dependency, but say so rather than fail
             console.print(f"quality plot not written: {exc}")
         with open(out, "w") as fh:

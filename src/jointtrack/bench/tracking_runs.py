@@ -105,3 +105,41 @@ def run_jointtrack(sc, cfg: TrackerConfig) -> TrackRun:
         seconds += time.perf_counter() - t0
         rows += [(t, i, x[0], x[1]) for i, x in zip(r.ids.tolist(), r.x, strict=True)]
     return rows_to_run(rows, seconds, sc.n_scans)
+
+
+def poisson_config(sc, **pmbm):
+    """The PMB/PMBM settings of a scene: :func:`physical_config`'s shared settings and the
+    birth model ``jointtrack run --tracker pmbm`` derives for it
+    (:func:`jointtrack.experiments.config.make_pmbm_config`: the scene's Gaussian birth
+    and prior for coalescence, else uniform births over its region), plus ``pmbm``
+    overrides (PMBMConfig fields)."""
+    from jointtrack.experiments.config import make_pmbm_config
+
+    cfg, _ = make_pmbm_config(physical_config(sc), {}, pmbm, scenario=sc, region=sc.region)
+    return cfg
+
+
+def run_poisson(sc, kind: str, cfg=None, budget: float | None = None) -> TrackRun:
+    """Run the PMB (``kind="pmb"``) or PMBM (``"pmbm"``) tracker over the scene from
+    nothing; time ``step`` only. With ``budget`` seconds the run stops at the budget
+    (the interrupted step leaves the tracker as it was) and reports the scans completed."""
+    from jointtrack.bench.stonesoup_tracker import _OutOfTime, _time_limit
+    from jointtrack.trackers.pmbm import PMBMTracker, PMBTracker
+
+    trk = {"pmb": PMBTracker, "pmbm": PMBMTracker}[kind](cfg or poisson_config(sc))
+    rows: list = []
+    seconds = 0.0
+    done = 0
+    t0 = time.perf_counter()
+    try:
+        with _time_limit(budget):
+            for k, (t, z) in enumerate(zip(sc.times, sc.detections, strict=True)):
+                t0 = time.perf_counter()
+                r = trk.step(t, z)
+                seconds += time.perf_counter() - t0
+                rows += [(t, i, x[0], x[1]) for i, x in zip(r.ids.tolist(), r.x, strict=True)]
+                done = k + 1
+    except _OutOfTime:
+        seconds += time.perf_counter() - t0
+    rows = [r for r in rows if r[0] <= sc.times[done - 1]] if done else []
+    return rows_to_run(rows, seconds, done, done == sc.n_scans)

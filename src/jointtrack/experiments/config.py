@@ -32,6 +32,10 @@ from jointtrack.trackers import JPDATracker, TrackerConfig
 from jointtrack.trackers.config import check_field
 
 __all__ = [
+    "DEFAULT_BIRTHS_PER_SCAN",
+    "DEFAULT_PRIOR_TARGETS",
+    "JPDA_KINDS",
+    "POISSON_KINDS",
     "SCENARIOS",
     "STARTS",
     "TRACKER_KINDS",
@@ -39,10 +43,14 @@ __all__ = [
     "TRUTH_START_NOTE",
     "RunConfig",
     "RunConfigError",
+    "bounding_box_clutter",
+    "check_kind_keys",
+    "check_pmbm_keys",
     "check_sensor",
     "default_start",
     "load_config",
     "make_scenario",
+    "make_pmbm_config",
     "make_tracker_config",
     "particle_options",
     "scenario_metric_settings",
@@ -51,6 +59,7 @@ __all__ = [
     "start_truth_particles",
     "start_truth_tracks",
     "steady_state_covariance",
+    "tracker_kind",
 ]
 
 SCENARIOS = tuple(GENERATORS)  # bojilov, crossing, many, abreast, coalescence
@@ -78,9 +87,11 @@ class RunConfig:
     sensors: dict = field(default_factory=dict)  # sensor id (int or str) → [sensors.NAME] table
     # which tracker: [tracker] keys kind / weights / particles (see particle_options)
     tracker_options: dict = field(default_factory=dict)
+    # [pmbm]: PMB/PMBM-only settings (PMBM_KEYS), for kind = "pmb" or "pmbm"
+    pmbm: dict = field(default_factory=dict)
 
 
-_TABLES = ("tracker", "scenario", "metrics", "sensors")
+_TABLES = ("tracker", "scenario", "metrics", "sensors", "pmbm")
 _SENSOR_KEYS = (
     "id",
     "type",
@@ -165,6 +176,9 @@ def load_config(path) -> RunConfig:
         scenario.get("start_from"), scenario.get("start_from_truth"), f"{path}: [scenario]"
     )
     sensors = _sensor_tables(data.get("sensors", {}), str(path))
+    pmbm = dict(data.get("pmbm", {}))
+    # which keys fit which kind is checked once the kind is known (--tracker wins over kind)
+    check_pmbm_keys(pmbm, str(path))
     return RunConfig(
         tracker=tracker,
         scenario=scenario,
@@ -172,6 +186,7 @@ def load_config(path) -> RunConfig:
         source=str(path),
         sensors=sensors,
         tracker_options=options,
+        pmbm=pmbm,
     )
 
 
@@ -311,8 +326,13 @@ def _check_tracker_keys(d: Mapping, where: str) -> None:
 
 # ----------------------------------------------------------------------------- which tracker
 
-#: ``jointtrack run --tracker``: the Kalman JPDA tracker (default) or the particle JPDA tracker
-TRACKER_KINDS = ("jpda", "particle")
+#: ``jointtrack run --tracker``: the Kalman JPDA tracker with M-of-N confirmation ("jpda")
+#: or JIPDA existence ("jipda"; the default, ``existence = true``), the PMB and PMBM
+#: trackers, or the particle JPDA tracker
+TRACKER_KINDS = ("jpda", "jipda", "pmb", "pmbm", "particle")
+#: kinds run by :class:`~jointtrack.trackers.JPDATracker` / by the Poisson trackers
+JPDA_KINDS = ("jpda", "jipda")
+POISSON_KINDS = ("pmb", "pmbm")
 #: ``[tracker]`` keys that choose the tracker rather than set a TrackerConfig field
 TRACKER_OPTION_KEYS = ("kind", "weights", "particles")
 
@@ -432,6 +452,257 @@ def make_tracker_config(
         return TrackerConfig.from_dict(d)
     except (ValueError, TypeError) as exc:
         raise RunConfigError(f"{where}: [tracker] {_one_line(exc)}") from None
+
+
+# ----------------------------------------------------------------------------- PMB / PMBM
+
+#: ``[tracker]`` keys the PMB / PMBM trackers do not have (JPDA/JIPDA track logic)
+JPDA_ONLY_KEYS = (
+    "initiation",
+    "confirm_m",
+    "confirm_n",
+    "delete_misses",
+    "max_position_std",
+    "existence",
+    "r_init",
+    "r_confirm",
+    "r_delete",
+    "r_report",
+    "merge_threshold",
+    "miss_model",
+)
+#: expected births per scan over the surveillance region when a scene states no birth
+#: model (every scene but ``many`` and ``coalescence``, and detection files)
+DEFAULT_BIRTHS_PER_SCAN = 0.01
+#: expected undetected targets over the region at the first scan (uniform birth model):
+#: runs start from nothing while the scenes' targets are there from the first scan, and
+#: the steady state of a small birth rate (PMBMConfig's default prior) would make the
+#: first detections of those targets look like clutter for many scans
+DEFAULT_PRIOR_TARGETS = 1.0
+
+
+def _pmbm_only_keys() -> tuple:
+    """The :class:`~jointtrack.trackers.pmbm_config.PMBMConfig` fields that are not
+    ``TrackerConfig`` fields: the keys of a ``[pmbm]`` table."""
+    from jointtrack.trackers.pmbm_config import PMBMConfig
+
+    shared = {f.name for f in dataclasses.fields(TrackerConfig)}
+    return tuple(f.name for f in dataclasses.fields(PMBMConfig) if f.name not in shared)
+
+
+def check_pmbm_keys(table: Mapping, where: str) -> None:
+    """Known keys of a ``[pmbm]`` table (values are checked when the config is built)."""
+    known = _pmbm_only_keys()
+    for key, value in table.items():
+        if key not in known:
+            raise RunConfigError(
+                f"{where}: unknown key '{key}' in [pmbm] (known: {', '.join(known)})"
+            )
+        if isinstance(value, Mapping):
+            raise RunConfigError(f"{where}: [pmbm] key '{key}' must be a value, not a table")
+
+
+def check_kind_keys(kind, tracker: Mapping, pmbm: Mapping, where: str | None) -> None:
+    """Settings that do not belong to the tracker ``kind`` (None: JPDA/JIPDA by ``existence``).
+
+    The PMB/PMBM trackers have no JPDA track logic (:data:`JPDA_ONLY_KEYS` in
+    ``[tracker]``); the JPDA trackers take no ``[pmbm]`` table; ``kind = "jpda"``
+    (M-of-N) with ``existence = true``, or ``"jipda"`` with ``existence = false``,
+    contradict each other. Raises :class:`RunConfigError` naming the keys.
+    """
+    at = f"{where}: " if where else ""
+    if kind in POISSON_KINDS:
+        bad = sorted(k for k in tracker if k in JPDA_ONLY_KEYS)
+        if bad:
+            raise RunConfigError(
+                f"{at}[tracker] key(s) {', '.join(bad)} set the JPDA track logic, which the "
+                f"{kind} tracker does not have; remove them (its own settings go in [pmbm]: "
+                f"{', '.join(_pmbm_only_keys())})"
+            )
+        return
+    if pmbm and kind != "particle":
+        what = f'kind = "{kind}"' if kind else "the JPDA tracker (no kind set)"
+        raise RunConfigError(
+            f'{at}[pmbm] applies to kind = "pmb" or "pmbm" only, but this run uses {what}; '
+            "remove [pmbm] or choose --tracker pmb|pmbm"
+        )
+    if pmbm:
+        raise RunConfigError(f"{at}[pmbm] does not apply to the particle tracker")
+    existence = tracker.get("existence")
+    if kind == "jpda" and existence is True:
+        raise RunConfigError(
+            f'{at}kind "jpda" is JPDA with M-of-N confirmation, but [tracker] existence = true '
+            'asks for JIPDA existence: use kind "jipda" (or remove existence)'
+        )
+    if kind == "jipda" and existence is False:
+        raise RunConfigError(
+            f'{at}kind "jipda" is JPDA with JIPDA existence, but [tracker] existence = false '
+            'asks for M-of-N confirmation: use kind "jpda" (or remove existence)'
+        )
+
+
+def tracker_kind(flag=None, table: Mapping | None = None, tracker: Mapping | None = None) -> str:
+    """The kind of tracker a run uses: ``--tracker`` (``flag``), else ``[tracker] kind``,
+    else the JPDA tracker named by ``existence`` (``"jipda"`` by default, ``"jpda"`` with
+    ``existence = false``)."""
+    kind = flag if flag is not None else (table or {}).get("kind")
+    if kind is not None:
+        return kind
+    return "jpda" if (tracker or {}).get("existence") is False else "jipda"
+
+
+def jpda_kind_overrides(kind: str, tracker: Mapping) -> dict:
+    """``[tracker]`` overrides with ``existence`` set by a JPDA kind (``jpda``: M-of-N)."""
+    out = dict(tracker)
+    if kind == "jpda":
+        out["existence"] = False
+    elif kind == "jipda":
+        out["existence"] = True
+    return out
+
+
+def kind_of_config(cfg) -> str:
+    """The kind a tracker configuration runs: ``jpda``/``jipda`` (TrackerConfig, by
+    ``existence``); a PMBMConfig does not say whether it is PMB or PMBM (None)."""
+    if isinstance(cfg, TrackerConfig):
+        return "jipda" if cfg.existence else "jpda"
+    return None
+
+
+def bounding_box_clutter(scans, dim: int) -> tuple[float, str]:
+    """An upper bound on the clutter density from detections alone: ``(λ, note)``.
+
+    λ = (mean detections per scan) / (volume of the detections' bounding box): every
+    detection is counted as clutter and the box is the smallest that holds them, so
+    the true clutter density is below it (targets' returns are counted too). The
+    detections are taken in measurement coordinates (a range–bearing sensor's λ is
+    per unit range × radian). Raises :class:`RunConfigError` when the box has no
+    volume (fewer than two distinct detections along some axis).
+    """
+    pts = [np.asarray(z, dtype=float).reshape(-1, dim) for z in scans]
+    allz = np.concatenate(pts) if pts else np.zeros((0, dim))
+    side = allz.max(axis=0) - allz.min(axis=0) if len(allz) else np.zeros(dim)
+    volume = float(np.prod(side))
+    if not len(allz) or not (np.isfinite(volume) and volume > 0):
+        raise RunConfigError(
+            "the PMB/PMBM trackers need a clutter density, and the detections' bounding box "
+            "has no volume to estimate one from; set clutter_density = <number> in [tracker]"
+        )
+    lam = len(allz) / max(len(pts), 1) / volume
+    note = (
+        f"clutter density not given: estimated as {lam:.4g} = mean detections per scan "
+        f"({len(allz) / max(len(pts), 1):.4g}) / bounding-box {'area' if dim == 2 else 'volume'} "
+        f"of the detections in measurement coordinates ({volume:.4g}) — an upper bound (every "
+        "detection counted as clutter)"
+    )
+    return lam, note
+
+
+def make_pmbm_config(
+    base: TrackerConfig,
+    user_tracker: Mapping | None = None,
+    pmbm: Mapping | None = None,
+    *,
+    scenario=None,
+    region=None,
+    scans=None,
+    source: str | None = None,
+) -> tuple:
+    """The :class:`~jointtrack.trackers.pmbm_config.PMBMConfig` of a run and notes on it.
+
+    ``base``: the JPDA settings the run would use (derived from the scenario or the
+    detections, ``[tracker]`` applied); its motion, sensor, P_D, P_S, association and
+    ``max_speed`` are shared. ``user_tracker``: the ``[tracker]`` keys set by the
+    user (``p_g`` is taken from ``base`` only when set there: the scenes' P_G = 0.99
+    is a JPDA gate, whose miss weight carries 1 − P_D P_G; the Poisson trackers' weights
+    have no gate factor and use PMBMConfig's 0.9999). ``pmbm``: the ``[pmbm]`` table,
+    applied last. The birth model, unless ``[pmbm]`` sets one:
+
+    * a scenario whose ``info`` holds a Gaussian ``birth`` / ``prior`` model
+      (``coalescence``): that model (``birth_model = "gaussian"``), and its P_S;
+    * a scenario with a known ``birth_rate`` (``many``): uniform births of
+      birth_rate / |region| per unit area per scan;
+    * otherwise (other scenarios, detection files): uniform births of
+      :data:`DEFAULT_BIRTHS_PER_SCAN` (0.01) per scan over ``region`` (the scenario's
+      region or the detections' bounding box) — a small rate, so that clutter rarely
+      starts a track; the prior density at the first scan is then the steady state
+      of that rate (PMBMConfig's default).
+
+    The clutter density is ``base.clutter_density``; when it is unknown (None, e.g.
+    a detections file without ``clutter_density``) it is estimated from ``scans``
+    by :func:`bounding_box_clutter`, an upper bound, and a note says so. Returns
+    ``(PMBMConfig, notes)``; bad values raise :class:`RunConfigError`.
+    """
+    from jointtrack.trackers.pmbm_config import PMBMConfig
+
+    where = f"{source}: " if source else ""
+    user_tracker = dict(user_tracker or {})
+    pmbm = dict(pmbm or {})
+    notes = []
+    over: dict = {}
+    if "p_g" not in user_tracker:
+        over["p_g"] = PMBMConfig.p_g
+    info = getattr(scenario, "info", None)
+    info = info if isinstance(info, Mapping) else {}
+    birth = info.get("birth")
+    if "birth_model" not in pmbm and isinstance(birth, Mapping) and "mean" in birth:
+        prior = info.get("prior") if isinstance(info.get("prior"), Mapping) else {}
+        over.update(
+            birth_model="gaussian",
+            birth_weights=[float(birth["weight"])],
+            birth_means=[list(birth["mean"])],
+            birth_covs=[[list(r) for r in birth["cov"]]],
+            prior_weight=float(prior.get("lambda", 0.0)),
+        )
+        if "p_s" in info and "p_survive" not in user_tracker:
+            over["p_survive"] = float(info["p_s"])
+        notes.append(
+            f"PMB/PMBM birth model: the scenario's Gaussian birth intensity (weight "
+            f"{float(birth['weight']):g}) and prior (λ₀ = {over['prior_weight']:g})"
+        )
+    elif pmbm.get("birth_model", "uniform") == "uniform" and "birth_density" not in pmbm:
+        box = None if region is None else np.asarray(region, dtype=float)
+        area = float(np.prod(box[:, 1] - box[:, 0])) if box is not None else 0.0
+        rate = info.get("birth_rate")
+        if area > 0 and isinstance(rate, int | float) and rate > 0:
+            over["birth_density"] = float(rate) / area
+            why = f"the scenario's birth rate {float(rate):g} per scan"
+        elif area > 0:
+            over["birth_density"] = DEFAULT_BIRTHS_PER_SCAN / area
+            why = f"the default {DEFAULT_BIRTHS_PER_SCAN:g} births per scan (no birth model known)"
+        else:
+            why = None
+        if why:
+            unit = "area" if base.dim == 2 else "volume"
+            text = (
+                f"PMB/PMBM birth model: uniform, {over['birth_density']:.4g} per unit {unit} "
+                f"per scan = {why} over the region ({area:.4g})"
+            )
+            if "prior_density" not in pmbm:
+                p_s = float(user_tracker.get("p_survive", base.p_survive))
+                steady = over["birth_density"] / (1.0 - p_s * (1.0 - base.p_d))
+                over["prior_density"] = max(steady, DEFAULT_PRIOR_TARGETS / area)
+                text += (
+                    f"; prior {over['prior_density']:.4g} per unit {unit} at the first scan "
+                    f"(max of {DEFAULT_PRIOR_TARGETS:g} target over the region and the birth "
+                    "steady state)"
+                )
+            notes.append(text)
+    if base.clutter_density is None and "clutter_density" not in pmbm:
+        if scans is None:
+            raise RunConfigError(
+                f"{where}the PMB/PMBM trackers need a known clutter density: set "
+                "clutter_density = <number> in [tracker]"
+            )
+        lam, note = bounding_box_clutter(scans, base.dim)
+        over["clutter_density"] = lam
+        notes.append(note)
+    over.update(pmbm)
+    try:
+        cfg = PMBMConfig.from_tracker_config(base, **over)
+    except (TypeError, ValueError) as exc:
+        raise RunConfigError(f"{where}[pmbm] {_one_line(exc)}") from None
+    return cfg, notes
 
 
 _RB_SETTINGS = (

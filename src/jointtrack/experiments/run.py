@@ -73,6 +73,10 @@ Config file (``--config FILE``, TOML)
     n_scans = 20           # any keyword of the scenario function, e.g.
     clutter_per_scan = 5   # bojilov: clutter_density (β), n_scans, speeds, …
 
+    [pmbm]                 # --tracker pmb|pmbm only: PMBMConfig fields that are not
+    r_estimate = 0.4       # [tracker] fields (birth_model, birth_density, prior_density,
+    max_hypotheses = 200   # birth_weights/means/covs, prior_weight, pruning, …)
+
     [metrics]
     c = 50.0               # GOSPA/OSPA cut-off (default 5σ; coalescence: 10, its paper's)
     switch_penalty = 0.0   # GOSPA identity-switch penalty
@@ -84,6 +88,35 @@ not match the detections (range–bearing detections without ``sensor =
 "range-bearing"``, or positions with it). ``tracks.csv`` holds Cartesian states
 for either sensor. ``--scenario``, ``--seed`` and ``--start-from`` on the command
 line override ``name``, ``seed`` and ``start_from``.
+
+Tracker kinds (``--tracker``, or ``[tracker] kind``)
+--------------------------------------------------
+``jipda`` (the default): :class:`~jointtrack.trackers.JPDATracker` with JIPDA
+existence (``existence = true``); ``jpda``: the same tracker with M-of-N
+confirmation (``existence = false``; setting ``existence`` against the kind is an
+error); ``pmb`` / ``pmbm``: :class:`~jointtrack.trackers.pmbm.PMBTracker` /
+:class:`~jointtrack.trackers.pmbm.PMBMTracker`; ``particle``: below.
+``metrics.json`` ``tracker.kind`` and the summary's ``tracker`` row name it.
+
+The PMB/PMBM settings (:func:`~jointtrack.experiments.config.make_pmbm_config`)
+share the derived JPDA settings above (motion, R, P_D, P_S, association,
+``max_speed`` …) except P_G, which is PMBMConfig's 0.9999 unless ``[tracker]``
+sets ``p_g`` (the scenes' 0.99 is a JPDA gate whose miss weight carries
+1 − P_D P_G; the Poisson weights have no gate factor). Birth model: coalescence's
+own Gaussian birth and prior (``scenario.info``, with its P_S); ``many``: uniform
+births at its birth rate over its region; the other scenes and detection files:
+uniform births of 0.01 per scan over the scene's region (the detections' bounding
+box), with a prior of one undetected target over the region at the first scan.
+Without a clutter density (a detections file without ``clutter_density``, or
+``"estimate"``) λ is estimated as (mean detections per scan) / (bounding-box area
+of the detections, in measurement coordinates) — an upper bound, since every
+detection counts as clutter; a note in ``metrics.json`` and the summary says so,
+and these notes are kept in the checkpoint. ``[tracker]`` keys of the JPDA track
+logic (``existence``, ``r_confirm``, ``confirm_m``, …) are refused with ``pmb``
+and ``pmbm``, a ``[pmbm]`` table with the JPDA kinds. They start from nothing
+(``--start-from truth`` is refused). Checkpoints hold the tracker's kind;
+``--resume`` rebuilds that kind and refuses a ``--tracker`` (or ``kind``) that
+differs.
 
 Particle tracker (``--tracker particle``)
 -----------------------------------------
@@ -145,6 +178,8 @@ import numpy as np
 from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     _METRIC_KEYS,
     _TABLES,
+    JPDA_KINDS,
+    POISSON_KINDS,
     SCENARIOS,
     STARTS,
     TRACKER_KINDS,
@@ -156,9 +191,13 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     _describe,
     _is_int,
     _one_line,
+    check_kind_keys,
     check_sensor,
     default_start,
+    jpda_kind_overrides,
+    kind_of_config,
     load_config,
+    make_pmbm_config,
     make_scenario,
     make_sensors,
     make_tracker_config,
@@ -173,6 +212,7 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     start_truth_particles,
     start_truth_tracks,
     steady_state_covariance,
+    tracker_kind,
 )
 from jointtrack.experiments.summary import (  # noqa: F401 - re-exported
     _cluster_timing,
@@ -196,7 +236,8 @@ from jointtrack.experiments.writers import (  # noqa: F401 - re-exported
 from jointtrack.io import Detections, to_jsonable, write_metrics
 from jointtrack.scenarios import run_name
 from jointtrack.trackers import JPDATracker, TrackerConfig
-from jointtrack.trackers.state_io import read_run
+from jointtrack.trackers.pmbm_config import PMBMConfig
+from jointtrack.trackers.state_io import StateFileError, read_run, read_state
 
 __all__ = [
     "SCENARIOS",
@@ -204,6 +245,7 @@ __all__ = [
     "RunConfigError",
     "check_sensor",
     "load_config",
+    "load_tracker",
     "make_scenario",
     "make_tracker_config",
     "particle_options",
@@ -214,6 +256,7 @@ __all__ = [
     "scenario_tracker_settings",
     "start_truth_tracks",
     "steady_state_covariance",
+    "tracker_kind_of",
 ]
 
 
@@ -252,6 +295,9 @@ class _Source:
     # holds only what the user set and --resume --config compares like with like
     metric_defaults: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    # how the PMB/PMBM settings were chosen (birth model, clutter estimate): saved in the
+    # checkpoint, since a resumed run takes the checkpoint's settings as they are
+    tracker_notes: list = field(default_factory=list)
     kind: str = "position"  # of the scans: "position" or "range-bearing" ([r, θ] rows)
     sensor_ids: tuple | None = None  # per scan, the sensor id of each detection
     # metrics.json "scoring" (with a truth): how truth and tracks are compared
@@ -350,6 +396,30 @@ def _step_scan(trk, t: float, src, k: int) -> list:
     return [trk.step(t, z[ids == sid], sensor=sid) for sid in np.unique(ids).tolist()]
 
 
+def _tracker_class(kind: str):
+    """The tracker class of a kind (:data:`~jointtrack.experiments.config.TRACKER_KINDS`)."""
+    if kind in POISSON_KINDS:
+        from jointtrack.trackers.pmbm import PMBMTracker, PMBTracker
+
+        return PMBMTracker if kind == "pmbm" else PMBTracker
+    return JPDATracker
+
+
+def tracker_kind_of(trk) -> str:
+    """The kind a tracker runs: ``pmb``/``pmbm``, or ``jpda``/``jipda`` by its ``existence``."""
+    return trk.KIND if trk.KIND in POISSON_KINDS else kind_of_config(trk.config)
+
+
+def load_tracker(path):
+    """The tracker saved in a state file, of the kind the file names (``jpda`` when it
+    names none: files of the JPDA tracker have no kind); errors as ``load``."""
+    _, _, scalars, _ = read_state(path)
+    kind = scalars.get("tracker", "jpda")
+    if kind not in ("jpda", *POISSON_KINDS):
+        raise StateFileError(f"{path}: holds the state of an unknown tracker kind {kind!r}")
+    return _tracker_class(kind).load(path)
+
+
 def _check_writable(path: Path, flag: str) -> None:
     """Fail before the first scan if ``path`` cannot be written (not after ten scans)."""
     parent = path.parent if str(path.parent) else Path(".")
@@ -420,6 +490,10 @@ def _warm_up(cfg: TrackerConfig, particle=None) -> None:
     from jointtrack.association import marginals
 
     rng = np.random.default_rng(12345)
+    if isinstance(cfg, PMBMConfig):  # the PMBM tracker ranks events by Murty on the LSAP
+        from jointtrack.association.kbest import kbest_hypotheses
+
+        kbest_hypotheses(rng.random((3, 4)) + np.eye(3, 4), np.full(3, 0.1), k=4)
     methods = {cfg.association, cfg.approximation}
     for n, m in ((2, 2), (3, 5), (5, 9), (8, 14)):
         L = rng.random((n, m)) * (rng.random((n, m)) < 0.6) + np.eye(n, m)
@@ -464,6 +538,12 @@ def _check_particle_run(src: _Source, checkpoint, resume, sensors) -> None:
             )
 
 
+_POISSON_TRUTH_START = (
+    "--start-from truth: the PMB/PMBM trackers start from their Poisson prior intensity "
+    "of undetected targets, not from given tracks; use --start-from nothing (their default)"
+)
+
+
 def _run(
     src: _Source,
     cfg: TrackerConfig,
@@ -480,15 +560,19 @@ def _run(
     plots: bool = True,
     sensors: Mapping | None = None,
     particle=None,
+    kind: str | None = None,
 ) -> dict:
     """The run loop (see the module docstring); ``particle``: a
     :class:`~jointtrack.trackers.particle.ParticleConfig` to run the particle
-    tracker instead of the Kalman JPDA tracker ``cfg``."""
+    tracker instead of the Kalman JPDA tracker ``cfg``. ``kind``: ``"pmb"`` or
+    ``"pmbm"`` with a :class:`PMBMConfig` ``cfg``; for a :class:`TrackerConfig`
+    ``jpda``/``jipda`` (None: by its ``existence``). On resume the kind comes from
+    the checkpoint; a ``kind`` that differs is an error."""
     from rich.console import Console
 
     wall0 = time.perf_counter()
     console = console or Console(quiet=True)
-    notes = list(src.notes)
+    notes = list(src.notes) + list(src.tracker_notes)
 
     def warn(msg: str) -> None:
         notes.append(msg)
@@ -527,15 +611,28 @@ def _run(
     try:
         if resume is not None:
             resume = Path(resume)
-            trk = JPDATracker.load(resume)
+            trk = load_tracker(resume)
+            saved_kind = tracker_kind_of(trk)
+            if kind is not None and kind != saved_kind:
+                raise RunConfigError(
+                    f"{resume}: the checkpoint holds the state of a {saved_kind} tracker, but "
+                    f"this run asks for the {kind} tracker; resume without --tracker (the "
+                    "kind comes from the checkpoint) or start a new run"
+                )
+            kind = saved_kind
             info = read_run(resume)
+            if not src.tracker_notes and isinstance(info, dict):
+                src.tracker_notes = [str(n) for n in info.get("tracker_notes") or []]
+                notes[len(src.notes) :] = src.tracker_notes + notes[len(src.notes) :]
             _check_resume(resume, info, trk, src, identity, out_dir, fmt)
             clusters = list(info.get("clusters", []))
             fallbacks.update(info.get("fallbacks", {}))
             tiers.update(info.get("fallback_tiers", {}))
             coincident[0] = int(info.get("coincident_returns", 0))
             elapsed_before = float(info.get("elapsed_seconds", 0.0))
-            if trk.config != cfg:
+            if type(trk.config) is not type(cfg):
+                warn(f"{resume}: continuing with the checkpoint's {kind} tracker settings")
+            elif trk.config != cfg:
                 diff = sorted(k for k, v in cfg.to_dict().items() if trk.config.to_dict()[k] != v)
                 warn(
                     f"{resume}: continuing with the checkpoint's tracker settings "
@@ -561,7 +658,21 @@ def _run(
 
                 trk = ParticleJPDATracker(particle)
                 start_truth_particles(trk, src.x0, dt)
+            elif isinstance(cfg, PMBMConfig):
+                if kind not in POISSON_KINDS:
+                    raise RunConfigError(
+                        f'a PMBMConfig runs the "pmb" or "pmbm" tracker, not kind {kind!r}'
+                    )
+                if src.x0 is not None:
+                    raise RunConfigError(_POISSON_TRUTH_START)
+                trk = _tracker_class(kind)(cfg)
             else:
+                if kind is not None and kind != kind_of_config(cfg):
+                    raise RunConfigError(
+                        f"kind {kind!r} does not match the tracker settings (existence = "
+                        f"{str(cfg.existence).lower()} is {kind_of_config(cfg)!r})"
+                    )
+                kind = kind_of_config(cfg)
                 trk = JPDATracker(cfg)
                 if src.x0 is not None and len(src.x0):
                     start_truth_tracks(trk, src.x0, dt)
@@ -588,6 +699,7 @@ def _run(
                 "fallback_tiers": dict(tiers),
                 "coincident_returns": coincident[0],
                 "sensors": sensor_tables_to_run(sensor_tables),
+                "tracker_notes": list(src.tracker_notes),
                 "elapsed_seconds": seconds,
             }
 
@@ -700,6 +812,7 @@ def _run(
     if particle is not None:
         particle_metrics(metrics, particle, scan_weights)
     else:
+        metrics["tracker"] = {"kind": kind, **metrics["tracker"]}
         metrics["association"] = {
             "method": cfg.association,
             "approximation": cfg.approximation,
@@ -764,6 +877,8 @@ def run_scenario(
     console=None,
     plots: bool = True,
     particle=None,
+    tracker: str | None = None,
+    pmbm: Mapping | None = None,
 ) -> dict:
     """Run the tracker on a built-in scenario, write the outputs, return the metrics dict.
 
@@ -796,6 +911,13 @@ def run_scenario(
         a mapping of its ``weights`` and ``particles`` (the other settings come
         from ``config``, see :func:`particle_options` and the module
         docstring). Its start defaults to ``"truth"`` (the only one it takes).
+    tracker : the kind of tracker: ``"jipda"`` (JPDA with JIPDA existence),
+        ``"jpda"`` (JPDA with M-of-N confirmation), ``"pmb"`` or ``"pmbm"``; None = the
+        JPDA tracker as ``config`` says (``existence``, default true). For ``pmb`` and
+        ``pmbm`` ``config`` may also be a
+        :class:`~jointtrack.trackers.pmbm_config.PMBMConfig` (used as is); else their
+        settings are :func:`make_pmbm_config` of the derived JPDA settings, ``config``
+        and ``pmbm`` (the ``[pmbm]`` table). They start from nothing.
     """
     kwargs = dict(scenario_kwargs or {})
     if isinstance(scenario, str):
@@ -806,14 +928,30 @@ def run_scenario(
         # the run name (many, not the generator's many_targets): --resume rebuilds it by name
         identity = {"scenario": run_name(scenario.name), "seed": scenario.seed, "kwargs": kwargs}
     start = start_setting(start_from, start_from_truth, "run_scenario:", noun="argument")
+    kind = _check_kind(tracker, config, pmbm, particle)
     if start is None:
         # the particle tracker follows the targets it is started with: from the truth
         start = "truth" if particle is not None else default_start(scenario.name)
+        if kind in POISSON_KINDS:
+            start = "nothing"
+    if kind in POISSON_KINDS and start == "truth":
+        raise RunConfigError(_POISSON_TRUTH_START)
     start_from_truth = start == "truth"
-    if isinstance(config, TrackerConfig):
+    notes = []
+    if isinstance(config, TrackerConfig | PMBMConfig):
         cfg = config
     else:
-        cfg = make_tracker_config(scenario_tracker_settings(scenario), config)
+        over = jpda_kind_overrides(kind, dict(config or {}))
+        cfg = make_tracker_config(scenario_tracker_settings(scenario), over)
+    if kind in POISSON_KINDS and not isinstance(cfg, PMBMConfig):
+        cfg, notes = make_pmbm_config(
+            cfg,
+            {} if isinstance(config, TrackerConfig) else dict(config or {}),
+            pmbm,
+            scenario=scenario,
+            region=scenario.region,
+            scans=scenario.detections,
+        )
     if cfg.dim != scenario.dim:
         raise RunConfigError(
             f"[tracker] dim = {cfg.dim} but scenario {scenario.name} is {scenario.dim}-D"
@@ -837,6 +975,7 @@ def run_scenario(
         x0=scenario.truth_states[0] if start_from_truth else None,
         sigma=sigma,
         metric_defaults=scenario_metric_settings(scenario),
+        tracker_notes=notes,
     )
     return _run(
         src,
@@ -852,7 +991,40 @@ def run_scenario(
         console=console,
         plots=plots,
         particle=particle,
+        kind=kind,
     )
+
+
+def _check_kind(tracker, config, pmbm, particle=None) -> str | None:
+    """The tracker kind of a run from ``tracker`` and the config's type (module docstring).
+
+    None for the particle tracker and for a JPDA run that names no kind (its
+    ``existence`` decides); ``[pmbm]`` settings, JPDA-only keys with a Poisson kind
+    and a PMBMConfig without one raise :class:`RunConfigError`.
+    """
+    if particle is not None:
+        if tracker not in (None, "particle"):
+            raise RunConfigError(f"tracker {tracker!r} and particle options: choose one")
+        return None
+    if tracker is not None and tracker not in (*JPDA_KINDS, *POISSON_KINDS):
+        raise RunConfigError(
+            f"tracker must be one of {', '.join((*JPDA_KINDS, *POISSON_KINDS))}, got {tracker!r}"
+        )
+    if isinstance(config, PMBMConfig):
+        if tracker not in POISSON_KINDS:
+            raise RunConfigError('a PMBMConfig needs tracker = "pmb" or "pmbm"')
+        if pmbm:
+            raise RunConfigError("pmbm settings with a PMBMConfig: put them in the PMBMConfig")
+        return tracker
+    table = {} if isinstance(config, TrackerConfig) or config is None else dict(config)
+    check_kind_keys(tracker, table, dict(pmbm or {}), None)
+    if isinstance(config, TrackerConfig) and tracker in JPDA_KINDS:
+        if kind_of_config(config) != tracker:
+            raise RunConfigError(
+                f"tracker {tracker!r} but the TrackerConfig has existence = "
+                f"{str(config.existence).lower()} ({kind_of_config(config)!r})"
+            )
+    return tracker
 
 
 def _particle_config(particle, cfg: TrackerConfig):
@@ -1046,6 +1218,8 @@ def run_detections(
     progress: bool = False,
     *,
     truth=None,
+    tracker: str | None = None,
+    pmbm: Mapping | None = None,
     **options,
 ) -> dict:
     """Run the tracker on detections (e.g. from :func:`jointtrack.io.read_detections`).
@@ -1078,13 +1252,22 @@ def run_detections(
 
     With ISO-8601 detection times (``detections.time_origin``), metrics.json
     holds ``time_origin`` and all times (tracks file, plots) are seconds since it.
+
+    ``tracker``, ``pmbm``: the kind of tracker and the ``[pmbm]`` table, as in
+    :func:`run_scenario`. The PMB/PMBM birth model is uniform at
+    :data:`~jointtrack.experiments.config.DEFAULT_BIRTHS_PER_SCAN` births per scan
+    over the detections' bounding box; without a clutter density the clutter is
+    estimated as (mean detections per scan) / (bounding-box area) — an upper bound,
+    named in the notes of metrics.json and the summary.
     """
     if detections.dim not in (2, 3):
         raise RunConfigError(f"the tracker handles 2-D or 3-D detections, got {detections.dim}-D")
-    if isinstance(config, TrackerConfig):
+    tkind = _check_kind(tracker, config, pmbm)
+    user = {} if isinstance(config, TrackerConfig | PMBMConfig) else dict(config or {})
+    if isinstance(config, TrackerConfig | PMBMConfig):
         cfg = config
     else:
-        over = dict(config or {})
+        over = jpda_kind_overrides(tkind, dict(config or {}))
         if "dim" in over and over["dim"] != detections.dim:
             raise RunConfigError(
                 f"[tracker] dim = {over['dim']} but the detections are {detections.dim}-D"
@@ -1175,6 +1358,18 @@ def run_detections(
             lo = np.minimum(region[:, 0], table[2].min(axis=0))
             hi = np.maximum(region[:, 1], table[2].max(axis=0))
             region = np.stack([lo, hi], axis=1)
+    if tkind in POISSON_KINDS and not isinstance(cfg, PMBMConfig):
+        # the bounding box of the detections in measurement coordinates (range × bearing
+        # for a range-bearing file); a mixed file has no one such space
+        cfg, pmbm_notes = make_pmbm_config(
+            cfg,
+            user,
+            pmbm,
+            region=region,
+            scans=detections.scans if kind != "mixed" else None,
+        )
+    else:
+        pmbm_notes = []
     if options.get("resume") is not None:
         _check_resume_files(options["resume"], to_jsonable(identity, fallback="text"))
     src = _FileSource(
@@ -1191,6 +1386,7 @@ def run_detections(
         sigma=sigma,
         kind=plot_kind,
         scoring=scoring,
+        tracker_notes=pmbm_notes,
     )
     src.detections = detections  # stepped by _step_scan, sensors checked by _register_sensors
-    return _run(src, cfg, out_dir, fmt=fmt, progress=progress, **options)
+    return _run(src, cfg, out_dir, fmt=fmt, progress=progress, kind=tkind, **options)

@@ -24,6 +24,7 @@ __all__ = [
     "print_summary",
     "start_description",
     "summary_tables",
+    "tracker_description",
     "tracks_line",
 ]
 
@@ -262,6 +263,13 @@ def start_description(metrics: Mapping) -> str:
             "births are initiated from the detections"
         )
     tr = metrics.get("tracker") if isinstance(metrics.get("tracker"), Mapping) else {}
+    if tr.get("kind") in ("pmb", "pmbm"):
+        return (
+            "tracks started from nothing (Poisson intensity of undetected targets, "
+            f"{tr.get('birth_model', 'uniform')} birth; tracks reported at existence ≥ "
+            f"{tr.get('r_estimate', 0.4):g}"
+            + (" in the best global hypothesis)" if tr["kind"] == "pmbm" else ")")
+        )
     init = tr.get("initiation", "two-point")
     if tr.get("existence", True):
         confirm = f"confirmed at JIPDA existence ≥ {tr.get('r_confirm', 0.9):g}"
@@ -270,6 +278,34 @@ def start_description(metrics: Mapping) -> str:
     text = f"tracks started from nothing ({init} initiation, {confirm})"
     if bojilov:
         text += "; the paper's experiment starts from the truth"
+    return text
+
+
+#: what each tracker kind is, for the summary's ``tracker`` row
+KIND_NAMES = {
+    "jpda": "JPDA, M-of-N confirmation",
+    "jipda": "JIPDA (JPDA with existence probabilities)",
+    "pmb": "PMB (track-oriented Poisson multi-Bernoulli, exact marginals)",
+    "pmbm": "PMBM (Poisson multi-Bernoulli mixture, Murty's k best)",
+    "particle": "particle JPDA",
+}
+
+
+def tracker_description(tr) -> str:
+    """The summary's ``tracker`` row: the kind of tracker and its association method."""
+    if not isinstance(tr, Mapping):
+        return "–"
+    kind = tr.get("kind")
+    if kind is None:  # metrics of runs before the kind was recorded
+        kind = "jipda" if tr.get("existence", True) else "jpda"
+    text = f"{kind}: {KIND_NAMES.get(kind, kind)}"
+    if kind == "pmbm":
+        text += f", ≤ {tr.get('max_hypotheses')} global hypotheses"
+    if kind in ("pmb", "pmbm"):
+        lam = tr.get("clutter_density")
+        text += f"; clutter density {_fmt(lam, '.4g')}"
+    elif kind != "particle":
+        text += f"; association {tr.get('association')}"
     return text
 
 
@@ -306,6 +342,7 @@ def summary_tables(metrics: Mapping) -> list:
     if metrics.get("time_origin"):
         main.add_row("times", f"seconds since {metrics['time_origin']}")
     main.add_row("scans", f"{metrics['n_scans']} ({metrics['n_detections']} detections)")
+    main.add_row("tracker", tracker_description(metrics.get("tracker")))
     main.add_row("start", start_description(metrics))
     tr = metrics["tracks"]
     if "gospa" in metrics:
@@ -354,6 +391,8 @@ def summary_tables(metrics: Mapping) -> list:
             main.add_row("note", note)
     if pa is not None:
         return [main]  # no association step, so no cluster table
+    if (metrics.get("tracker") or {}).get("kind") == "pmbm":
+        return [main]  # Murty's k best per cluster of tracks: no marginals timed per cluster
 
     cl = Table(
         title="association time per multi-track cluster of confirmed tracks",

@@ -52,7 +52,7 @@ TIMING_METRICS = frozenset({"scans_per_second", "seconds_per_scan"})
 
 
 def _tables(params: Mapping) -> dict:
-    out = {"tracker": {}, "scenario": {}, "metrics": {}, "filter": {}}
+    out = {"tracker": {}, "scenario": {}, "metrics": {}, "filter": {}, "pmbm": {}}
     for key, value in params.items():
         table, _, name = key.partition(".")
         out[table][name] = value
@@ -64,6 +64,8 @@ def method_label(params: Mapping) -> str:
 
     >>> method_label({"scenario.name": "bojilov", "tracker.association": "lbp"})
     'jpda/lbp'
+    >>> method_label({"scenario.name": "coalescence", "tracker.kind": "pmbm"})
+    'pmbm/exact'
     >>> method_label({"scenario.name": "acoustic", "filter.name": "sps-mb"})
     'sps-mb/gaussian'
     """
@@ -71,9 +73,14 @@ def method_label(params: Mapping) -> str:
     if t["scenario"].get("name") == "acoustic":
         f = t["filter"]
         return f"{f.get('name', 'sps-cphd')}/{f.get('likelihood', 'gaussian')}"
-    if t["tracker"].get("kind") == "particle":
+    kind = t["tracker"].get("kind")
+    if kind == "particle":
         return f"particle/{t['tracker'].get('weights', 'exact')}"
-    return f"jpda/{t['tracker'].get('association', 'exact')}"
+    if kind in ("pmb", "pmbm"):
+        return f"{kind}/{t['tracker'].get('association', 'exact')}"
+    if kind is None:  # the JPDA tracker as [tracker] existence says (the label of old sweeps)
+        kind = "jpda"
+    return f"{kind}/{t['tracker'].get('association', 'exact')}"
 
 
 def _run(params: Mapping, seed: int, out_dir: str) -> tuple[str, dict]:
@@ -90,7 +97,12 @@ def _run(params: Mapping, seed: int, out_dir: str) -> tuple[str, dict]:
             **f,
         }
         return "acoustic", run_acoustic(out_dir, seed=seed, plots=False, **kwargs)
-    from jointtrack.experiments.config import TRACKER_OPTION_KEYS
+    from jointtrack.experiments.config import (
+        JPDA_KINDS,
+        JPDA_ONLY_KEYS,
+        POISSON_KINDS,
+        TRACKER_OPTION_KEYS,
+    )
     from jointtrack.experiments.run import run_scenario
 
     tracker = dict(t["tracker"])
@@ -98,8 +110,17 @@ def _run(params: Mapping, seed: int, out_dir: str) -> tuple[str, dict]:
     # the tracker's own generator (mcmc association, particles) follows the run's seed
     tracker.setdefault("seed", seed)
     particle = None
-    if options.get("kind") == "particle":
+    kind = options.get("kind")
+    if kind == "particle":
         particle = {k: options[k] for k in ("weights", "particles") if k in options}
+        kind = None
+    pmbm = dict(t["pmbm"])
+    # along a tracker.kind axis each cell takes its kind's settings (sweep.spec)
+    if kind in POISSON_KINDS:
+        tracker = {k: v for k, v in tracker.items() if k not in JPDA_ONLY_KEYS}
+    elif kind in JPDA_KINDS:
+        tracker.pop("existence", None)
+        pmbm = {}
     scen = t["scenario"]
     start = {k: scen.pop(k) for k in ("start_from", "start_from_truth") if k in scen}
     metrics = run_scenario(
@@ -111,6 +132,8 @@ def _run(params: Mapping, seed: int, out_dir: str) -> tuple[str, dict]:
         metrics_opts=t["metrics"] or None,
         plots=False,
         particle=particle,
+        tracker=kind,
+        pmbm=pmbm or None,
         **start,
     )
     return "tracker", metrics

@@ -22,7 +22,18 @@ tracker's. ``[filter]`` keys (acoustic only): ``name`` (sps-cphd | sps-phd |
 sps-mb), ``likelihood``, ``particles``, ``n_scans``, ``max_scans``,
 ``burn_in``, ``link_gate``. The particle JPDA tracker is ``tracker.kind =
 "particle"`` with ``tracker.weights`` and ``tracker.particles``, as in ``jointtrack
-run``.
+run``; the other kinds are ``tracker.kind = "jipda"`` (the default: JPDA with JIPDA
+existence), ``"jpda"`` (M-of-N confirmation), ``"pmb"`` and ``"pmbm"``, so an axis
+``tracker.kind = ["jpda", "jipda", "pmb", "pmbm"]`` compares the four on the same
+seeds. PMB/PMBM-only settings go in a ``[pmbm]`` table (or ``pmbm.KEY`` axes); a
+cell whose kind does not take a setting (``[pmbm]`` keys with a JPDA kind,
+``[tracker] existence`` or another JPDA track-logic key with ``pmb``/``pmbm``) is
+refused before anything runs, naming the key — except along a ``tracker.kind``
+axis, which compares kinds on common settings: there each cell takes the settings
+of its kind (``[pmbm]`` for the PMB/PMBM cells; the JPDA track-logic keys for the
+JPDA cells; the kind, not ``existence``, says JPDA or JIPDA). The PMB/PMBM settings are
+derived as in ``jointtrack run --tracker pmbm``
+(:func:`jointtrack.experiments.config.make_pmbm_config`).
 
 Every key and value type is checked here (:func:`parse_spec`); a bad one raises
 ``ValueError`` naming it. Values that only the run can judge (a scenario
@@ -46,7 +57,7 @@ __all__ = ["Run", "SweepSpec", "cell_id", "load_spec", "parse_spec", "run_id"]
 
 #: Scenarios a cell can run: the detection scenarios of ``jointtrack run`` plus acoustic.
 SCENARIO_NAMES = (*GENERATORS, "acoustic")
-_TABLES = ("tracker", "scenario", "metrics", "filter")
+_TABLES = ("tracker", "scenario", "metrics", "filter", "pmbm")
 #: ``[filter]`` keys of an acoustic cell and the type each must have.
 FILTER_KEYS = {
     "name": "one of sps-cphd, sps-phd, sps-mb",
@@ -283,6 +294,8 @@ def _check_cell(params: Mapping, where: str, axes: Mapping) -> None:
         TRACKER_OPTION_KEYS,
         _check_tracker_keys,
         _check_tracker_options,
+        check_kind_keys,
+        check_pmbm_keys,
         metric_value_ok,
         particle_options,
         start_setting,
@@ -300,7 +313,7 @@ def _check_cell(params: Mapping, where: str, axes: Mapping) -> None:
         tables[table][k] = value
     scen = {k: v for k, v in tables["scenario"].items() if k != "name"}
     if name == "acoustic":
-        for table in ("tracker", "metrics"):
+        for table in ("tracker", "metrics", "pmbm"):
             for k in tables[table]:
                 raise ValueError(
                     f"{where}{_origin(f'{table}.{k}', axes)} does not apply to scenario "
@@ -344,6 +357,19 @@ def _check_cell(params: Mapping, where: str, axes: Mapping) -> None:
                 f"{where}[sweep] axis 'tracker.{k}': {str(exc).removeprefix(f'{src}: ')}"
             ) from None
     particle_options(table=options, tracker=tracker, source=src)
+    try:
+        check_pmbm_keys(tables["pmbm"], src)
+        if "tracker.kind" not in axes:  # a kind axis: each cell takes its kind's settings
+            check_kind_keys(options.get("kind"), tracker, tables["pmbm"], src)
+    except ValueError as exc:
+        keys = [f"tracker.{k}" for k in ("kind", *tracker)] + [f"pmbm.{k}" for k in tables["pmbm"]]
+        axis = next((k for k in keys if k in axes), None)
+        if axis is None:
+            raise
+        raise ValueError(
+            f"{where}[sweep] axis '{axis}' makes a cell that cannot run: "
+            f"{str(exc).removeprefix(f'{src}: ')}"
+        ) from None
     for k, value in tables["metrics"].items():
         if k not in _METRIC_KEYS:
             raise ValueError(
