@@ -240,11 +240,11 @@ def _grow(a, size):
 
 
 @numba.njit(cache=True)
-def _murty(L, miss, log_L, log_miss, k):
+def _murty(L, miss, log_ext, k):
     """The k cheapest assignments of the augmented cost matrix (Murty 1968).
 
-    ``log_L`` and ``log_miss`` are the logs of ``L`` and ``miss`` with 1 in
-    place of 0 (those entries are forbidden). Returns ``(assignments,
+    ``log_ext`` is the log of :func:`_checked_extended`'s ``[miss | L]`` (zeros
+    read as 1; those entries are forbidden). Returns ``(assignments,
     log_weights, found)`` in the beta layout, best first (ties in creation
     order); ``found = 0`` when no event has positive weight.
     """
@@ -253,9 +253,9 @@ def _murty(L, miss, log_L, log_miss, k):
     for i in range(n):
         for j in range(m):
             if L[i, j] > 0:
-                C[i, j] = -log_L[i, j]
+                C[i, j] = -log_ext[i, j + 1]
         if miss[i] > 0:
-            C[i, m + i] = -log_miss[i]
+            C[i, m + i] = -log_ext[i, 0]
     work = np.empty_like(C)
     vals = np.empty(n)
 
@@ -328,16 +328,44 @@ def _murty(L, miss, log_L, log_miss, k):
     log_weights = np.empty(found)
     for h in range(found):
         for i in range(n):
-            c = out[h, i]
-            if c < m:
-                vals[i] = log_L[i, c]
-                assignments[h, i] = c + 1
-            else:
-                vals[i] = log_miss[i]
-                assignments[h, i] = 0
+            a = out[h, i] + 1 if out[h, i] < m else 0
+            assignments[h, i] = a
+            vals[i] = log_ext[i, a]
         log_weights[h] = _pairwise_sum(vals, n)
     order = np.argsort(-log_weights, kind="mergesort")
     return assignments[order], log_weights[order], found
+
+
+@numba.njit(cache=True)
+def _checked_extended(L, miss):
+    """``(ok, ext)``: is ``(L, miss)`` a valid cluster, and ``[miss | L]`` with 0 → 1.
+
+    ``ok`` is :func:`~jointtrack.association._validate.check_cluster`'s verdict
+    on float64 arrays of matching shapes (entries of ``L`` finite and ≥ 0,
+    ``miss`` finite in [0, 1], no track with ``miss = 0`` and nothing gated),
+    taken in one compiled pass because that check costs more than a small
+    ranking; when it is False the caller runs ``check_cluster`` for its message.
+    ``ext`` holds the weights of the beta layout (column 0 the miss) whose
+    logs the kernel needs, taken by NumPy in one call so that they are the
+    very values the NumPy implementation used.
+    """
+    n, m = L.shape
+    ext = np.empty((n, m + 1))
+    for i in range(n):
+        x = miss[i]
+        if not (x >= 0.0 and x <= 1.0):  # NaN fails too
+            return False, ext
+        ext[i, 0] = x if x > 0 else 1.0
+        gated = False
+        for j in range(m):
+            x = L[i, j]
+            if not (x >= 0.0 and x < np.inf):
+                return False, ext
+            gated = gated or x > 0
+            ext[i, j + 1] = x if x > 0 else 1.0
+        if miss[i] == 0 and not gated:
+            return False, ext
+    return True, ext
 
 
 def kbest_hypotheses(L, miss, *, k: int = 100) -> KBestHypotheses:
@@ -356,14 +384,29 @@ def kbest_hypotheses(L, miss, *, k: int = 100) -> KBestHypotheses:
     InfeasibleAssignmentError
         no joint event has positive weight.
     """
-    L, miss = check_cluster(L, miss)
+    ok = (
+        type(L) is np.ndarray
+        and type(miss) is np.ndarray
+        and L.dtype == np.float64
+        and miss.dtype == np.float64
+        and L.ndim == 2
+        and miss.ndim == 1
+        and miss.shape[0] == L.shape[0]
+    )
+    if ok:  # the tracker's case: checked in one compiled pass
+        L, miss = np.ascontiguousarray(L), np.ascontiguousarray(miss)
+        ok, ext = _checked_extended(L, miss)
+    if not ok:
+        L, miss = check_cluster(L, miss)  # raises with the clear message
+        ok, ext = _checked_extended(L, miss)
+        if not ok:
+            raise RuntimeError(
+                "kbest_hypotheses: check_cluster accepted a cluster the kernel refused"
+            )
     k = as_int(k, "k", minimum=1)
-    n = L.shape[0]
-    if n == 0:
+    if L.shape[0] == 0:
         return KBestHypotheses(np.zeros((1, 0), dtype=np.int64), np.zeros(1), k > 1)
-    log_L = np.log(np.where(L > 0, L, 1.0))
-    log_miss = np.log(np.where(miss > 0, miss, 1.0))
-    assignments, log_weights, found = _murty(L, miss, log_L, log_miss, k)
+    assignments, log_weights, found = _murty(L, miss, np.log(ext), k)
     if found == 0:
         raise InfeasibleAssignmentError(NO_FEASIBLE_EVENT)
     return KBestHypotheses(assignments, log_weights, exhausted=bool(found < k))
