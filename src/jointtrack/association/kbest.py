@@ -16,10 +16,15 @@ in which every track takes exactly one column and each column is used at most
 once; measurements whose columns are unused are clutter (factor 1). The cost
 of an assignment is −log of the event weight Π L · Π miss (Bojilov eq. (7)
 after the common factor), so the cheapest assignment is the MAP event. Each
-assignment problem is solved with the package's one assignment solver,
-:func:`jointtrack.assignment.linear_assignment` (∞ = forbidden; it raises
-:class:`~jointtrack.errors.InfeasibleAssignmentError` when no assignment
-avoids them); Murty's partition then yields the next best events in order.
+assignment problem is solved by the package's one assignment solver, the
+kernel behind :func:`jointtrack.assignment.linear_assignment` (∞ = forbidden;
+it reports when no assignment avoids them); Murty's partition then yields the
+next best events in order. The partition loop, its priority queue and the
+constraints (cost edits: forbidden = ∞, forced = ∞ on the rest of the row and
+column) run in one compiled kernel that calls the solver's kernel directly, as
+the tracker ranks many small clusters per scan and per-subproblem Python
+overhead dominated; results are identical to the former Python loop over the
+public solver (``benchmarks/kbest_speed.py`` checks and times both).
 Everything is in log space — costs, event log weights and the final
 renormalisation relative to the best event — so likelihood ratios near the
 float64 limit or subnormal miss weights are handled as they are.
