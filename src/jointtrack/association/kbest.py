@@ -82,13 +82,21 @@ def _pairwise_block(a, lo, n):
         for i in range(lo, lo + n):
             res += a[i]
         return res
-    r = a[lo : lo + 8].copy()
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
     i = 8
     while i < n - n % 8:
-        for t in range(8):
-            r[t] += a[lo + i + t]
+        j = lo + i
+        r0 += a[j]
+        r1 += a[j + 1]
+        r2 += a[j + 2]
+        r3 += a[j + 3]
+        r4 += a[j + 4]
+        r5 += a[j + 5]
+        r6 += a[j + 6]
+        r7 += a[j + 7]
         i += 8
-    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
     while i < n:
         res += a[lo + i]
         i += 1
@@ -161,7 +169,10 @@ def _solve_node(
     satisfies the constraints.
     """
     n, width = C.shape
-    work[:, :] = C
+    # element loops throughout: numba's array-to-array copies compile slowly
+    for r in range(n):
+        for c in range(width):
+            work[r, c] = C[r, c]
     if extra_row >= 0:
         work[extra_row, extra_col] = np.inf
     p = parent
@@ -173,8 +184,10 @@ def _solve_node(
         c = forced[r]
         if c >= 0:
             keep = work[r, c]
-            work[r, :] = np.inf
-            work[:, c] = np.inf
+            for cc in range(width):
+                work[r, cc] = np.inf
+            for rr in range(n):
+                work[rr, c] = np.inf
             work[r, c] = keep
     none = np.empty(0, np.int64)
     for r in range(n):  # a row with nothing allowed: infeasible without a solve
@@ -238,10 +251,61 @@ def _heap_pop(heap, size, cost):
 
 
 @numba.njit(cache=True)
-def _grow(a, size):
-    out = np.empty((size,) + a.shape[1:], a.dtype)
-    out[: a.shape[0]] = a
+def _grow_vector(a, size):
+    # plain loops: numba compiles these far faster than a generic slice copy
+    out = np.empty(size, a.dtype)
+    for i in range(a.shape[0]):
+        out[i] = a[i]
     return out
+
+
+@numba.njit(cache=True)
+def _grow_rows(a, size):
+    out = np.empty((size, a.shape[1]), a.dtype)
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            out[i, j] = a[i, j]
+    return out
+
+
+@numba.njit(cache=True)
+def _copy_row(a, row, values):
+    for j in range(values.shape[0]):
+        a[row, j] = values[j]
+
+
+@numba.njit(cache=True)
+def _stable_order_decreasing(x):
+    """``np.argsort(-x, kind="stable")``: bottom-up merge sort (equal keys keep order)."""
+    size = x.shape[0]
+    order = np.arange(size)
+    spare = np.empty(size, np.int64)
+    width = 1
+    while width < size:
+        for lo in range(0, size, 2 * width):
+            mid = min(lo + width, size)
+            hi = min(lo + 2 * width, size)
+            a, b, t = lo, mid, lo
+            while a < mid and b < hi:
+                # take from the right run only if strictly larger: stability
+                if x[order[b]] > x[order[a]]:
+                    spare[t] = order[b]
+                    b += 1
+                else:
+                    spare[t] = order[a]
+                    a += 1
+                t += 1
+            while a < mid:
+                spare[t] = order[a]
+                a += 1
+                t += 1
+            while b < hi:
+                spare[t] = order[b]
+                b += 1
+                t += 1
+        order, spare = spare, order
+        width *= 2
+    return order
 
 
 @numba.njit(cache=True)
@@ -280,8 +344,8 @@ def _murty(L, miss, log_ext, k):
     if not ok:
         return np.zeros((0, n), np.int64), np.zeros(0), 0
     node_cost[0] = cost
-    node_cols[0] = cols
-    node_forced[0] = forced
+    _copy_row(node_cols, 0, cols)
+    _copy_row(node_forced, 0, forced)
     node_parent[0] = -1
     node_row[0] = -1
     node_col[0] = -1
@@ -293,14 +357,15 @@ def _murty(L, miss, log_ext, k):
     while size > 0 and found < k:
         p, size = _heap_pop(heap, size, node_cost)
         if found == out.shape[0]:
-            out = _grow(out, min(k, 2 * found))
-        out[found] = node_cols[p]
+            out = _grow_rows(out, min(k, 2 * found))
+        _copy_row(out, found, node_cols[p])
         found += 1
         if found == k:
             break
         # children: the free rows in order, row r forbidden its parent column
         # and every earlier free row forced onto its parent column
-        forced[:] = node_forced[p]
+        for r in range(n):
+            forced[r] = node_forced[p, r]
         for r in range(n):
             if node_forced[p, r] >= 0:
                 continue
@@ -311,16 +376,16 @@ def _murty(L, miss, log_ext, k):
             if ok:
                 if n_nodes == cap:
                     cap *= 2
-                    node_cost = _grow(node_cost, cap)
-                    node_cols = _grow(node_cols, cap)
-                    node_forced = _grow(node_forced, cap)
-                    node_parent = _grow(node_parent, cap)
-                    node_row = _grow(node_row, cap)
-                    node_col = _grow(node_col, cap)
-                    heap = _grow(heap, cap)
+                    node_cost = _grow_vector(node_cost, cap)
+                    node_cols = _grow_rows(node_cols, cap)
+                    node_forced = _grow_rows(node_forced, cap)
+                    node_parent = _grow_vector(node_parent, cap)
+                    node_row = _grow_vector(node_row, cap)
+                    node_col = _grow_vector(node_col, cap)
+                    heap = _grow_vector(heap, cap)
                 node_cost[n_nodes] = cost
-                node_cols[n_nodes] = cols
-                node_forced[n_nodes] = forced
+                _copy_row(node_cols, n_nodes, cols)
+                _copy_row(node_forced, n_nodes, forced)
                 node_parent[n_nodes] = p
                 node_row[n_nodes] = r
                 node_col[n_nodes] = c
@@ -337,8 +402,14 @@ def _murty(L, miss, log_ext, k):
             assignments[h, i] = a
             vals[i] = log_ext[i, a]
         log_weights[h] = _pairwise_sum(vals, n)
-    order = np.argsort(-log_weights, kind="mergesort")
-    return assignments[order], log_weights[order], found
+    order = _stable_order_decreasing(log_weights)
+    sorted_assignments = np.empty_like(assignments)
+    sorted_weights = np.empty_like(log_weights)
+    for h in range(found):
+        sorted_weights[h] = log_weights[order[h]]
+        for i in range(n):
+            sorted_assignments[h, i] = assignments[order[h], i]
+    return sorted_assignments, sorted_weights, found
 
 
 @numba.njit(cache=True)
