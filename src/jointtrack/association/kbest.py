@@ -53,6 +53,9 @@ from jointtrack.errors import InfeasibleAssignmentError
 
 __all__ = ["KBestHypotheses", "kbest_hypotheses", "kbest_marginals"]
 
+_FLOAT64 = np.dtype(np.float64)
+_MAX_K = 2**63 - 1  # as_int's bound: what the kernel's int64 holds
+
 
 @dataclass(frozen=True)
 class KBestHypotheses:
@@ -463,8 +466,8 @@ def kbest_hypotheses(L, miss, *, k: int = 100) -> KBestHypotheses:
     ok = (
         type(L) is np.ndarray
         and type(miss) is np.ndarray
-        and L.dtype == np.float64
-        and miss.dtype == np.float64
+        and L.dtype == _FLOAT64  # a dtype against a dtype: far cheaper than against np.float64
+        and miss.dtype == _FLOAT64
         and L.ndim == 2
         and miss.ndim == 1
         and miss.shape[0] == L.shape[0]
@@ -479,7 +482,8 @@ def kbest_hypotheses(L, miss, *, k: int = 100) -> KBestHypotheses:
             raise RuntimeError(
                 "kbest_hypotheses: check_cluster accepted a cluster the kernel refused"
             )
-    k = as_int(k, "k", minimum=1)
+    if type(k) is not int or not 1 <= k <= _MAX_K:  # plain ints in range skip the full check
+        k = as_int(k, "k", minimum=1)
     if L.shape[0] == 0:
         return KBestHypotheses(np.zeros((1, 0), dtype=np.int64), np.zeros(1), k > 1)
     assignments, log_weights, found = _murty(L, miss, np.log(ext), k)
