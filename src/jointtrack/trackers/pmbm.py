@@ -664,50 +664,55 @@ class PMBMTracker(_PoissonTracker):
                 for tup, k in zip(tuples, k_u, strict=True)
             ]
             ranked.append((tracks, inv, lists))
-        cluster_tracks = np.concatenate([r[0] for r in ranked]) if ranked else np.zeros(0, np.int64)
         new_track_hyp = S + n_pairs + np.arange(M)
+        # each cluster's ranked list as (w, payload) with payload = [child | taken]
+        ranked = [
+            (tracks, inv, [(w, np.concatenate([ch, tk], axis=1)) for w, ch, tk in lists])
+            for tracks, inv, lists in ranked
+        ]
         out_rows, out_logw = [], []
         for h in range(H):
             if not np.isfinite(const[h]):
                 continue  # a track that must be detected gated nothing
-            # payload per cluster: [child (n_c) | taken (n_c)], in cluster order
+            # clusters with one event are constants of the hypothesis; the others'
+            # ranked lists are combined (payloads concatenated in that order)
+            w_const = 0.0
+            fixed = []  # (tracks, payload row)
             w = np.zeros(1)
             payload = np.zeros((1, 0), np.int64)
-            for _, inv, lists in ranked:
-                w2, child2, taken2 = lists[inv[h]]
+            varying = []  # tracks of the combined clusters, in payload order
+            for tracks, inv, lists in ranked:
+                w2, p2 = lists[inv[h]]
                 if len(w2) == 0:
                     w = w[:0]
                     break
-                p2 = np.concatenate([child2, taken2], axis=1)
-                if len(w2) == 1:  # one event: a constant of this hypothesis
-                    w = w + w2[0]
-                    payload = np.concatenate(
-                        [payload, np.broadcast_to(p2, (len(w), p2.shape[1]))], axis=1
-                    )
+                if len(w2) == 1:
+                    w_const += w2[0]
+                    fixed.append((tracks, p2[0]))
                 else:
                     w, payload = _combine_ranked(w, payload, w2, p2, int(k_h[h]))
-            if len(w) == 0:
-                continue
-            child = np.empty((len(w), len(cluster_tracks)), np.int64)
-            taken = np.empty_like(child)
-            off = at = 0
-            for tracks, _, _ in ranked:
-                n_c = len(tracks)
-                child[:, at : at + n_c] = payload[:, off : off + n_c]
-                taken[:, at : at + n_c] = payload[:, off + n_c : off + 2 * n_c]
-                off += 2 * n_c
-                at += n_c
+                    varying.append(tracks)
             if len(w) == 0:
                 continue
             E = len(w)
             new = np.empty((E, T + M), np.int64)
             new[:, :T] = hyp[h]
-            new[:, cluster_tracks] = child
             new[:, T:] = new_track_hyp
-            e_idx, t_idx = np.nonzero(taken >= 0)
-            new[e_idx, T + taken[e_idx, t_idx]] = -1
+            for tracks, row in fixed:
+                n_c = len(tracks)
+                new[:, tracks] = row[:n_c]
+                taken = row[n_c:]
+                new[:, T + taken[taken >= 0]] = -1
+            off = 0
+            for tracks in varying:
+                n_c = len(tracks)
+                new[:, tracks] = payload[:, off : off + n_c]
+                taken = payload[:, off + n_c : off + 2 * n_c]
+                e_idx, t_idx = np.nonzero(taken >= 0)
+                new[e_idx, T + taken[e_idx, t_idx]] = -1
+                off += 2 * n_c
             out_rows.append(new)
-            out_logw.append(self.hyp_logw[h] + const[h] + w)
+            out_logw.append(self.hyp_logw[h] + const[h] + w_const + w)
         if not out_rows:
             raise InfeasibleAssignmentError(
                 "no global hypothesis has an association event of positive weight "
@@ -728,14 +733,16 @@ class PMBMTracker(_PoissonTracker):
         n = len(tup)
         here = np.flatnonzero(tup >= 0)
         sths = tup[here]
-        spans = [np.arange(start[s], start[s + 1]) for s in sths]
-        pairs = np.concatenate(spans) if spans else np.zeros(0, np.int64)
-        base_child = np.broadcast_to(tup, (1, n)).copy()
+        lo = start[sths]
+        count = start[sths + 1] - lo
+        row_local = np.repeat(np.arange(len(sths)), count)
+        # the gated pairs of these hypotheses: lo[i] .. lo[i] + count[i] − 1 for each i
+        pairs = np.arange(len(row_local)) + np.repeat(lo - (np.cumsum(count) - count), count)
+        base_child = tup[None, :].copy()
         none = np.full((1, n), -1, np.int64)
         if len(pairs) == 0:
             w = log_miss[sths].sum()
             return (np.array([w]) if np.isfinite(w) else np.zeros(0)), base_child, none
-        row_local = np.repeat(np.arange(len(sths)), [len(sp) for sp in spans])
         if len(sths) == 1:
             opts = np.concatenate([[log_miss[sths[0]]], log_L[pairs]])
             order = np.argsort(-opts, kind="stable")[:k]
