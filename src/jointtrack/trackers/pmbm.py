@@ -524,8 +524,10 @@ class PMBMTracker(_PoissonTracker):
         # hypotheses that became identical are one hypothesis
         hyp, inverse = np.unique(hyp, axis=0, return_inverse=True)
         inverse = inverse.reshape(-1)
-        top = np.zeros(len(hyp))
-        np.maximum.at(top, inverse, logw)  # logsumexp per group, relative to its max
+        # logsumexp per group, relative to its max (from −inf: the weights are ≤ 0, and a
+        # start at 0 underflowed exp() for hypotheses below e^−745, giving −inf)
+        top = np.full(len(hyp), -np.inf)
+        np.maximum.at(top, inverse, logw)
         acc = np.zeros(len(hyp))
         np.add.at(acc, inverse, np.exp(logw - top[inverse]))
         logw = top + np.log(acc)
