@@ -519,8 +519,10 @@ class PMBMTracker(_PoissonTracker):
         keep = np.flatnonzero(w >= c.hypothesis_prune)
         keep = keep[np.argsort(-w[keep], kind="stable")][: c.max_hypotheses]
         hyp, logw = new_rows[keep], new_logw[keep]
-        # Bernoullis too unlikely to exist are dropped from every hypothesis
-        hyp = np.where((hyp >= 0) & (child_r[np.maximum(hyp, 0)] >= c.r_prune), hyp, -1)
+        # Bernoullis too unlikely to exist are dropped from every hypothesis (r = 0 always:
+        # with r_prune = 0, a return outside birth_region would start a track that never goes)
+        r_child = child_r[np.maximum(hyp, 0)]
+        hyp = np.where((hyp >= 0) & (r_child >= c.r_prune) & (r_child > 0), hyp, -1)
         # hypotheses that became identical are one hypothesis
         hyp, inverse = np.unique(hyp, axis=0, return_inverse=True)
         inverse = inverse.reshape(-1)
