@@ -256,14 +256,17 @@ def _enumerate(sc, p_g=1.0):
     M = len(sc["z"])
     r = [Fraction(v) for v in sc["r"]]
     R = sc["R"] * np.eye(2)
+    gated = _gate_mask(sc, p_g)
+    # only gated pairs are hypotheses (and 2^-(10^12) is no number to build)
     g = [
         [
             fraction_exp(float(multivariate_normal(x[:2], P[:2, :2] + R).logpdf(zj)))
-            for zj in sc["z"]
+            if gated[s, j]
+            else None
+            for j, zj in enumerate(sc["z"])
         ]
-        for x, P in zip(sc["x"], sc["P"], strict=True)
+        for s, (x, P) in enumerate(zip(sc["x"], sc["P"], strict=True))
     ]
-    gated = _gate_mask(sc, p_g)
     e = pd * Fraction(sc["u"])
     rho = Fraction(sc["lam"]) + e
     per_h = []
