@@ -530,14 +530,18 @@ class PMBMTracker(_PoissonTracker):
         keep = np.flatnonzero(w >= c.hypothesis_prune)
         keep = keep[np.argsort(-w[keep], kind="stable")][: c.max_hypotheses]
         hyp, logw = new_rows[keep], new_logw[keep]
-        # Bernoullis too unlikely to exist are dropped from every hypothesis
-        hyp = np.where((hyp >= 0) & (child_r[np.maximum(hyp, 0)] >= c.r_prune), hyp, -1)
+        # Bernoullis too unlikely to exist are dropped from every hypothesis (r = 0 always:
+        # with r_prune = 0, a return outside birth_region would start a track that never goes)
+        r_child = child_r[np.maximum(hyp, 0)]
+        hyp = np.where((hyp >= 0) & (r_child >= c.r_prune) & (r_child > 0), hyp, -1)
         recycled = self._recycle(hyp, logw, child_r, child_x, child_P)
         # hypotheses that became identical are one hypothesis
         hyp, inverse = np.unique(hyp, axis=0, return_inverse=True)
         inverse = inverse.reshape(-1)
-        top = np.zeros(len(hyp))
-        np.maximum.at(top, inverse, logw)  # logsumexp per group, relative to its max
+        # logsumexp per group, relative to its max (from −inf: the weights are ≤ 0, and a
+        # start at 0 underflowed exp() for hypotheses below e^−745, giving −inf)
+        top = np.full(len(hyp), -np.inf)
+        np.maximum.at(top, inverse, logw)
         acc = np.zeros(len(hyp))
         np.add.at(acc, inverse, np.exp(logw - top[inverse]))
         logw = top + np.log(acc)

@@ -138,6 +138,8 @@ class PMBMConfig:
                 value = check_field(name, getattr(self, name))
             except ValueError as exc:
                 raise ValueError(str(exc).replace("TrackerConfig:", "PMBMConfig:")) from None
+            except OverflowError:  # an int beyond the float range (float(10**400))
+                raise _fail(name, "a finite number", getattr(self, name)) from None
             object.__setattr__(self, name, value)
         try:
             noise = TrackerConfig(dim=self.dim, measurement_noise=self.measurement_noise)
@@ -175,24 +177,19 @@ class PMBMConfig:
         for name, v in (("birth_weights", w), ("birth_means", m), ("birth_covs", P)):
             if isinstance(v, str | bytes) or not isinstance(v, list | tuple | np.ndarray):
                 raise _fail(name, "a list", v)
-        try:
-            wa = np.asarray(w, dtype=np.float64).reshape(-1)
-            ma = np.asarray(m, dtype=np.float64)
-            Pa = np.asarray(P, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise _fail("birth_means", "lists of numbers", (w, m, P)) from None
+        wa = _real_array("birth_weights", w).reshape(-1)
+        ma = _real_array("birth_means", m)
+        Pa = _real_array("birth_covs", P)
         k = len(wa)
         if self.birth_model == "gaussian" and k == 0:
             raise _fail("birth_weights", "at least one component for birth_model 'gaussian'", w)
         if k == 0 and ma.size == 0 and Pa.size == 0:
             ma, Pa = ma.reshape(0, n), Pa.reshape(0, n, n)
-        if ma.shape != (k, n) or Pa.shape != (k, n, n):
-            raise _fail(
-                "birth_means",
-                f"{k} means of length {n} and {k} covariances {n} × {n} (one per weight; the "
-                f"state is {n}-D for motion {self.motion!r} in {self.dim}-D)",
-                (np.shape(m), np.shape(P)),
-            )
+        state = f"(one per weight; the state is {n}-D for motion {self.motion!r} in {self.dim}-D)"
+        if ma.shape != (k, n):
+            raise _fail("birth_means", f"{k} means of length {n} {state}", np.shape(m))
+        if Pa.shape != (k, n, n):
+            raise _fail("birth_covs", f"{k} covariances {n} × {n} {state}", np.shape(P))
         for name, a in (("birth_weights", wa), ("birth_means", ma), ("birth_covs", Pa)):
             if not np.isfinite(a).all() or a.dtype.kind != "f":
                 raise _fail(name, "finite numbers", a.tolist())
@@ -257,6 +254,23 @@ def _number(name: str, v, want: str) -> float:
     if not math.isfinite(v):
         raise _fail(name, want, v)
     return v
+
+
+def _real_array(name: str, v) -> np.ndarray:
+    """``v`` as a float64 array of real numbers; bools, complex, strings, ragged
+    lists and ints beyond the float range raise ValueError naming ``name``."""
+    want = "a (nested) list of real numbers"
+    try:
+        a = np.asarray(v, dtype=object)
+    except ValueError:  # ragged nesting numpy cannot even hold as objects
+        raise _fail(name, want, v) from None
+    for x in a.reshape(-1):
+        if isinstance(x, bool | np.bool_) or not isinstance(x, numbers.Real):
+            raise _fail(name, want, v)
+    try:
+        return a.astype(np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise _fail(name, want, v) from None
 
 
 def _positive(name: str, v) -> float:
