@@ -145,6 +145,7 @@ def _tracker(sc, **kw):
         prior_density=sc["u"],
         max_speed=MAX_SPEED,
         r_prune=0.0,
+        r_recycle=0.0,  # exact comparisons: no Bernoulli moves into the intensity
         hypothesis_prune=0.0,
         poisson_prune=0.0,
         **kw,

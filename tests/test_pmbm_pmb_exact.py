@@ -153,6 +153,7 @@ def _config(sc, **kw):
         measurement_noise=sc["R"],
         prior_density=sc["u"],
         r_prune=0.0,
+        r_recycle=0.0,  # exact comparisons: no Bernoulli moves into the intensity
         **kw,
     )
 

@@ -139,6 +139,7 @@ def test_gaussian_mixture_prediction_and_update(kind, prior, birth, F_off, Q, z,
         poisson_merge=0.0,
         max_poisson_components=1000,
         r_prune=0.0,
+        r_recycle=0.0,  # exact comparisons: no Bernoulli moves into the intensity
     )
     trk = kind(cfg, motion=_Motion(F, Q))
     # the prior intensity: prior_weight spread over the birth mixture's shape
@@ -209,6 +210,7 @@ def test_uniform_density_steady_state_and_update(kind, p_d, p_s, b, lam, R, max_
         birth_density=b,
         max_speed=max_speed,
         r_prune=0.0,
+        r_recycle=0.0,  # exact comparisons: no Bernoulli moves into the intensity
     )
     trk = kind(cfg)
     u_pred = b / (1.0 - p_s * (1.0 - p_d))  # fixed point of u ← P_S (1 − P_D) u + b
@@ -243,6 +245,7 @@ def test_prior_density_and_birth_region(kind):
         prior_density=2e-5,
         birth_region=((-100.0, 100.0), (-100.0, 100.0)),
         r_prune=0.0,
+        r_recycle=0.0,  # exact comparisons: no Bernoulli moves into the intensity
     )
     trk = kind(cfg)
     assert trk.undetected_density[0] == 2e-5

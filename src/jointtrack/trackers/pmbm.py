@@ -357,7 +357,7 @@ class PMBTracker(_PoissonTracker):
         ids = np.concatenate([self.ids, np.zeros(M, np.int64)])  # new: numbered below
         weak = (r < c.r_recycle) & (r >= c.r_prune)
         self._thin_and_prune_poisson((r[weak], x[weak], P[weak]))
-        keep = (r >= c.r_prune) & ~weak
+        keep = (r >= c.r_prune) & (r > 0) & ~weak  # r = 0: no Bernoulli at all
         self.x, self.P, self.existence, ids = x[keep], P[keep], r[keep], ids[keep]
         born = ids == 0
         ids[born] = np.arange(self.next_id, self.next_id + int(born.sum()))
