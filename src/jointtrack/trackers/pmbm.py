@@ -63,10 +63,11 @@ Approximations, each with its knob in :class:`~jointtrack.trackers.pmbm_config.P
   Poisson components within ``poisson_merge`` (squared Mahalanobis distance 4)
   merged.
 * **recycling** (``r_recycle``, 0.1): Bernoullis (PMBM: tracks in every
-  global hypothesis) with existence below it become Gaussian components of
-  the Poisson intensity (J. L. Williams, "Hybrid Poisson and multi-Bernoulli
-  filters", *15th International Conference on Information Fusion*, 2012):
-  clutter-born Bernoullis then cost no association work.
+  global hypothesis) with existence below it that were never reported
+  become Gaussian components of the Poisson intensity (J. L. Williams,
+  "Hybrid Poisson and multi-Bernoulli filters", *15th International
+  Conference on Information Fusion*, 2012): clutter-born Bernoullis then cost
+  no association work.
 * **uniform birth** ignores the edges of ``birth_region`` (a measurement
   inside it gets the full density, one outside none).
 
@@ -311,7 +312,7 @@ class PMBTracker(_PoissonTracker):
     """
 
     KIND = "pmb"
-    _ARRAYS = ("x", "P", "ids", "existence", *_PoissonTracker._POISSON)
+    _ARRAYS = ("x", "P", "ids", "existence", "reported", *_PoissonTracker._POISSON)
 
     def __init__(self, config=None, *, motion=None, sensor=None, sensors=None, keep_history=True):
         super().__init__(
@@ -320,6 +321,8 @@ class PMBTracker(_PoissonTracker):
         n = self.state_dim
         self.x, self.P = np.zeros((0, n)), np.zeros((0, n, n))
         self.ids, self.existence = np.zeros(0, np.int64), np.zeros(0)
+        # reported at some scan (r ≥ r_estimate): never recycled, so its id is kept
+        self.reported = np.zeros(0, bool)
 
     def _step(self, t, z, same_time_ok=False) -> ScanResult:
         c = self.config
@@ -355,10 +358,12 @@ class PMBTracker(_PoissonTracker):
         P = np.concatenate([self.P, P_new])
         r = np.concatenate([self.existence, r_new])
         ids = np.concatenate([self.ids, np.zeros(M, np.int64)])  # new: numbered below
-        weak = (r < c.r_recycle) & (r >= c.r_prune)
+        reported = np.concatenate([self.reported, np.zeros(M, bool)])
+        weak = (r < c.r_recycle) & (r >= c.r_prune) & ~reported
         self._thin_and_prune_poisson((r[weak], x[weak], P[weak]))
         keep = (r >= c.r_prune) & (r > 0) & ~weak  # r = 0: no Bernoulli at all
         self.x, self.P, self.existence, ids = x[keep], P[keep], r[keep], ids[keep]
+        self.reported = reported[keep] | (self.existence >= c.r_estimate)
         born = ids == 0
         ids[born] = np.arange(self.next_id, self.next_id + int(born.sum()))
         self.next_id += int(born.sum())
@@ -391,6 +396,7 @@ class PMBTracker(_PoissonTracker):
             "P": ("f", ("N", n, n)),
             "ids": ("i", ("N",)),
             "existence": ("f", ("N",)),
+            "reported": ("b", ("N",)),
             "poisson_w": ("f", ("C",)),
             "poisson_m": ("f", ("C", n)),
             "poisson_P": ("f", ("C", n, n)),
@@ -459,6 +465,7 @@ class PMBMTracker(_PoissonTracker):
         "sth_P",
         "sth_track",
         "track_ids",
+        "track_reported",
         "hyp",
         "hyp_logw",
         *_PoissonTracker._POISSON,
@@ -472,6 +479,8 @@ class PMBMTracker(_PoissonTracker):
         self.sth_r, self.sth_x, self.sth_P = np.zeros(0), np.zeros((0, n)), np.zeros((0, n, n))
         self.sth_track = np.zeros(0, np.int64)
         self.track_ids = np.zeros(0, np.int64)
+        # reported at some scan (estimator 1): never recycled, so its id is kept
+        self.track_reported = np.zeros(0, bool)
         self.hyp = np.zeros((1, 0), np.int64)  # one global hypothesis with no track
         self.hyp_logw = np.zeros(1)
 
@@ -562,6 +571,9 @@ class PMBMTracker(_PoissonTracker):
         new_ids = np.arange(self.next_id, self.next_id + len(born))
         self.next_id += len(born)
         self.track_ids = np.concatenate([self.track_ids[cols_kept[cols_kept < T]], new_ids])
+        self.track_reported = np.concatenate(
+            [self.track_reported[cols_kept[cols_kept < T]], np.zeros(len(born), bool)]
+        )
         order = np.argsort(-self.hyp_logw, kind="stable")
         self.hyp, self.hyp_logw = self.hyp[order], self.hyp_logw[order]
         self._thin_and_prune_poisson(recycled)
@@ -573,6 +585,7 @@ class PMBMTracker(_PoissonTracker):
         s = best[present]
         report = self.sth_r[s] >= c.r_estimate
         s, tracks = s[report], present[report]
+        self.track_reported[tracks] = True
         gated = np.zeros(M, bool)
         gated[cols] = True
         return ScanResult(
@@ -588,7 +601,7 @@ class PMBMTracker(_PoissonTracker):
         )
 
     def _recycle(self, hyp, logw, child_r, child_x, child_P):
-        """Tracks whose existence is below ``r_recycle`` in every hypothesis go to the intensity.
+        """Never-reported tracks with existence below ``r_recycle`` everywhere go to the intensity.
 
         Each such track's single-target hypotheses become Gaussian components
         of the Poisson intensity with weight r × (total weight of the global
@@ -602,7 +615,10 @@ class PMBMTracker(_PoissonTracker):
             return none
         present = hyp >= 0
         r_of = np.where(present, child_r[np.maximum(hyp, 0)], 0.0)
-        weak = (r_of < c.r_recycle).all(axis=0) & present.any(axis=0)
+        reported = np.concatenate(
+            [self.track_reported, np.zeros(hyp.shape[1] - len(self.track_reported), bool)]
+        )
+        weak = (r_of < c.r_recycle).all(axis=0) & present.any(axis=0) & ~reported
         if not weak.any():
             return none
         wn = np.exp(logw - logw.max())
@@ -786,6 +802,7 @@ class PMBMTracker(_PoissonTracker):
             "sth_P": ("f", ("S", n, n)),
             "sth_track": ("i", ("S",)),
             "track_ids": ("i", ("T",)),
+            "track_reported": ("b", ("T",)),
             "hyp": ("i", ("H", "T")),
             "hyp_logw": ("f", ("H",)),
             "poisson_w": ("f", ("C",)),

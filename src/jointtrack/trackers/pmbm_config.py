@@ -81,10 +81,13 @@ class PMBMConfig:
     max_poisson_components : cap on the Gaussian components kept (largest first).
     r_prune : Bernoulli components with existence below this are dropped.
     r_recycle : Bernoullis (PMBM: tracks in every global hypothesis) with
-        existence below this are *recycled*: moved into the Poisson intensity
-        as Gaussian components of weight r (Williams 2012; 0 = never). A
+        existence below this that were never reported are *recycled*: moved
+        into the Poisson intensity as Gaussian components of weight r
+        (Williams 2012; 0 = never). A
         clutter-born Bernoulli then costs no association work, and a real
-        target's evidence is kept in the intensity until it is strong.
+        target's evidence is kept in the intensity until it is strong. A
+        Bernoulli once reported is never recycled (it keeps its id through
+        missed detections until its existence falls below ``r_prune``).
     r_estimate : Bernoullis reported as targets have existence ≥ this
         (PMBM: in the most probable global hypothesis; estimator 1 of
         García-Fernández et al. 2018).
