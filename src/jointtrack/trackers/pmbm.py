@@ -71,8 +71,13 @@ Approximations, each with its knob in :class:`~jointtrack.trackers.pmbm_config.P
 * **uniform birth** ignores the edges of ``birth_region`` (a measurement
   inside it gets the full density, one outside none).
 
-What they cost on the coalescence scene is measured in
-``benchmarks/RESULTS.md`` ("PMBM and PMB").
+What they cost, measured on the coalescence scene (10 runs, seeds 0–9, mean
+GOSPA c = 10, p = 2, α = 2; ``benchmarks/RESULTS.md``, "Issue 23"): with the
+defaults PMBM 2.294 ± 0.073 and PMB 2.701 ± 0.079. Turning each approximation
+off or widening it moves the mean by less than one standard error: no
+recycling 2.262 / 2.687, no Poisson merging 2.268 / 2.679, p_g = 1 − 10⁻⁷
+2.260 / 2.743, no hypothesis pruning 2.294 / 2.701; PMBM with 1,000 global
+hypotheses 2.294 (3× slower), with 50 hypotheses 2.298 (2.4× faster).
 """
 
 from __future__ import annotations
