@@ -155,6 +155,7 @@ def _tracker(sc, **kw):
     trk.sth_x, trk.sth_P = sc["x"].copy(), sc["P"].copy()
     trk.sth_track = sc["sth_track"].copy()
     trk.track_ids = np.arange(1, sc["T"] + 1, dtype=np.int64)
+    trk.track_reported = np.zeros(sc["T"], bool)
     trk.next_id = sc["T"] + 1
     trk.hyp = sc["hyp"].copy()
     logw = np.log(sc["w"])

@@ -164,6 +164,7 @@ def _tracker(sc, **kw):
     trk.x, trk.P = sc["x"].copy(), sc["P"].copy()
     trk.ids = np.arange(1, n + 1, dtype=np.int64)
     trk.existence = np.array(sc["r"], float)
+    trk.reported = np.zeros(n, bool)
     trk.next_id = n + 1
     return trk
 
