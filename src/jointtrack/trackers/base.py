@@ -61,7 +61,7 @@ from jointtrack.trackers.history import (
 from jointtrack.trackers.sensors import Sensor
 from jointtrack.trackers.state_io import StateFileError, read_state, write_state
 
-__all__ = ["ClusterRecord", "ScanResult", "ScanTracker", "merge_coincident"]
+__all__ = ["ClusterRecord", "ScanResult", "ScanTracker", "merge_coincident", "motion_model"]
 
 log = logging.getLogger("jointtrack.tracker")
 
@@ -151,6 +151,22 @@ class ClusterRecord:
     confirmed: bool
 
 
+def motion_model(config, motion=None):
+    """``motion``, checked, or the configuration's NCV / constant-acceleration model.
+
+    Any object with ``state_dim``, ``transition(dt)`` and ``noise(dt)`` is a
+    motion model; the default is built from ``config.motion``, ``config.dim``
+    and ``config.process_noise``.
+    """
+    if motion is None:
+        model = ConstantVelocity if config.motion == "cv" else ConstantAcceleration
+        motion = model(dim=config.dim, q=config.process_noise)
+    for attr in ("state_dim", "transition", "noise"):
+        if not hasattr(motion, attr):
+            raise ValueError(f"motion model {motion!r} has no {attr!r}")
+    return motion
+
+
 class ScanTracker:
     """Base of the scan trackers (see the module docstring); not used on its own."""
 
@@ -207,13 +223,7 @@ class ScanTracker:
         # restored state: appended only after a step succeeded
         self._history_rows: list[tuple] = []
         c = self.config
-        if motion is None:
-            model = ConstantVelocity if c.motion == "cv" else ConstantAcceleration
-            motion = model(dim=c.dim, q=c.process_noise)
-        for attr in ("state_dim", "transition", "noise"):
-            if not hasattr(motion, attr):
-                raise ValueError(f"motion model {motion!r} has no {attr!r}")
-        self._motion = motion
+        self._motion = motion = motion_model(c, motion)
         n = int(motion.state_dim)
         if n < 2 * c.dim:
             raise ValueError(

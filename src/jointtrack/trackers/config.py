@@ -8,7 +8,7 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
-__all__ = ["MISS_MODELS", "TrackerConfig", "check_field", "config_from_dict"]
+__all__ = ["MISS_MODELS", "ModelSettings", "TrackerConfig", "check_field", "config_from_dict"]
 
 #: How the weight of "track detected nothing" is formed (see ``TrackerConfig.miss_model``).
 MISS_MODELS = ("1-pd*pg", "1-pd")
@@ -34,7 +34,27 @@ def config_from_dict(cls, d: dict, noun: str, *, complete: bool = False):
 
 
 @dataclass(frozen=True)
-class TrackerConfig:
+class ModelSettings:
+    """The motion and sensor fields every scan tracker's configuration starts with.
+
+    Shared by :class:`TrackerConfig` and
+    :class:`~jointtrack.trackers.pmbm_config.PMBMConfig` (their docstrings
+    describe them); checked by :func:`check_field`.
+    """
+
+    dim: int = 2
+    motion: str = "cv"
+    process_noise: float = 1.0
+    measurement_noise: float | tuple = 100.0
+    sensor: str = "position"
+    sensor_position: tuple = (0.0, 0.0)
+    range_noise: float = 25.0
+    bearing_noise: float = 1e-4
+    p_d: float = 0.9
+
+
+@dataclass(frozen=True)
+class TrackerConfig(ModelSettings):
     """Everything that defines a JPDA tracker; plain numbers, TOML-friendly.
 
     Attributes
@@ -108,15 +128,6 @@ class TrackerConfig:
         target-originated return). JIPDA multiplies either by the existence.
     """
 
-    dim: int = 2
-    motion: str = "cv"
-    process_noise: float = 1.0
-    measurement_noise: float | tuple = 100.0
-    sensor: str = "position"
-    sensor_position: tuple = (0.0, 0.0)
-    range_noise: float = 25.0
-    bearing_noise: float = 1e-4
-    p_d: float = 0.9
     p_g: float = 0.99
     clutter_density: float | None = None
     association: str = "exact"
@@ -220,7 +231,10 @@ def _real(name: str, v, want: str) -> float:
     """A real number (not a bool, not NaN) as float."""
     if isinstance(v, bool | np.bool_) or not isinstance(v, numbers.Real):
         raise _fail(name, want, v)
-    v = float(v)
+    try:
+        v = float(v)
+    except OverflowError:  # an int beyond the float range
+        raise _fail(name, want, f"an integer of {len(str(v))} digits") from None
     if math.isnan(v):
         raise _fail(name, want, v)
     return v

@@ -84,12 +84,13 @@ from scipy import stats
 from scipy.special import logsumexp
 
 from jointtrack.assignment._checks import _as_real_array, as_float
-from jointtrack.models import ConstantAcceleration, ConstantVelocity, LinearPosition
+from jointtrack.models import LinearPosition
 from jointtrack.saddle import (
     jpda_coefficients,
     jpda_log_weights,
     log_mixed_derivative,
 )
+from jointtrack.trackers.base import motion_model
 from jointtrack.trackers.config import _check_noise, check_field, config_from_dict
 
 __all__ = [
@@ -520,13 +521,7 @@ class ParticleJPDATracker:
         if not isinstance(c, ParticleConfig):
             raise TypeError(f"config must be a ParticleConfig, got {type(c).__name__}")
         _check_weights_method(c.weights)
-        if motion is None:
-            model = ConstantVelocity if c.motion == "cv" else ConstantAcceleration
-            motion = model(dim=c.dim, q=c.process_noise)
-        for attr in ("state_dim", "transition", "noise"):
-            if not hasattr(motion, attr):
-                raise ValueError(f"motion model {motion!r} has no {attr!r}")
-        self._motion = motion
+        self._motion = motion = motion_model(c, motion)
         n = int(motion.state_dim)
         if sensor is None:
             sensor = LinearPosition(c.dim, c.measurement_covariance(), state_dim=n)

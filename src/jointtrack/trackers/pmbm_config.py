@@ -15,7 +15,12 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from jointtrack.trackers.config import TrackerConfig, check_field, config_from_dict
+from jointtrack.trackers.config import (
+    ModelSettings,
+    TrackerConfig,
+    check_field,
+    config_from_dict,
+)
 
 __all__ = ["BIRTH_MODELS", "PMBMConfig"]
 
@@ -45,7 +50,7 @@ _SHARED = (
 
 
 @dataclass(frozen=True)
-class PMBMConfig:
+class PMBMConfig(ModelSettings):
     """Everything that defines a PMB or PMBM tracker; plain numbers, TOML-friendly.
 
     Attributes
@@ -100,15 +105,6 @@ class PMBMConfig:
     naming the field.
     """
 
-    dim: int = 2
-    motion: str = "cv"
-    process_noise: float = 1.0
-    measurement_noise: float | tuple = 100.0
-    sensor: str = "position"
-    sensor_position: tuple = (0.0, 0.0)
-    range_noise: float = 25.0
-    bearing_noise: float = 1e-4
-    p_d: float = 0.9
     p_g: float = 0.9999
     p_survive: float = 0.99
     clutter_density: float = 1e-4
