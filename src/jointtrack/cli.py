@@ -131,8 +131,8 @@ def run_command(
         str | None,
         typer.Option(
             "--scenario",
-            help="Built-in scenario: bojilov (default) | crossing | many | abreast | acoustic "
-            "(superpositional sensors, see --filter).",
+            help="Built-in scenario: bojilov (default) | crossing | many | abreast | coalescence "
+            "| acoustic (superpositional sensors, see --filter).",
         ),
     ] = None,
     out: Annotated[

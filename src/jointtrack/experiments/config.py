@@ -3,7 +3,8 @@
 :func:`load_config` reads and checks the TOML file (its format is documented in
 :mod:`jointtrack.experiments.run`); :func:`make_scenario` builds a built-in
 scenario and :func:`make_tracker_config` the tracker configuration;
-:func:`scenario_tracker_settings` derives tracker settings from a scenario and
+:func:`scenario_tracker_settings` derives tracker settings from a scenario,
+:func:`scenario_metric_settings` the GOSPA/OSPA parameters its paper scores with, and
 :func:`start_truth_tracks` starts tracks at the true states with the
 steady-state covariance (:func:`steady_state_covariance`); :func:`start_setting`
 and :func:`default_start` say how a run's tracks start (``"truth"`` or
@@ -44,6 +45,7 @@ __all__ = [
     "make_scenario",
     "make_tracker_config",
     "particle_options",
+    "scenario_metric_settings",
     "scenario_tracker_settings",
     "start_setting",
     "start_truth_particles",
@@ -51,7 +53,7 @@ __all__ = [
     "steady_state_covariance",
 ]
 
-SCENARIOS = tuple(GENERATORS)  # bojilov, crossing, many, abreast
+SCENARIOS = tuple(GENERATORS)  # bojilov, crossing, many, abreast, coalescence
 # How a run's tracks start: confirmed at the true states of the first scan, or
 # initiated from the detections by the tracker's own logic.
 STARTS = ("truth", "nothing")
@@ -466,7 +468,7 @@ def make_scenario(
     *,
     source: str | None = None,
 ):
-    """Build a built-in scenario by name (``bojilov | crossing | many | abreast``).
+    """Build a built-in scenario by name (``bojilov | crossing | many | abreast | coalescence``).
 
     ``kwargs`` are passed to the scenario function (:mod:`jointtrack.scenarios`);
     unknown keywords and bad values raise :class:`RunConfigError` naming them.
@@ -559,6 +561,20 @@ def scenario_tracker_settings(scenario) -> dict:
         "max_speed": 1.5 * vmax if vmax > 0 else 1.0,
     }
     return d
+
+
+def scenario_metric_settings(scenario) -> dict:
+    """The GOSPA/OSPA ``c`` and ``p`` a scenario is scored with unless ``[metrics]`` sets them.
+
+    A scenario whose paper fixes them says so in ``info["gospa"]`` (coalescence:
+    c = 10, p = 2, as García-Fernández et al. score it); the others have none
+    (``{}``) and a run uses c = 5σ, p = 2. Only ``c`` and ``p`` are taken: a
+    run's GOSPA always has α = 2.
+    """
+    own = scenario.info.get("gospa") if isinstance(scenario.info, Mapping) else None
+    if not isinstance(own, Mapping):
+        return {}
+    return {k: float(own[k]) for k in ("c", "p") if k in own}
 
 
 def _noise_setting(R) -> float | tuple:

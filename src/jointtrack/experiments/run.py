@@ -42,7 +42,10 @@ the tracker's own initiation (two-point or one-point, then JIPDA existence or
 M-of-N confirmation) must find the targets; ``"truth"`` starts any scenario from
 its truth. A detections file has no true states, so it always starts from
 nothing. ``metrics.json`` says which start was used: ``start`` (``"truth"`` or
-``"nothing"``; ``start_from_truth`` is the same as a boolean).
+``"nothing"``; ``start_from_truth`` is the same as a boolean). GOSPA and OSPA
+use ``[metrics]`` ``c`` and ``p`` when set, else the scenario's own
+(:func:`scenario_metric_settings`: ``coalescence`` is scored with c = 10, p = 2
+as in its paper), else c = 5σ and p = 2.
 
 Config file (``--config FILE``, TOML)
 -------------------------------------
@@ -62,7 +65,7 @@ Config file (``--config FILE``, TOML)
     #                              # unit range × radian
 
     [scenario]             # built-in scenario (ignored with --detections)
-    name = "crossing"      # bojilov | crossing | many | abreast
+    name = "crossing"      # bojilov | crossing | many | abreast | coalescence
     seed = 3
     start_from = "nothing" # or "truth" (default: truth for bojilov, nothing for the
                            # others); start_from_truth = true|false is the older
@@ -71,7 +74,7 @@ Config file (``--config FILE``, TOML)
     clutter_per_scan = 5   # bojilov: clutter_density (β), n_scans, speeds, …
 
     [metrics]
-    c = 50.0               # GOSPA/OSPA cut-off (default 5σ)
+    c = 50.0               # GOSPA/OSPA cut-off (default 5σ; coalescence: 10, its paper's)
     switch_penalty = 0.0   # GOSPA identity-switch penalty
     switch_convention = "partner"  # or "stonesoup" (half a switch for assigned↔unassigned)
 
@@ -160,6 +163,7 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     make_sensors,
     make_tracker_config,
     particle_options,
+    scenario_metric_settings,
     scenario_tracker_settings,
     sensor_label,
     sensor_tables_for,
@@ -206,6 +210,7 @@ __all__ = [
     "print_summary",
     "run_detections",
     "run_scenario",
+    "scenario_metric_settings",
     "scenario_tracker_settings",
     "start_truth_tracks",
     "steady_state_covariance",
@@ -242,6 +247,10 @@ class _Source:
     region: np.ndarray | None = None
     x0: np.ndarray | None = None  # start tracks from these states at the first scan
     sigma: float = 10.0
+    # the scenario's own GOSPA/OSPA "c" and "p" (scenario_metric_settings): used where
+    # [metrics] does not set them; kept apart from metrics_opts so that a checkpoint
+    # holds only what the user set and --resume --config compares like with like
+    metric_defaults: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     kind: str = "position"  # of the scans: "position" or "range-bearing" ([r, θ] rows)
     sensor_ids: tuple | None = None  # per scan, the sensor id of each detection
@@ -761,7 +770,8 @@ def run_scenario(
     Parameters
     ----------
     scenario : a :class:`~jointtrack.scenarios.Scenario`, or a name
-        (``bojilov | crossing | many | abreast``) built with ``seed`` and ``scenario_kwargs``.
+        (``bojilov | crossing | many | abreast | coalescence``) built with ``seed``
+        and ``scenario_kwargs``.
     config : a :class:`TrackerConfig` (used as is) or a mapping of overrides on
         the settings derived from the scenario (:func:`scenario_tracker_settings`);
         ``None`` = the derived settings.
@@ -777,8 +787,8 @@ def run_scenario(
     checkpoint, checkpoint_every, resume : see the module docstring.
     max_scans : process only the first ``max_scans`` scans (counted from the
         first scan of the scenario, also when resuming).
-    metrics_opts : ``c`` (GOSPA/OSPA cut-off, default 5σ), ``p`` (2),
-        ``switch_penalty`` (0).
+    metrics_opts : ``c`` (GOSPA/OSPA cut-off; default the scenario's own, see
+        :func:`scenario_metric_settings`, else 5σ), ``p`` (2), ``switch_penalty`` (0).
     console : rich console for the progress bar and warnings.
     plots : write ``scene.png`` and ``gospa.png``.
     particle : run the particle JPDA tracker instead of the Kalman one: a
@@ -826,6 +836,7 @@ def run_scenario(
         region=scenario.region,
         x0=scenario.truth_states[0] if start_from_truth else None,
         sigma=sigma,
+        metric_defaults=scenario_metric_settings(scenario),
     )
     return _run(
         src,

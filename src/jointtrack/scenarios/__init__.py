@@ -5,6 +5,8 @@
 * :func:`abreast` — targets abreast on parallel lanes at one speed (issue 11).
 * :func:`crossing` — two targets crossing in an X.
 * :func:`many_targets` — ≥ 100 NCV targets with births and deaths in clutter.
+* :func:`coalescence` — Williams' four targets that meet mid-run, one dying
+  there (the PMBM papers' scenario, with their filter model in ``info``).
 * :func:`acoustic` — 3–5 targets read by a 5 × 5 grid of superpositional
   amplitude sensors (no detections; :class:`AcousticScenario`).
 * :class:`Scenario` — the result; :func:`simulate_scenario` builds one from
@@ -13,6 +15,7 @@
 """
 
 from jointtrack.scenarios.acoustic import AcousticScenario, acoustic
+from jointtrack.scenarios.coalescence import coalescence
 from jointtrack.scenarios.generators import abreast, bojilov, crossing, many_targets, nominal_gate
 from jointtrack.scenarios.simulate import (
     Scenario,
@@ -27,6 +30,7 @@ GENERATORS = {
     "crossing": crossing,
     "many": many_targets,
     "abreast": abreast,
+    "coalescence": coalescence,
 }
 
 
@@ -50,6 +54,7 @@ __all__ = [
     "abreast",
     "acoustic",
     "bojilov",
+    "coalescence",
     "crossing",
     "many_targets",
     "ncv_matrices",

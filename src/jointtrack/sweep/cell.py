@@ -2,7 +2,7 @@
 
 Every runnable thing goes through it: the Kalman JPDA tracker and the particle
 JPDA tracker (:func:`jointtrack.experiments.run.run_scenario`, scenarios
-bojilov, crossing, many, abreast) and the superpositional filters
+bojilov, crossing, many, abreast, coalescence) and the superpositional filters
 (:func:`jointtrack.experiments.acoustic_run.run_acoustic`, scenario acoustic).
 A run writes its usual files into a temporary directory that is removed
 afterwards; only the row is kept. The row's metrics depend on the parameters

@@ -11,7 +11,7 @@ the superpositional filters on ``scenario.name = "acoustic"``) and one
     tracker.association = ["exact", "lbp"]
 
     [scenario]
-    name = "bojilov"                 # bojilov | crossing | many | abreast | acoustic
+    name = "bojilov"                 # bojilov | crossing | many | abreast | coalescence | acoustic
     n_scans = 30
 
 An axis is ``TABLE.KEY = [values]`` (a dotted key, or the same key quoted) with
