@@ -30,7 +30,15 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FORMAT", "VERSION", "StateFileError", "read_run", "read_state", "write_state"]
+__all__ = [
+    "FORMAT",
+    "VERSION",
+    "StateFileError",
+    "read_run",
+    "read_state",
+    "validate_counters",
+    "write_state",
+]
 
 FORMAT = "jointtrack-tracker-state"
 VERSION = 3
@@ -229,18 +237,31 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
     ex = arrays["existence"]
     if ((ex < 0) | (ex > 1)).any():
         raise bad("field 'existence' has values outside [0, 1]")
-    ids = arrays["ids"]
-    if (ids < 1).any() or len(np.unique(ids)) != N:
-        raise bad("field 'ids' must hold distinct positive track ids")
     for name in ("history", "age", "misses"):
         if (arrays[name] < 0).any():
             raise bad(f"field {name!r} has negative values")
+    validate_counters(path, arrays["ids"], scalars)
+
+
+def validate_counters(path, ids: np.ndarray, scalars: dict, field: str = "ids") -> None:
+    """Check a state's track ids, ``next_id``, ``n_scans`` and ``time`` (every tracker kind).
+
+    ``ids``: the distinct positive track ids the state holds (the array
+    ``field``); ``next_id`` must be above all of them. Raises
+    :class:`StateFileError` naming the field.
+    """
+
+    def bad(what: str) -> StateFileError:
+        return StateFileError(f"{path}: {what}")
+
+    if (ids < 1).any() or len(np.unique(ids)) != len(ids):
+        raise bad(f"field {field!r} must hold distinct positive track ids")
     for name in ("next_id", "n_scans"):
         v = scalars.get(name)
         if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= MAX_ID:
             shown = v if not isinstance(v, int) or abs(v) < 10**30 else f"{len(str(v))}-digit int"
             raise bad(f"scalar {name!r} must be an integer in [0, 2**62], got {shown!r}")
-    if N and scalars["next_id"] <= int(ids.max()):
+    if len(ids) and scalars["next_id"] <= int(ids.max()):
         raise bad("scalar 'next_id' is not above every track id")
     t = scalars.get("time")
     if t is not None:
