@@ -21,6 +21,8 @@ from jointtrack.trackers.config import (
     check_field,
     config_from_dict,
 )
+from jointtrack.trackers.config import _non_negative as config_non_negative
+from jointtrack.trackers.config import _positive as config_positive
 
 __all__ = ["BIRTH_MODELS", "PMBMConfig"]
 
@@ -133,13 +135,7 @@ class PMBMConfig(ModelSettings):
 
     def __post_init__(self):
         for name in _SHARED:
-            try:
-                value = check_field(name, getattr(self, name))
-            except ValueError as exc:
-                raise ValueError(str(exc).replace("TrackerConfig:", "PMBMConfig:")) from None
-            except OverflowError:  # an int beyond the float range (float(10**400))
-                raise _fail(name, "a finite number", getattr(self, name)) from None
-            object.__setattr__(self, name, value)
+            object.__setattr__(self, name, _checked(check_field, name, getattr(self, name)))
         try:
             noise = TrackerConfig(dim=self.dim, measurement_noise=self.measurement_noise)
         except ValueError as exc:
@@ -272,18 +268,20 @@ def _real_array(name: str, v) -> np.ndarray:
         raise _fail(name, want, v) from None
 
 
+def _checked(check, name: str, v):
+    """``check(name, v)`` of :mod:`jointtrack.trackers.config`, its errors naming PMBMConfig."""
+    try:
+        return check(name, v)
+    except ValueError as exc:
+        raise ValueError(str(exc).replace("TrackerConfig:", "PMBMConfig:")) from None
+
+
 def _positive(name: str, v) -> float:
-    v = _number(name, v, "a positive finite number")
-    if v <= 0:
-        raise _fail(name, "a positive finite number", v)
-    return v
+    return _checked(config_positive, name, v)
 
 
 def _non_negative(name: str, v) -> float:
-    v = _number(name, v, "a finite number ≥ 0")
-    if v < 0:
-        raise _fail(name, "a finite number ≥ 0", v)
-    return v
+    return _checked(config_non_negative, name, v)
 
 
 def _count(name: str, v) -> int:
