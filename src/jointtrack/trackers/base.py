@@ -42,7 +42,7 @@ from jointtrack.association.budget import (
     fallback_pair_marginals,
 )
 from jointtrack.association.clustering import cluster_pair_marginals, clusters
-from jointtrack.association.gating import gate_pairs
+from jointtrack.association.gating import gate_measurements, gate_pairs
 from jointtrack.errors import CoincidentReturnsWarning
 from jointtrack.filters import ekf_predict_measurement, predict_measurement
 from jointtrack.models import (
@@ -179,6 +179,8 @@ class ScanTracker:
     _SCALARS: tuple = ("time", "next_id", "n_scans", "time_origin")
     #: state key -> attribute, where they differ
     _ATTRS: dict = {}
+    #: per-report fields ``step`` accepts besides ``z`` (``labels``, ``velocities``)
+    REPORT_FIELDS: tuple = ()
 
     def __init__(
         self,
@@ -289,8 +291,14 @@ class ScanTracker:
         self._clutter = c.clutter_density if spec.clutter_density is None else spec.clutter_density
 
     # ------------------------------------------------------------------ scan
-    def step(self, t: float, z, sensor=None) -> ScanResult:
+    def step(self, t: float, z, sensor=None, *, labels=None, velocities=None) -> ScanResult:
         """Process the measurements ``z`` (M, dim) taken at time ``t``.
+
+        ``labels`` (M,) strings, ``""`` for none: the identity each report names
+        (an AIS MMSI, an ADS-B icao24), used as given (association by label);
+        ``velocities`` (M, dim), NaN where unknown: reported velocities that
+        seed the tracks started on these reports. Trackers that take them list
+        them in ``REPORT_FIELDS``; others refuse them.
 
         ``sensor``: the id of the sensor that took the scan (see ``sensors`` in
         the constructor); scans of different sensors may share a time, and are
@@ -322,10 +330,21 @@ class ScanTracker:
         exception propagates, so the same scan can be retried. Only a step
         that succeeded adds rows to :meth:`history`.
         """
+        extra = {
+            name: value
+            for name, value in (("labels", labels), ("velocities", velocities))
+            if value is not None
+        }
+        unsupported = sorted(set(extra) - set(self.REPORT_FIELDS))
+        if unsupported:
+            raise ValueError(
+                f"{type(self).__name__}.step does not take {' or '.join(unsupported)} "
+                f"(JPDATracker does)"
+            )
         saved = self.state_dict()
         try:
             self._activate(sensor)
-            result = self._step(t, z, sensor is not None)
+            result = self._step(t, z, sensor is not None, **extra)
         except BaseException:
             self._restore(saved)
             raise
@@ -400,6 +419,15 @@ class ScanTracker:
             return gate_pairs(z_pred, S, z, P_G=c.p_g)
         z_pred, S = ekf_predict_measurement(x, P, self._sensor)
         return gate_pairs(z_pred, S, z, P_G=c.p_g, residual=self._sensor.residual)
+
+    def _gate_dense(self, x, P, z):
+        """:meth:`_gate` as a dense (N, M) :class:`~jointtrack.association.gating.Gating`."""
+        c = self.config
+        if self._linear:
+            z_pred, S = predict_measurement(x, P, self._sensor.H, self._sensor.R)
+            return gate_measurements(z_pred, S, z, P_G=c.p_g)
+        z_pred, S = ekf_predict_measurement(x, P, self._sensor)
+        return gate_measurements(z_pred, S, z, P_G=c.p_g, residual=self._sensor.residual)
 
     def _measurement_model(self) -> dict:
         """The keyword arguments of the filters' update for the active sensor."""

@@ -8,10 +8,19 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
-__all__ = ["MISS_MODELS", "ModelSettings", "TrackerConfig", "check_field", "config_from_dict"]
+__all__ = [
+    "MISS_MODELS",
+    "REPORTING",
+    "ModelSettings",
+    "TrackerConfig",
+    "check_field",
+    "config_from_dict",
+]
 
 #: How the weight of "track detected nothing" is formed (see ``TrackerConfig.miss_model``).
 MISS_MODELS = ("1-pd*pg", "1-pd")
+#: How targets are detected (see ``TrackerConfig.reporting``).
+REPORTING = ("scan", "async")
 
 
 def config_from_dict(cls, d: dict, noun: str, *, complete: bool = False):
@@ -126,6 +135,32 @@ class TrackerConfig(ModelSettings):
         outside the gate, Bar-Shalom, Daum & Huang 2009) or ``"1-pd"``
         (Bojilov et al. eqs. (1)/(5), which assume the gate holds every
         target-originated return). JIPDA multiplies either by the existence.
+    reporting : ``"scan"`` (default: a scanning sensor that sees every target
+        with probability ``p_d`` per scan) or ``"async"``: targets that report
+        themselves one at a time at irregular intervals (AIS, ADS-B), each as a
+        Poisson process of its own rate λ_i. A scan that follows the previous
+        one by Δt then detects track i with probability
+        P_D,i = p_d·(1 − exp(−λ_i Δt)), so a vessel not heard for 30 s is not
+        "missed" once per other vessel's report; λ_i is the track's own
+        estimate (Gamma–Poisson: (1 + reports) / (report_interval + seconds
+        tracked), prior mean 1/report_interval). ``clutter_density`` is then
+        false reports per unit area **per second** (it is required), and the
+        likelihood ratio of a pair is p_d·(1 − e^(−λ_i Δt))/Δt · g / λ_c, finite
+        as Δt → 0 — so one scan per report time is exact. Needs JIPDA
+        (``existence``) and ``p_survive_per = "second"``.
+    report_interval : prior mean interval between one target's reports, s
+        (``reporting = "async"``).
+    p_survive_per : ``"scan"`` (default) — ``p_survive`` is per scan — or
+        ``"second"``: per second of elapsed time (existence × p_survive^Δt).
+    max_coast : a track without a hit for longer than this many seconds is
+        deleted (time-based deletion; default ∞: never by time).
+    velocity_std : σ of reported velocities (m/s, per axis) when ``step`` is
+        given ``velocities`` (e.g. AIS speed and course): a track started on
+        such a report takes it as its initial velocity with this spread,
+        instead of zero mean and σ = max_speed/2.
+    r_labelled : existence of a track started on a labelled report
+        (``step(…, labels=)``: the report names its target, so it is real);
+        < 1 so that a target that stops reporting still fades out.
     """
 
     p_g: float = 0.99
@@ -149,6 +184,12 @@ class TrackerConfig(ModelSettings):
     merge_threshold: float = 1.0
     seed: int | None = 0
     miss_model: str = "1-pd*pg"
+    reporting: str = "scan"
+    report_interval: float = 60.0
+    p_survive_per: str = "scan"
+    max_coast: float = math.inf
+    velocity_std: float = 1.0
+    r_labelled: float = 0.999
 
     def __post_init__(self):
         for f in fields(self):
@@ -189,6 +230,19 @@ class TrackerConfig(ModelSettings):
             f"r_init must be ≤ r_confirm (a new track must not start confirmed), got "
             f"r_init = {self.r_init} > r_confirm = {self.r_confirm}",
         )
+
+        if self.reporting == "async":
+            need(self.existence, "reporting = 'async' needs existence = true (JIPDA)")
+            need(
+                self.clutter_density is not None,
+                "reporting = 'async' needs a clutter_density (false reports per unit area "
+                "per second); Bojilov's per-scan heuristic (8) has no time base",
+            )
+            need(
+                self.p_survive_per == "second",
+                "reporting = 'async' needs p_survive_per = 'second' (a scan per report: "
+                "survival per scan would depend on how often other targets report)",
+            )
 
     def measurement_covariance(self) -> np.ndarray:
         """R of the position sensor as a (dim, dim) array (from ``measurement_noise``)."""
@@ -329,7 +383,7 @@ def _clutter(name, v):
     return v
 
 
-def _max_position_std(name, v):
+def _positive_or_inf(name, v):
     want = "a positive number (inf allowed)"
     v = _real(name, v, want)
     if not v > 0:
@@ -428,7 +482,7 @@ _CHECKS = {
     "confirm_m": _int_range(1, 30),
     "confirm_n": _int_range(1, 30),
     "delete_misses": _int_range(1),
-    "max_position_std": _max_position_std,
+    "max_position_std": _positive_or_inf,
     "existence": _bool,
     "p_survive": _probability,
     "r_init": _open_probability,
@@ -438,6 +492,12 @@ _CHECKS = {
     "merge_threshold": _non_negative,
     "seed": _seed,
     "miss_model": _choice(MISS_MODELS),
+    "reporting": _choice(REPORTING),
+    "report_interval": _positive,
+    "p_survive_per": _choice(("scan", "second")),
+    "max_coast": _positive_or_inf,
+    "velocity_std": _positive,
+    "r_labelled": _open_probability,
 }
 
 

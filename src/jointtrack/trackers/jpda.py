@@ -51,6 +51,7 @@ class JPDATracker(ScanTracker):
 
     KIND = "jpda"
     CONFIG = TrackerConfig
+    REPORT_FIELDS = ("labels", "velocities")
 
     def __init__(
         self,
@@ -89,30 +90,62 @@ class JPDATracker(ScanTracker):
         self.age = np.zeros(0, np.int64)
         self.misses = np.zeros(0, np.int64)
         self.existence = np.zeros(0)
+        # time of each track's last hit and of its birth, its (soft) number of
+        # reports since birth (the reporting rate of reporting = "async"), its label
+        self.last_hit = np.zeros(0)
+        self.born = np.zeros(0)
+        self.report_count = np.zeros(0)
+        self.labels = np.zeros(0, dtype="U1")
         # unassociated returns of the previous scan (positions, covariances): two-point seeds
         self.seeds = np.zeros((0, c.dim))
         self.seed_covs = np.zeros((0, c.dim, c.dim))
         self.seed_times = np.zeros(0)  # scan time of each seed
 
     # ------------------------------------------------------------------ scan
-    def _step(self, t, z, same_time_ok=False) -> ScanResult:
+    def _step(self, t, z, same_time_ok=False, labels=None, velocities=None) -> ScanResult:
         c = self.config
         t, z, dt, n_coincident = self._check_scan(t, z, same_time_ok)
+        labels, repeated, velocities, n_coincident = self._check_report_fields(
+            t, z, labels, velocities, n_coincident
+        )
 
         if dt is not None and dt > 0 and len(self.ids):
             self.x, self.P = predict(
                 self.x, self.P, self._motion.transition(dt), self._motion.noise(dt)
             )
             if c.existence:
-                self.existence = self.existence * c.p_survive
-        # Confirmed tracks first; tentative ones only see the returns no confirmed
-        # track gated, so clutter-born tentative tracks cannot glue true targets'
-        # clusters together (cf. a separate initiator, Blackman & Popoli §6).
+                # p_survive per scan, or per second of elapsed time
+                self.existence = self.existence * c.p_survive ** (
+                    dt if c.p_survive_per == "second" else 1.0
+                )
+        self._scan_detection(t, 0.0 if dt is None else dt)
         N, M = len(self.ids), len(z)
         beta0 = np.ones(N)
         pair_rows, pair_cols, pair_w = [], [], []
         hit = np.zeros(N, bool)
-        free = np.arange(M)
+        # Reports that name their target go to that target's track (or start it);
+        # only the rest, and the unlabelled tracks, take part in the association.
+        labelled = self.labels != ""
+        if labels is not None:
+            lab_rows, lab_cols, open_cols = self._match_labels(labels, repeated)
+            # a report outside its own track's gate: a position jump (see _restart)
+            jumped = ~np.diagonal(
+                self._gate_dense(self.x[lab_rows], self.P[lab_rows], z[lab_cols]).mask
+            )
+            beta0[labelled] = 1.0
+            beta0[lab_rows] = 0.0
+            hit[lab_rows] = True
+            pair_rows.append(lab_rows)
+            pair_cols.append(lab_cols)
+            pair_w.append(np.ones(len(lab_rows)))
+            z_index = np.flatnonzero((labels == "") & ~repeated)
+        else:
+            lab_rows = np.zeros(0, np.int64)
+            open_cols = np.zeros(0, np.int64)
+            z_index = np.arange(M)
+        zu = z[z_index]
+        Mu = len(zu)
+        free = np.arange(Mu)
         sizes, seconds, methods, fallbacks, kinds = [], [], [], [], []
         # Confirmed tracks first, then tentative ones. With JIPDA the tentative
         # tracks see every return, each weighted by the probability that no
@@ -120,29 +153,29 @@ class JPDATracker(ScanTracker):
         # M-of-N logic (no existence to weigh a clutter-born track's claim) they
         # see only the returns no confirmed track gated, so they cannot glue true
         # targets' clusters together (cf. a separate initiator, Blackman & Popoli §6).
-        available = np.ones(M)  # JIPDA: P(return not taken by an earlier pass)
-        ungated = np.ones(M, bool)  # JIPDA: returns no pass gated (two-point seeds)
+        available = np.ones(Mu)  # JIPDA: P(return not taken by an earlier pass)
+        ungated = np.ones(Mu, bool)  # JIPDA: returns no pass gated (two-point seeds)
         for group, loud in (
-            (np.flatnonzero(self.confirmed), True),
-            (np.flatnonzero(~self.confirmed), False),
+            (np.flatnonzero(self.confirmed & ~labelled), True),
+            (np.flatnonzero(~self.confirmed & ~labelled), False),
         ):
             if len(group) == 0:
                 continue
             if c.existence:
                 b0, (pr, pc, pw), h, free_local, info, used = self._associate(
-                    group, z, loud, available=available
+                    group, zu, loud, available=available
                 )
-                available = np.clip(available - np.bincount(pc, used, minlength=M), 0.0, 1.0)
-                in_no_gate = np.zeros(M, bool)
+                available = np.clip(available - np.bincount(pc, used, minlength=Mu), 0.0, 1.0)
+                in_no_gate = np.zeros(Mu, bool)
                 in_no_gate[free_local] = True
                 ungated &= in_no_gate
             else:
-                b0, (pr, pc, pw), h, free_local, info, _ = self._associate(group, z[free], loud)
+                b0, (pr, pc, pw), h, free_local, info, _ = self._associate(group, zu[free], loud)
                 pc = free[pc]
                 free = free[free_local]
             beta0[group] = b0
             pair_rows.append(group[pr])
-            pair_cols.append(pc)
+            pair_cols.append(z_index[pc])
             pair_w.append(pw)
             hit[group] = h
             for part, extra in zip((sizes, seconds, methods, fallbacks), info, strict=True):
@@ -150,27 +183,48 @@ class JPDATracker(ScanTracker):
             kinds.extend([loud] * len(info[0]))
         if c.existence:
             free = np.flatnonzero(ungated)
-        unassoc = free
+        unassoc = z_index[free]
         if N:
             rows = np.concatenate(pair_rows) if pair_rows else np.zeros(0, np.int64)
             cols = np.concatenate(pair_cols) if pair_cols else np.zeros(0, np.int64)
             w = np.concatenate(pair_w) if pair_w else np.zeros(0)
+            if c.reporting == "async":  # reports seen: the track's own reporting rate
+                self.report_count += 1.0 - beta0
             self.x, self.P = pda_pairs_update(
                 self.x, self.P, z, beta0, rows, cols, w, **self._measurement_model()
             )
-            self._track_logic(hit)
+            if len(lab_rows):
+                self._restart(
+                    lab_rows[jumped], z[lab_cols[jumped]], _rows(velocities, lab_cols[jumped])
+                )
+                self.existence[lab_rows] = c.r_labelled  # the report names a real target
+            if c.existence and labelled.any():
+                # a labelled track is detected with P_D,i (no gate: the label decides)
+                unheard = labelled.copy()
+                unheard[lab_rows] = False
+                r, pd = self.existence[unheard], self._scan_pd[unheard]
+                self.existence[unheard] = r * (1.0 - pd) / (1.0 - r * pd)
+            self._track_logic(hit, t)
             keep, self.existence = merge_duplicates(
                 self.x, self.P, self.ids, self.existence, self.confirmed, c.dim, c.merge_threshold
             )
             self._keep(keep)
+        if len(open_cols):
+            self._initiate(
+                z[open_cols],
+                t,
+                c.r_labelled,
+                velocities=_rows(velocities, open_cols),
+                labels=labels[open_cols],
+            )
         if c.existence and c.initiation == "one-point":
             # adaptive birth: every return, weighted by how unexplained it is
             # (jointtrack.trackers.existence, point 2)
             birth_r = c.r_init * available
             born = birth_r > c.r_delete
-            self._initiate(z[born], t, birth_r[born])
+            self._initiate(zu[born], t, birth_r[born], velocities=_rows(velocities, z_index[born]))
         else:
-            self._initiate(z[unassoc], t)
+            self._initiate(z[unassoc], t, velocities=_rows(velocities, unassoc))
         self.time = t
         self.n_scans += 1
         keep = self.confirmed & (self.existence >= c.r_report) if c.existence else self.confirmed
@@ -190,6 +244,103 @@ class JPDATracker(ScanTracker):
             cluster_fallbacks=fallbacks,
             n_coincident=n_coincident,
         )
+
+    # ------------------------------------------------------- reporting targets
+    def _check_report_fields(self, t, z, labels, velocities, n_coincident):
+        """Validated ``labels`` (M,) str and ``velocities`` (M, dim) of a scan's reports.
+
+        The merged coincident returns of :meth:`_check_scan` have no rows here,
+        so labels or velocities are refused for a scan with exact repeats; two
+        reports naming one target in one scan keep the first (counted in
+        ``n_coincident``, like a repeated return).
+        """
+        c = self.config
+        M = len(z)
+        if (labels is not None or velocities is not None) and n_coincident:
+            raise ValueError(
+                f"scan at t={t} has {n_coincident} exactly repeated report(s); with labels "
+                "or velocities, remove the repeats before step()"
+            )
+        if labels is not None:
+            if isinstance(labels, str | bytes):
+                raise TypeError("labels must be a sequence of strings, one per report")
+            arr = np.asarray(labels, dtype=object).reshape(-1) if np.ndim(labels) else None
+            if arr is None or len(arr) != M:
+                raise ValueError(f"labels must have one entry per report ({M})")
+            if not all(isinstance(v, str) for v in arr):
+                bad = next(v for v in arr if not isinstance(v, str))
+                raise TypeError(f"labels must be strings ('' for none), got {bad!r}")
+            labels = np.asarray(arr.tolist() if M else [], dtype=str).reshape(M)
+            repeated = np.zeros(M, bool)
+            named = np.flatnonzero(labels != "")
+            _, first = np.unique(labels[named], return_index=True)
+            if len(first) < len(named):
+                repeat = np.ones(M, bool)
+                repeat[named[first]] = False
+                repeat[labels == ""] = False
+                n_coincident += int(repeat.sum())
+                labels = labels.copy()
+                labels[repeat] = ""
+                repeated = repeat
+        if velocities is not None:
+            v = _as_real_array(velocities, "velocities")
+            if v.shape != (M, c.dim):
+                raise ValueError(f"velocities must have shape ({M}, {c.dim}), got {v.shape}")
+            if np.isinf(v).any():
+                raise ValueError("velocities must be finite (NaN where unknown)")
+            velocities = v
+        return labels, (repeated if labels is not None else None), velocities, n_coincident
+
+    def _scan_detection(self, t, dt):
+        """Per-track P_D of this scan (``_scan_pd``) and its pair factor ``_scan_pd_ratio``.
+
+        Scanning sensor: P_D = p_d for every track. Reporting targets
+        (``reporting = "async"``): P_D,i = p_d·(1 − e^(−λ_i Δt)) with the
+        track's rate λ_i = (1 + reports) / (report_interval + seconds tracked),
+        and the pairs' likelihood ratios use p_d·(1 − e^(−λ_i Δt))/Δt (→ p_d·λ_i
+        as Δt → 0) against a clutter density per second.
+        """
+        c = self.config
+        if c.reporting == "scan":
+            self._scan_pd = np.full(len(self.ids), self._p_d)
+            self._scan_pd_ratio = self._scan_pd
+            return
+        rate = (1.0 + self.report_count) / (c.report_interval + np.maximum(t - self.born, 0.0))
+        h = rate * dt
+        self._scan_pd = self._p_d * -np.expm1(-h)
+        self._scan_pd_ratio = self._p_d * (rate if dt == 0 else -np.expm1(-h) / dt)
+
+    def _match_labels(self, labels, repeated):
+        """``(track rows, report columns)`` of the labelled reports whose target has a
+        track, and the columns of labelled reports that start one."""
+        track_of = {lab: i for i, lab in enumerate(self.labels.tolist()) if lab}
+        rows, cols, open_cols = [], [], []
+        for j, lab in enumerate(labels.tolist()):
+            if lab == "" or repeated[j]:
+                continue
+            i = track_of.get(lab)
+            if i is None:
+                open_cols.append(j)
+            else:
+                rows.append(i)
+                cols.append(j)
+        return (
+            np.asarray(rows, np.int64),
+            np.asarray(cols, np.int64),
+            np.asarray(open_cols, np.int64),
+        )
+
+    def _restart(self, rows, z_new, velocities):
+        """Restart the tracks ``rows`` on the reports ``z_new``, keeping ids and labels.
+
+        Used for a labelled report outside the validation gate of its own
+        target's track: a position jump (or a manoeuvre the motion model cannot
+        follow). Dragging the track part of the way with a huge innovation
+        would leave it wrong for several reports; a new id would break the
+        identity the label guarantees.
+        """
+        if len(rows):
+            self.x[rows], self.P[rows] = self._initial_states(z_new, velocities)
 
     def _associate(self, tracks, z, loud, available=None):
         """Association probabilities of the given tracks against ``z``, cluster by cluster.
@@ -219,10 +370,14 @@ class JPDATracker(ScanTracker):
             gated = groups.measurement_cluster >= 0
             lam[gated] = dens[groups.measurement_cluster[gated]]
         r = self.existence[tracks] if c.existence else np.ones(n)
-        L_pairs, _ = likelihood_ratio_pairs(g, self._p_d * r, lam)
+        # P_D,i·r_i / λ; with reporting targets P_D,i is a rate (per second) that
+        # may exceed 1, so numerator and λ are divided by a common scale
+        pd_r = self._scan_pd_ratio[tracks] * r
+        scale = max(1.0, float(pd_r.max())) if len(pd_r) else 1.0
+        L_pairs, _ = likelihood_ratio_pairs(g, pd_r / scale, lam / scale)
         if available is not None:  # a return taken by an earlier pass is less likely ours
             L_pairs = L_pairs * available[g.cols]
-        pdg = c.detection_in_gate(self._p_d)
+        pdg = c.detection_in_gate(self._scan_pd[tracks])
         miss = 1.0 - r * pdg
         rows, cols = g.rows, g.cols
         beta0, weights, groups, info = self._pair_marginals(
@@ -241,9 +396,10 @@ class JPDATracker(ScanTracker):
             used,
         )
 
-    def _track_logic(self, hit):
+    def _track_logic(self, hit, t):
         c = self.config
         self.age += 1
+        self.last_hit = np.where(hit, t, self.last_hit)
         self.hit_history = ((self.hit_history << 1) | hit.astype(np.int64)) & (
             (1 << c.confirm_n) - 1
         )
@@ -258,33 +414,59 @@ class JPDATracker(ScanTracker):
             self.confirmed |= hits >= c.confirm_m
             dead_tentative = ~self.confirmed & (self.age >= c.confirm_n)
             dead = dead_tentative | (self.confirmed & (self.misses >= c.delete_misses))
-        self._keep(~(dead | blown))
+        # time-based deletion: coasted longer than max_coast seconds
+        coasted = (t - self.last_hit) > c.max_coast
+        self._keep(~(dead | blown | coasted))
+
+    _TRACK_ARRAYS = (
+        "x",
+        "P",
+        "ids",
+        "confirmed",
+        "hit_history",
+        "age",
+        "misses",
+        "existence",
+        "last_hit",
+        "born",
+        "report_count",
+        "labels",
+    )
 
     def _keep(self, keep):
-        for name in ("x", "P", "ids", "confirmed", "hit_history", "age", "misses", "existence"):
+        for name in self._TRACK_ARRAYS:
             setattr(self, name, getattr(self, name)[keep])
 
-    def _initiate(self, z_new, t, r0=None):
+    def _initiate(self, z_new, t, r0=None, *, velocities=None, labels=None):
         """Start tentative tracks on the returns ``z_new`` (two- or one-point).
 
-        ``r0``: the existence of each new track (default ``r_init``).
+        ``r0``: the existence of each new track (default ``r_init``);
+        ``velocities`` (K, dim, NaN where unknown): reported velocities that
+        seed one-point tracks; ``labels`` (K,): the reports' labels — such
+        tracks start confirmed (the report names a real target).
 
         Two-point pairs each return with a seed of the latest earlier scan time
         (with several sensors, seeds of the same time are never paired); the
         seeds of that time stay available until the time advances again.
         """
         c = self.config
-        n = self._motion.state_dim
         d = c.dim
-        pos, cov = self._sensor.position_and_covariance(z_new)
+        if labels is not None:
+            x0, P0 = self._initial_states(z_new, velocities)
+            self._append(x0, P0, confirmed=True, existence=r0, time=t, labels=labels)
+            return
         earlier = self.seed_times < t
         latest = self.seed_times[earlier].max() if earlier.any() else None
         if c.initiation == "one-point":
-            vel = np.zeros_like(pos)
-            cov_vv = np.broadcast_to(np.eye(d) * (c.max_speed / 2.0) ** 2, cov.shape).copy()
-            cov_pv = np.zeros_like(cov)
+            x0, P0 = self._initial_states(z_new, velocities)
             self._set_seeds(np.zeros((0, d)), np.zeros((0, d, d)), np.zeros(0))
-        elif latest is not None and len(pos):
+            if len(x0):
+                self._append(
+                    x0, P0, confirmed=False, existence=c.r_init if r0 is None else r0, time=t
+                )
+            return
+        pos, cov = self._sensor.position_and_covariance(z_new)
+        if latest is not None and len(pos):
             cand = np.flatnonzero(self.seed_times == latest)
             dt = t - latest
             rows, loc = pair_returns(
@@ -304,7 +486,9 @@ class JPDATracker(ScanTracker):
                 np.concatenate([self.seed_covs[keep], cov[unused]]),
                 np.concatenate([self.seed_times[keep], np.full(int(unused.sum()), t)]),
             )
-            pos, cov = pos[rows], cov[rows]
+            if len(rows):
+                x0, P0 = self._states(pos[rows], cov[rows], vel, cov_vv, cov_pv)
+                self._append(x0, P0, confirmed=False, existence=c.r_init, time=t)
         else:
             keep = self.seed_times >= (latest if latest is not None else t)
             self._set_seeds(
@@ -312,10 +496,28 @@ class JPDATracker(ScanTracker):
                 np.concatenate([self.seed_covs[keep], cov]),
                 np.concatenate([self.seed_times[keep], np.full(len(pos), t)]),
             )
-            return
-        k = len(pos)
-        if k == 0:
-            return
+
+    def _initial_states(self, z_new, velocities=None):
+        """One-point initial states ``(x0, P0)`` on the returns ``z_new``.
+
+        Velocity zero with per-axis σ = max_speed/2, or the reported velocity
+        with σ = velocity_std where ``velocities`` has one (finite rows).
+        """
+        c = self.config
+        d = c.dim
+        pos, cov = self._sensor.position_and_covariance(z_new)
+        vel = np.zeros_like(pos)
+        cov_vv = np.broadcast_to(np.eye(d) * (c.max_speed / 2.0) ** 2, cov.shape).copy()
+        if velocities is not None and len(pos):
+            known = np.isfinite(velocities).all(axis=1)
+            vel[known] = velocities[known]
+            cov_vv[known] = np.eye(d) * c.velocity_std**2
+        return self._states(pos, cov, vel, cov_vv, np.zeros_like(cov))
+
+    def _states(self, pos, cov, vel, cov_vv, cov_pv):
+        """Full states and covariances from position and velocity blocks."""
+        c = self.config
+        n, d, k = self._motion.state_dim, c.dim, len(pos)
         x0 = np.zeros((k, n))
         x0[:, :d] = pos
         x0[:, d : 2 * d] = vel
@@ -327,13 +529,18 @@ class JPDATracker(ScanTracker):
         if n > 2 * d:  # constant acceleration: acceleration unknown
             a = np.arange(2 * d, 3 * d)
             P0[:, a, a] = (c.max_acceleration / 2.0) ** 2
-        self._append(x0, P0, confirmed=False, existence=c.r_init if r0 is None else r0)
+        return x0, P0
 
     def _set_seeds(self, seeds, covs, times) -> None:
         self.seeds, self.seed_covs, self.seed_times = seeds, covs, np.asarray(times, float)
 
-    def _append(self, x0, P0, *, confirmed, existence):
+    def _append(self, x0, P0, *, confirmed, existence, time, labels=None):
         k = len(x0)
+        self.last_hit = np.concatenate([self.last_hit, np.full(k, float(time))])
+        self.born = np.concatenate([self.born, np.full(k, float(time))])
+        self.report_count = np.concatenate([self.report_count, np.zeros(k)])
+        new_labels = np.full(k, "") if labels is None else np.asarray(labels, dtype=str)
+        self.labels = np.concatenate([self.labels, new_labels])
         ids = np.arange(self.next_id, self.next_id + k)
         self.next_id += k
         self.x = np.concatenate([self.x, x0])
@@ -398,7 +605,8 @@ class JPDATracker(ScanTracker):
         existence = as_float(existence, "existence", minimum=0.0, maximum=1.0)
         if not isinstance(confirmed, bool | np.bool_):
             raise TypeError(f"confirmed must be True or False, got {confirmed!r}")
-        ids = self._append(x0, P0, confirmed=bool(confirmed), existence=existence)
+        clock = t0 if t0 is not None else (self.time if self.time is not None else 0.0)
+        ids = self._append(x0, P0, confirmed=bool(confirmed), existence=existence, time=clock)
         if t0 is not None and self.time is None:
             if is_datetime(time):
                 self._scan_time(time)  # fixes time_origin, validated above
@@ -418,9 +626,18 @@ class JPDATracker(ScanTracker):
         "seeds",
         "seed_covs",
         "seed_times",
+        "last_hit",
+        "born",
+        "report_count",
+        "labels",
     )
     # state key -> attribute (``history()`` is the track-history method)
     _ATTRS = {"history": "hit_history"}
 
     def _validate_state(self, path, arrays: dict, scalars: dict) -> None:
         validate_tracker_arrays(path, arrays, scalars, self.state_dim, self.config.dim)
+
+
+def _rows(values, index):
+    """``values[index]``, or None when there are no values."""
+    return None if values is None else values[index]

@@ -4,7 +4,7 @@ A state file is a NumPy ``.npz`` archive (a zip of ``.npy`` arrays, read with
 ``allow_pickle=False``) holding the tracker's arrays and one more array,
 ``__header__``, with a UTF-8 JSON header::
 
-    {"format": "jointtrack-tracker-state", "version": 3,
+    {"format": "jointtrack-tracker-state", "version": 4,
      "sha256": "<hex digest of the payload>", "config": {...},
      "scalars": {"time": ..., "next_id": ..., "n_scans": ...},
      "rng": {... numpy bit-generator state ...}}
@@ -41,7 +41,9 @@ __all__ = [
 ]
 
 FORMAT = "jointtrack-tracker-state"
-VERSION = 3
+VERSION = 4
+#: Older versions still read, each upgraded by :func:`_upgrade` to this one.
+_READABLE = (3, 4)
 _PICKLE_MAGIC = b"\x80"
 _ZIP_MAGIC = b"PK\x03\x04"
 #: Largest array member accepted (a tracker with a million tracks is ~100 MB).
@@ -77,8 +79,11 @@ def write_state(
     path = Path(path)
     arrays = {k: np.ascontiguousarray(v) for k, v in arrays.items()}
     for k, v in arrays.items():
-        if v.dtype.kind not in "biuf":
-            raise TypeError(f"state array {k!r} has dtype {v.dtype}; only plain numbers are saved")
+        if v.dtype.kind not in "biufU":
+            raise TypeError(
+                f"state array {k!r} has dtype {v.dtype}; only plain numbers and fixed-width "
+                "text are saved"
+            )
     header = {
         "format": FORMAT,
         "version": VERSION,
@@ -166,10 +171,11 @@ def _read_verified(path):
         raise bad("damaged header (JSON nested too deeply)") from None
     if not isinstance(header, dict) or header.get("format") != FORMAT:
         raise bad(f"not a {FORMAT} file")
-    if header.get("version") != VERSION:
+    version = header.get("version")
+    if type(version) is not int or version not in _READABLE:
         raise bad(
-            f"state format version {header.get('version')!r} is not supported "
-            f"(this jointtrack reads and writes version {VERSION})"
+            f"state format version {version!r} is not supported (this jointtrack writes "
+            f"version {VERSION} and reads versions {', '.join(map(str, _READABLE))})"
         )
     digest = header.pop("sha256", None)
     if not isinstance(digest, str) or digest != _digest(header, arrays):
@@ -177,7 +183,41 @@ def _read_verified(path):
     for key in ("config", "scalars", "rng"):
         if not isinstance(header.get(key), dict):
             raise bad(f"header has no {key}")
+    if version < VERSION:
+        _upgrade(header, arrays)
     return header, arrays
+
+
+def _upgrade(header: dict, arrays: dict) -> None:
+    """Bring an intact version-3 JPDA state to version 4, in place.
+
+    Version 4 added the settings and track arrays of reporting targets
+    (``reporting``, ``report_interval``, ``p_survive_per``, ``max_coast``,
+    ``velocity_std``, ``r_labelled``; ``last_hit``, ``born``, ``report_count``,
+    ``labels``). A version-3 run used none of them, so they are filled with the
+    values under which version 4 behaves exactly as version 3 did (a scanning
+    sensor, survival per scan, no time-based deletion, no labels) — not
+    guessed defaults: the continued run is identical.
+    """
+    if header["scalars"].get("tracker", "jpda") != "jpda" or "ids" not in arrays:
+        return
+    config = header["config"]
+    for key, value in (
+        ("reporting", "scan"),
+        ("report_interval", 60.0),
+        ("p_survive_per", "scan"),
+        ("max_coast", math.inf),
+        ("velocity_std", 1.0),
+        ("r_labelled", 0.999),
+    ):
+        config.setdefault(key, value)
+    n = len(arrays["ids"])
+    clock = header["scalars"].get("time")
+    clock = float(clock) if isinstance(clock, int | float) else 0.0
+    arrays.setdefault("last_hit", np.full(n, clock))
+    arrays.setdefault("born", np.full(n, clock))
+    arrays.setdefault("report_count", np.zeros(n))
+    arrays.setdefault("labels", np.full(n, "", dtype="U1"))
 
 
 def read_run(path):
@@ -204,6 +244,10 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
         "seeds": ("f", 2),
         "seed_covs": ("f", 3),
         "seed_times": ("f", 1),
+        "last_hit": ("f", 1),
+        "born": ("f", 1),
+        "report_count": ("f", 1),
+        "labels": ("U", 1),
     }
     for name, (kind, ndim) in spec.items():
         if name not in arrays:
@@ -220,7 +264,8 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
         raise bad(
             f"field 'P' has shape {arrays['P'].shape}, expected ({N}, {state_dim}, {state_dim})"
         )
-    for name in ("ids", "confirmed", "history", "age", "misses", "existence"):
+    per_track = ("ids", "confirmed", "history", "age", "misses", "existence")
+    for name in (*per_track, "last_hit", "born", "report_count", "labels"):
         if arrays[name].shape != (N,):
             raise bad(f"field {name!r} has shape {arrays[name].shape}, expected ({N},)")
     k = arrays["seeds"].shape[0]
@@ -237,7 +282,7 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
     ex = arrays["existence"]
     if ((ex < 0) | (ex > 1)).any():
         raise bad("field 'existence' has values outside [0, 1]")
-    for name in ("history", "age", "misses"):
+    for name in ("history", "age", "misses", "report_count"):
         if (arrays[name] < 0).any():
             raise bad(f"field {name!r} has negative values")
     validate_counters(path, arrays["ids"], scalars)
