@@ -695,7 +695,9 @@ def read_traffic_records(path) -> Reports:
             try:
                 vals[key][i] = float(v)
             except OverflowError:
-                raise err(path, f"value {v!r} is beyond the float range", row=i + 1, column=name)
+                raise err(
+                    path, f"value {v!r} is beyond the float range", row=i + 1, column=name
+                ) from None
     lat, lon = vals["latitude"], vals["longitude"]
     for key, name in _TRAFFIC_NUMBERS:
         _finite_or_nan(path, err, vals[key], None, name)
