@@ -886,8 +886,9 @@ def read_detections(path, *, allow_empty: bool = False, reference=None) -> Detec
     # name the remaining rows by their place in the file (``err`` maps them back).
     marker = np.ones(n_rows, dtype=bool)
     for name, v in cols.items():
-        if name != "time":
+        if name != "time" and name not in REFERENCE_COLUMNS:  # the frame is on every row
             marker &= _empty_cells(v)
+    refs = {c: cols[c] for c in REFERENCE_COLUMNS if c in cols}
     keep = np.flatnonzero(~marker)
     lines_all = lines
     if marker.any():
@@ -902,7 +903,7 @@ def read_detections(path, *, allow_empty: bool = False, reference=None) -> Detec
         Z, geo = _project(path, err, cols, lines, reference)
         cols.update(x=Z[:, 0], y=Z[:, 1], **({"z": Z[:, 2]} if Z.shape[1] == 3 else {}))
     else:
-        geo = _file_reference(path, err, cols, lines, reference)
+        geo = _file_reference(path, err, cols, lines, reference, refs, lines_all)
     _check_magnitudes(path, err, cols, lines)
     sensor = None
     row_rb = None
@@ -949,9 +950,8 @@ def read_detections(path, *, allow_empty: bool = False, reference=None) -> Detec
     # scans: one per distinct time of the file, the empty-scan rows' times included
     first = np.flatnonzero(np.r_[True, np.diff(t_all) != 0]) if t_all.size else np.zeros(0, int)
     scan_times = t_all[first]
-    group = np.searchsorted(scan_times, t)
-    counts = np.bincount(group, minlength=scan_times.size) if t.size else np.zeros(0, int)
-    counts = counts if scan_times.size else np.zeros(0, int)
+    group = np.searchsorted(scan_times, t).astype(np.int64)
+    counts = np.bincount(group, minlength=scan_times.size)
     full = np.flatnonzero(marker)
     if full.size:
         busy = full[counts[np.searchsorted(scan_times, t_all[full])] > 0]
@@ -1091,12 +1091,13 @@ def _project(path, err, cols, lines, reference):
 _GEO_TOLERANCE = 1e-3
 
 
-def _file_reference(path, err, cols, lines, reference):
-    """The ``ref_lat, ref_lon[, ref_alt]`` of an x, y file (one value on every row), with
-    its ``lat, lon[, alt]`` checked against ``x, y[, z]``; ``None`` without them."""
+def _file_reference(path, err, cols, lines, reference, refs, ref_lines):
+    """The ``ref_lat, ref_lon[, ref_alt]`` of an x, y file (``refs``: one value on every
+    row of the file, whose lines are ``ref_lines``), with its ``lat, lon[, alt]`` checked
+    against ``x, y[, z]``; ``None`` without them."""
     from jointtrack.io.geodetic import LocalFrame
 
-    given = [c for c in REFERENCE_COLUMNS if c in cols]
+    given = list(refs)
     if not given:
         if reference is not None:
             raise err(
@@ -1109,22 +1110,22 @@ def _file_reference(path, err, cols, lines, reference):
         raise err(path, "has ref_alt without ref_lat, ref_lon; the reference needs both")
     values = []
     for c in given:
-        v = cols[c]
+        v = refs[c]
         bad = np.flatnonzero(~np.isfinite(v) | (v != v[0])) if v.size else np.zeros(0, int)
         if bad.size:
             i = int(bad[0])
             raise row_error(
-                err, path, f"{v[i]!r} differs from the reference of data row 1 ({v[0]!r}) or is "
-                "not a number; the frame's reference is one point, the same on every row",
-                i, lines, c,
+                DetectionFileError, path, f"{v[i]!r} differs from the reference of data row 1 "
+                f"({v[0]!r}) or is not a number; the frame's reference is one point, the same "
+                "on every row", i, ref_lines, c,
             )  # fmt: skip
         values.append(float(v[0]) if v.size else None)
-    if not cols["ref_lat"].size:
+    if not refs["ref_lat"].size:
         return reference
     try:
         frame = LocalFrame(*values)
     except (TypeError, ValueError) as exc:
-        raise row_error(err, path, str(exc), 0, lines, "ref_lat") from None
+        raise row_error(DetectionFileError, path, str(exc), 0, ref_lines, "ref_lat") from None
     if reference is not None and frame.reference != tuple(reference):
         raise err(
             path,
@@ -1370,9 +1371,6 @@ def write_detections(detections: Detections, path) -> Path:
 
     table = detections.to_table()
     n_rows = table["time"].size
-    if detections.geo_reference is not None:
-        for name, v in zip(REFERENCE_COLUMNS, detections.geo_reference, strict=True):
-            table[name] = np.full(n_rows, v)
     # empty scans: a row with the scan's time and nothing else, at the scan's place
     counts = np.array([z.shape[0] for z in detections.scans], dtype=int)
     empty = np.flatnonzero(counts == 0)
@@ -1388,6 +1386,9 @@ def write_detections(detections: Detections, path) -> Path:
             else:
                 fill = 0 if v.dtype.kind in "iu" else np.nan
             table[name] = np.insert(v, at, fill)
+    if detections.geo_reference is not None:  # the frame: on every row, empty scans' too
+        for name, v in zip(REFERENCE_COLUMNS, detections.geo_reference, strict=True):
+            table[name] = np.full(blank.size, v)
     text_cols = {}
     if detections.time_origin is not None:
         _, ns0, aware = parse_origin(detections.time_origin)
