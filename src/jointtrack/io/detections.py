@@ -987,15 +987,12 @@ def read_detections(path, *, allow_empty: bool = False, reference=None) -> Detec
     )
 
 
-
 def _reference_argument(reference) -> tuple[float, float, float]:
     """``read_detections``'s ``reference`` as ``(lat0, lon0, alt0)``, checked."""
     from jointtrack.io.geodetic import LocalFrame
 
-    if isinstance(reference, str) or not hasattr(reference, "__len__") or len(reference) not in (
-        2,
-        3,
-    ):
+    sized = not isinstance(reference, str) and hasattr(reference, "__len__")
+    if not sized or len(reference) not in (2, 3):
         raise ValueError(f"reference must be (lat0, lon0[, alt0]) or None, got {reference!r}")
     try:
         return LocalFrame(*reference).reference
@@ -1153,9 +1150,8 @@ def _label_column(raw) -> np.ndarray:
     """Labels as written (CSV text; a Parquet column's values as text, null → "")."""
     if isinstance(raw, list):
         return np.array([str(c) for c in raw] or [""], dtype=str)[: len(raw)]
-    return np.array(
-        ["" if c is None else str(c) for c in raw.to_pylist()] or [""], dtype=str
-    )[: len(raw)]
+    cells = ["" if c is None else str(c) for c in raw.to_pylist()]
+    return np.array(cells or [""], dtype=str)[: len(cells)]
 
 
 def _velocity_rows(path, err, cols, lines, dim: int) -> np.ndarray | None:
