@@ -171,3 +171,49 @@ def test_velocity_en(speed, course):
 def test_velocity_en_refuses_bad_input(args, exc, words):
     with pytest.raises(exc, match=words):
         velocity_en(*args)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+@pytest.mark.parametrize("dim", [2, 3])
+def test_tracks_written_with_a_frame_carry_lat_lon(tmp_path, suffix, dim):
+    from jointtrack.io import read_tracks, write_tracks
+
+    rng = np.random.default_rng(dim)
+    n = 6
+    table = {
+        "time": np.arange(n, dtype=float),
+        "track_id": np.repeat([3, 7], n // 2),
+        "x": rng.normal(0, 5e4, n),
+        "y": rng.normal(0, 5e4, n),
+        "vx": rng.normal(0, 10, n),
+        "vy": rng.normal(0, 10, n),
+        "existence": rng.uniform(0, 1, n),
+    }
+    names = ["time", "track_id", "x", "y", "lat", "lon", "vx", "vy", "existence"]
+    if dim == 3:
+        table.update(z=rng.normal(1e4, 100, n), vz=rng.normal(0, 1, n))
+        names = ["time", "track_id", "x", "y", "z", "lat", "lon", "alt", "vx", "vy", "vz"]
+        names.append("existence")
+    frame = LocalFrame(50.7, -1.1, 12.0)
+    p = write_tracks(table, tmp_path / f"t{suffix}", frame=frame)
+    got = read_tracks(p)
+    assert sorted(got) == sorted(names)
+    if suffix == ".csv":
+        assert p.read_text().splitlines()[0].split(",") == names
+    local = np.column_stack([table[c] for c in ("x", "y", "z")[:dim]])
+    geo = frame.to_geodetic(local)
+    for name, v in zip(("lat", "lon", "alt"), geo, strict=False):
+        assert np.array_equal(got[name], v)
+    back = frame.to_local(got["lat"], got["lon"], got["alt"] if dim == 3 else None)
+    assert np.allclose(back, local, rtol=0, atol=1e-6)
+    for c, v in table.items():
+        assert np.array_equal(got[c], v)
+    # a tuple reference works the same; a clash or a bad frame is refused
+    q = write_tracks(table, tmp_path / f"u{suffix}", frame=(50.7, -1.1, 12.0))
+    assert np.array_equal(read_tracks(q)["lat"], got["lat"])
+    with pytest.raises(ValueError, match="already has"):
+        write_tracks({**table, "lat": np.zeros(n)}, tmp_path / "v.csv", frame=frame)
+    with pytest.raises(TypeError, match="frame"):
+        write_tracks(table, tmp_path / "w.csv", frame=(True, 0.0))
+    with pytest.raises(ValueError, match="frame"):
+        write_tracks(table, tmp_path / "w.csv", frame="50,1")

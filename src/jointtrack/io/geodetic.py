@@ -26,7 +26,10 @@ import numbers
 
 import numpy as np
 
-__all__ = ["FOOT", "KNOT", "LocalFrame", "velocity_en"]
+__all__ = ["FOOT", "GEO_COLUMNS", "KNOT", "LocalFrame", "velocity_en"]
+
+#: the names of WGS-84 columns in the package's files: degrees, degrees, metres
+GEO_COLUMNS = ("lat", "lon", "alt")
 
 #: one knot in metres per second (the international nautical mile, 1852 m, per hour)
 KNOT = 1852.0 / 3600.0
