@@ -105,7 +105,7 @@ class LocalFrame:
     >>> f = LocalFrame(50.0, -1.0)
     >>> xy = f.to_local([50.0, 50.01], [-1.0, -1.0])
     >>> [round(float(v), 3) for v in xy[:, 1]]
-    [0.0, 1112.264]
+    [0.0, 1112.292]
     """
 
     __slots__ = ("_lat0", "_lon0", "_alt0")
