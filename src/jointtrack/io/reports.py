@@ -675,29 +675,23 @@ def read_traffic_records(path) -> Reports:
     if not isinstance(records, list):
         raise err(path, f"holds a JSON {type(records).__name__}; expected a list of records")
     n = len(records)
-    ns = np.zeros(n, dtype=np.int64)
-    vals = {k: np.full(n, np.nan) for k in ("latitude", "longitude", "altitude", "gs", "track")}
-    ident = []
-    for i, rec in enumerate(records):
-        if not isinstance(rec, dict):
-            raise err(path, f"is a JSON {type(rec).__name__}, not an object", row=i + 1)
-        missing = [k for k in ("timestamp", "icao24") if rec.get(k) is None]
-        if missing:
-            raise err(path, "missing value", row=i + 1, column=missing[0])
-        ns[i] = _record_time(path, err, rec["timestamp"], i)
-        ident.append(str(rec["icao24"]).strip())
-        for key, name in _TRAFFIC_NUMBERS:
-            v = rec.get(name)
-            if v is None:
-                continue
-            if isinstance(v, bool) or not isinstance(v, int | float):
-                raise err(path, f"value {v!r} is not a number", row=i + 1, column=name)
-            try:
-                vals[key][i] = float(v)
-            except OverflowError:
-                raise err(
-                    path, f"value {v!r} is beyond the float range", row=i + 1, column=name
-                ) from None
+    bad = next((i for i, rec in enumerate(records) if type(rec) is not dict), None)
+    if bad is not None:
+        what = type(records[bad]).__name__
+        raise err(path, f"is a JSON {what}, not an object", row=bad + 1)
+    # one list per field, checked by the types present (a fast path for clean files;
+    # the first bad record is found only when there is one)
+    fields = {name: [rec.get(name) for rec in records] for name in ("timestamp", "icao24")}
+    for name, col in fields.items():
+        if any(v is None for v in col):
+            i = next(i for i, v in enumerate(col) if v is None)
+            raise err(path, "missing value", row=i + 1, column=name)
+    ns = _record_times(path, err, fields["timestamp"])
+    ident = [str(v).strip() for v in fields["icao24"]]
+    vals = {
+        key: _record_numbers(path, err, [rec.get(name) for rec in records], name)
+        for key, name in _TRAFFIC_NUMBERS
+    }
     lat, lon = vals["latitude"], vals["longitude"]
     for key, name in _TRAFFIC_NUMBERS:
         _finite_or_nan(path, err, vals[key], None, name)
@@ -716,6 +710,40 @@ def read_traffic_records(path) -> Reports:
         speed=vals["gs"][ok] * KNOT,
         course=vals["track"][ok],
     )
+
+
+def _record_numbers(path, err, col: list, name: str) -> np.ndarray:
+    """float64 values of a record field (None: NaN); ``err`` at the first non-number."""
+    if set(map(type, col)) <= {int, float, type(None)}:
+        try:
+            return np.array(col, dtype=np.float64)  # None → NaN
+        except OverflowError:
+            pass
+    out = np.full(len(col), np.nan)
+    for i, v in enumerate(col):
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            raise err(path, f"value {v!r} is not a number", row=i + 1, column=name)
+        try:
+            out[i] = float(v)
+        except OverflowError:
+            raise err(
+                path, f"value {v!r} is beyond the float range", row=i + 1, column=name
+            ) from None
+    return out
+
+
+def _record_times(path, err, col: list) -> np.ndarray:
+    """int64 ns since the epoch of the records' timestamps."""
+    if set(map(type, col)) == {int}:  # milliseconds, the traffic samples' form
+        try:
+            ms = np.array(col, dtype=np.int64)
+        except OverflowError:
+            ms = None
+        if ms is not None and np.abs(ms).max() <= 2**43:
+            return ms * 1_000_000
+    return np.array([_record_time(path, err, v, i) for i, v in enumerate(col)], dtype=np.int64)
 
 
 def _record_time(path, err, v, i: int) -> int:
