@@ -504,3 +504,16 @@ def test_truth_and_detections_views():
         r.detections(frame, scan=0.0)
     assert r.frame() == LocalFrame.centre(r.lat, r.lon)
     assert r.frame((50.0, 1.0)) == LocalFrame(50.0, 1.0)
+
+
+def test_subset():
+    r = _reports(5, identity=np.array(list("abcde")))
+    assert r.subset(r.lat > 50.4).identity.tolist() == ["c", "d", "e"]
+    assert r.subset([4, 0]).identity.tolist() == ["a", "e"]  # time order kept
+    assert len(r.subset([])) == 0
+    with pytest.raises(ValueError, match="rows"):
+        r.subset(np.ones(3, bool))
+    with pytest.raises(ValueError, match="rows"):
+        r.subset([7])
+    with pytest.raises(TypeError, match="rows"):
+        r.subset([0.5])

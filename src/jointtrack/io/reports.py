@@ -160,6 +160,23 @@ class Reports:
             time_origin=self.time_origin, source=self.source, skipped=self.skipped, **fields
         )
 
+    def subset(self, rows) -> Reports:
+        """The reports selected by ``rows``: a boolean mask of length R, or row indices
+        (kept in time order). E.g. ``r.subset(r.lon < 10)`` drops a position glitch
+        that would stretch the bounding box :meth:`frame` and :meth:`degrade` use."""
+        a = np.asarray(rows)
+        if a.dtype == np.bool_:
+            if a.shape != (len(self),):
+                raise ValueError(f"rows: a mask must have shape ({len(self)},), got {a.shape}")
+            return self._rows(np.flatnonzero(a))
+        if a.size == 0:
+            return self._rows(np.zeros(0, np.int64))
+        if a.dtype.kind not in "iu" or a.ndim != 1:
+            raise TypeError(f"rows must be a boolean mask or integer indices, got dtype {a.dtype}")
+        if a.min() < -len(self) or a.max() >= len(self):
+            raise ValueError(f"rows: an index is outside 0..{len(self) - 1}")
+        return self._rows(np.sort(np.mod(a, len(self)), kind="stable"))
+
     def frame(self, reference=None) -> LocalFrame:
         """The local frame about ``reference`` ``(lat0, lon0[, alt0])``, or (None)
         about the centre of the reports' lat/lon bounding box (:meth:`LocalFrame.centre`)."""
