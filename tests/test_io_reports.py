@@ -326,6 +326,8 @@ def _reports(n=5, **kw):
         (dict(time_origin="noon"), ValueError, "time_origin"),
         (dict(lat=np.zeros(4)), ValueError, "shape"),
         (dict(is_clutter=np.zeros(5)), TypeError, "is_clutter"),
+        (dict(lat=None), ValueError, "lat"),
+        (dict(times=[0.0, 1.0, 2.0, 3.0, True]), TypeError, "times"),
     ],
 )
 def test_reports_refuse_bad_fields(kw, exc, words):

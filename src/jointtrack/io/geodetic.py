@@ -46,6 +46,15 @@ def _real_array(value, name: str, *, allow_nan: bool = False) -> np.ndarray:
         raise TypeError(f"{name} must be a real number, got the text {value!r}")
     if isinstance(value, numbers.Number) and not isinstance(value, numbers.Real):
         raise TypeError(f"{name} must be a real number, got the complex {value!r}")
+    if isinstance(value, list | tuple):
+        # numpy would turn True into 1.0 and "1" into 1.0 silently: look at the items
+        try:
+            items = np.array(value, dtype=object).reshape(-1).tolist()
+        except ValueError:
+            raise ValueError(f"{name} must be a regular array of numbers") from None
+        for v in items:
+            if isinstance(v, bool | np.bool_ | str | bytes) or not isinstance(v, numbers.Real):
+                raise TypeError(f"{name} must hold real numbers, got {v!r}")
     a = np.asarray(value)
     if a.dtype == np.bool_:
         raise TypeError(f"{name} must hold real numbers, got booleans")

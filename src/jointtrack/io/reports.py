@@ -112,14 +112,16 @@ class Reports:
 
         def column(value, name, default, check):
             if value is None:
+                if default is None:
+                    raise ValueError(f"{name} is needed: one value per report")
                 return np.full(n, default)
             a = check(value, name)
             if a.shape != (n,):
                 raise ValueError(f"{name} must have shape ({n},) like times, got {a.shape}")
             return a
 
-        lat = column(self.lat, "lat", 0.0, _latitudes)
-        lon = column(self.lon, "lon", 0.0, _longitudes)
+        lat = column(self.lat, "lat", None, _latitudes)
+        lon = column(self.lon, "lon", None, _longitudes)
         alt = column(self.alt, "alt", np.nan, lambda v, m: _real_array(v, m, allow_nan=True))
         speed = column(self.speed, "speed", np.nan, lambda v, m: _real_array(v, m, allow_nan=True))
         if np.any(speed < 0):
