@@ -301,7 +301,7 @@ def test_bad_range_bearing_files_one_line_exit_2(tmp_path):
     r = _run("--detections", mixed, "--config", cfg, "--out", tmp_path / "o")
     one_line_error(r, "mixed.csv", "x, y", "range, bearing", "one kind")
     neither = tmp_path / "neither.csv"
-    neither.write_text("time,lat,lon\n0,1,2\n")
+    neither.write_text("time,east,north\n0,1,2\n")  # (time, lat, lon: geodetic, issue 24)
     r = _run("--detections", neither, "--config", cfg, "--out", tmp_path / "o")
     one_line_error(r, "neither.csv", "x, y", "range, bearing", "lat, lon")
     neg = tmp_path / "neg.csv"

@@ -301,10 +301,11 @@ def test_position_and_range_bearing_columns_together(tmp_path, header):
 
 
 def test_neither_position_nor_range_bearing_columns(tmp_path):
-    e = _err(_csv(tmp_path, "time,lat,lon\n0,1,2\n"))
+    # (time, lat, lon is a geodetic file since issue 24: tests/test_detections_labels.py)
+    e = _err(_csv(tmp_path, "time,east,north\n0,1,2\n"))
     msg = str(e)
-    assert "missing required column(s): x, y (found: time, lat, lon)" in msg
-    assert "range, bearing" in msg
+    assert "missing required column(s): x, y (found: time, east, north)" in msg
+    assert "range, bearing" in msg and "lat, lon" in msg
     # a range–bearing file missing one of its columns names that one
     e = _err(_csv(tmp_path, "time,range\n0,1\n"))
     assert "missing required column(s): bearing (found: time, range)" in str(e)

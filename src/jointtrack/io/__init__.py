@@ -18,6 +18,52 @@ column     required  meaning
                      (64-bit, exactly) or text such as ``radar_a``
 =========  ========  ==========================================================
 
+Optional columns of position files (:attr:`Detections.labels`,
+:attr:`Detections.velocities`):
+
+================================  =============================================
+column                            meaning
+================================  =============================================
+``label``                         identity of the row's target as text (MMSI,
+                                  icao24), read as written; empty: none
+``vx, vy[, vz]``                  reported velocity (units of x per unit of
+                                  time); an empty cell is unknown (NaN);
+                                  ``vz`` only with ``z``
+``speed_knots, course_deg``       instead of ``vx, vy``: speed over ground in
+                                  knots and course in degrees clockwise from
+                                  north, turned into east/north m/s
+                                  (:func:`~jointtrack.io.geodetic.velocity_en`);
+                                  empty: unknown
+================================  =============================================
+
+**Geodetic positions.** A file with ``lat, lon[, alt]`` columns (WGS-84
+degrees; ``alt`` metres above the ellipsoid) instead of ``x, y`` is projected
+into a local east-north(-up) frame in metres
+(:class:`~jointtrack.io.geodetic.LocalFrame`, pymap3d): about
+``read_detections(path, reference=(lat0, lon0[, alt0]))``, or by default
+about the centre of the data's lat/lon bounding box (across the antimeridian
+when narrower) at altitude 0. Without ``alt`` the detections are 2-D (east,
+north of the point at the reference's height); with it, 3-D (east, north,
+up). The reference is kept as :attr:`Detections.geo_reference`. Latitudes
+outside [−90, 90] and longitudes outside [−180, 360] are errors naming the
+row. Use metres-true speeds (``speed_knots``) with such files: velocities are
+then m/s in the same frame.
+
+:func:`write_detections` writes a geodetic :class:`Detections` as ``x, y[,
+z]`` **and** ``lat, lon[, alt]``, with the frame in ``ref_lat, ref_lon,
+ref_alt`` (the same on every row). On reading, **x, y take precedence**: they
+are the detections (exact as written); the ``ref_*`` columns give
+:attr:`Detections.geo_reference`, and ``lat, lon`` must then agree with ``x,
+y`` within 1 mm (else an error: edit one or drop the other); without ``ref_*``
+columns ``lat, lon`` beside ``x, y`` are ignored. ``reference=`` is refused
+for an x, y file unless it equals the file's ``ref_*``.
+
+**Empty scans.** A row whose only filled cell is its ``time`` (every other
+column the reader uses empty; ``ref_*`` and ignored columns do not count) is a
+scan with no detection; :func:`write_detections` writes empty scans so, and
+reading the file back gives the same scans, empty ones included. Such a row at
+a time that also has detections is an error.
+
 or a range–bearing measurement of a 2-D sensor (``range, bearing``; track it
 with ``TrackerConfig(sensor="range-bearing", sensor_position=…)``):
 
@@ -66,7 +112,7 @@ one (time, sensor), empty on position rows.
   :mod:`jointtrack.io.times`. All ``time`` values of a file are of one kind.
 * Rows are in time order: ``time`` must be non-decreasing from row to row.
   Consecutive rows with the *same* time value form one scan; a scan with no
-  detection cannot be represented (it has no row), and a file with a header
+  detection is a row with only its time (above), and a file with a header
   but no rows is an error ("has no detections"; ``read_detections(…,
   allow_empty=True)`` reads it as no scans).
 * Errors: every problem raises :class:`DetectionFileError` (a
@@ -108,8 +154,22 @@ Tracks file format (:func:`write_tracks`, :func:`read_tracks`)
 Columns ``time, track_id, x, y[, z], vx, vy[, vz]`` (``z`` and ``vz`` together)
 followed by any extra numeric columns the caller supplies, e.g. covariance
 entries (``P_x_x``, ``P_x_vx``, …) or an existence probability
-(``existence``). CSV floats are written with ``repr`` (shortest round-trip),
-so a CSV round trip is exact.
+(``existence``). With ``write_tracks(…, frame=LocalFrame(…))`` the positions'
+WGS-84 ``lat, lon[, alt]`` follow ``x, y[, z]`` (read back as extra columns).
+CSV floats are written with ``repr`` (shortest round-trip), so a CSV round
+trip is exact.
+
+Self-reports (:mod:`~jointtrack.io.reports`)
+--------------------------------------------
+AIS and ADS-B position reports, read into :class:`Reports` (times since a UTC
+origin, lat/lon, altitude, identity, speed, course): :func:`read_ais_csv`
+(Stone Soup's Solent demo layout ``Time, MMSI, Latitude_degrees,
+Longitude_degrees, COG_degrees, SOG_knots``), :func:`read_opensky_states`
+(OpenSky state vectors), :func:`read_traffic_records` (the ``traffic``
+library's JSON records, gzip or plain), :func:`read_reports` (chooses).
+:meth:`Reports.degrade` (seeded drop-outs, Poisson clutter, identities
+stripped), :meth:`Reports.reduce` (Stone Soup's TimeSyncFeeder +
+MetadataReducer), :meth:`Reports.detections` and :meth:`Reports.truth`.
 
 Truth file format (:func:`read_truth`, :func:`write_truth`)
 -----------------------------------------------------------
@@ -126,7 +186,9 @@ dataclasses, tuples and paths are converted; NaN and ±inf become ``null``
 (:func:`to_jsonable`, the package's one numpy-aware JSON conversion).
 
 Modules: :mod:`~jointtrack.io.detections` (:class:`Detections`, reading and
-writing detections), :mod:`~jointtrack.io.tracks` (track tables),
+writing detections), :mod:`~jointtrack.io.geodetic` (:class:`LocalFrame`,
+WGS-84 ↔ local metres), :mod:`~jointtrack.io.reports` (AIS / ADS-B
+self-reports), :mod:`~jointtrack.io.tracks` (track tables),
 :mod:`~jointtrack.io.truth` (truth tables),
 :mod:`~jointtrack.io.metrics` (metrics JSON), :mod:`~jointtrack.io.jsonify`
 (:func:`to_jsonable`), :mod:`~jointtrack.io.times` (ISO-8601 times),
@@ -142,8 +204,16 @@ from jointtrack.io.detections import (
     write_detections,
 )
 from jointtrack.io.errors import DataFileError, DetectionFileError, TrackFileError, TruthFileError
+from jointtrack.io.geodetic import FOOT, KNOT, LocalFrame, velocity_en
 from jointtrack.io.jsonify import to_jsonable
 from jointtrack.io.metrics import write_metrics
+from jointtrack.io.reports import (
+    Reports,
+    read_ais_csv,
+    read_opensky_states,
+    read_reports,
+    read_traffic_records,
+)
 from jointtrack.io.tracks import read_tracks, write_tracks
 from jointtrack.io.truth import read_truth, write_truth
 
@@ -152,12 +222,21 @@ __all__ = [
     "DataFileError",
     "DetectionFileError",
     "Detections",
+    "FOOT",
     "KINDS",
+    "KNOT",
+    "LocalFrame",
+    "Reports",
     "TrackFileError",
     "TruthFileError",
+    "read_ais_csv",
     "read_detections",
+    "read_opensky_states",
+    "read_reports",
     "read_tracks",
+    "read_traffic_records",
     "read_truth",
+    "velocity_en",
     "to_jsonable",
     "write_detections",
     "write_metrics",

@@ -17,10 +17,14 @@ from jointtrack.io._files import (
     check_integer,
     load_columns,
     out_path,
+    parquet_column,
+    parquet_column_nullable,
     parquet_is_numeric,
     parquet_is_string,
     parquet_nulls,
     row_error,
+    strings_to_floats,
+    strings_to_floats_nullable,
     write_columns,
 )
 from jointtrack.io.errors import DetectionFileError
@@ -43,6 +47,10 @@ DETECTION_KINDS = (*KINDS, "mixed")
 POS_COLUMNS = ("x", "y", "z")
 RB_COLUMNS = ("range", "bearing")
 SENSOR_POSITION_COLUMNS = ("sensor_x", "sensor_y")
+VELOCITY_COLUMNS = ("vx", "vy", "vz")
+GEO_COLUMNS = ("lat", "lon", "alt")
+REFERENCE_COLUMNS = ("ref_lat", "ref_lon", "ref_alt")
+COURSE_COLUMNS = ("speed_knots", "course_deg")
 
 #: Largest |coordinate| (x, y, z, range, sensor_x, sensor_y) read from a file: the
 #: filter squares differences of coordinates (innovations, gate distances), and
@@ -98,6 +106,17 @@ class Detections:
         without one (position rows; sensors at a fixed, configured position).
         The rows of one (scan, sensor) share one position, and a sensor id has
         a position on all its rows or on none.
+    labels : ``None``, or a tuple of K string arrays ``(M_k,)``: an identity
+        label per detection (an AIS MMSI, an ADS-B icao24), ``""`` for an
+        unlabelled row.
+    velocities : ``None``, or (position detections) a tuple of K float arrays
+        ``(M_k, dim)``: a reported velocity per detection (e.g. from speed and
+        course), NaN where unknown (a whole row, or a component).
+    geo_reference : ``None``, or (position detections, dim 2 or 3) the WGS-84
+        reference ``(lat0, lon0, alt0)`` (degrees, degrees, metres) of the
+        local east-north(-up) frame the positions are in
+        (:class:`~jointtrack.io.geodetic.LocalFrame`, :meth:`geo_frame`);
+        given as 2 or 3 numbers, kept as 3 floats.
 
     ``len(d)`` is K; iterating yields ``(time, z)`` pairs; ``d[k]`` is
     ``(times[k], scans[k])``.
@@ -112,6 +131,9 @@ class Detections:
     time_origin: str | None = None
     row_kinds: tuple | None = None
     sensor_positions: tuple | None = None
+    labels: tuple | None = None
+    velocities: tuple | None = None
+    geo_reference: tuple | None = None
 
     def __post_init__(self):
         origin, _, _ = parse_origin(self.time_origin)
@@ -180,6 +202,12 @@ class Detections:
                 )
             _check_sensor_kinds(sensors, row_kinds)
         positions = _check_sensor_positions(self, fixed, sensors, row_kinds)
+        labels = _check_labels(self.labels, fixed)
+        velocities = _check_velocities(self.velocities, fixed, self.kind, dim)
+        geo = _check_geo_reference(self.geo_reference, self.kind, dim)
+        object.__setattr__(self, "labels", labels)
+        object.__setattr__(self, "velocities", velocities)
+        object.__setattr__(self, "geo_reference", geo)
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "scans", tuple(fixed))
         object.__setattr__(self, "sensors", sensors)
@@ -209,6 +237,15 @@ class Detections:
             return None
         _, ns0, aware = parse_origin(self.time_origin)
         return [format_timestamp(ns0 + v, aware) for v in _offsets_ns(self.times)]
+
+    def geo_frame(self):
+        """The :class:`~jointtrack.io.geodetic.LocalFrame` of :attr:`geo_reference`,
+        or ``None`` when the positions are not from geodetic data."""
+        if self.geo_reference is None:
+            return None
+        from jointtrack.io.geodetic import LocalFrame
+
+        return LocalFrame(*self.geo_reference)
 
     def scan_kinds(self, k: int) -> np.ndarray:
         """The measurement kind (``"position"`` / ``"range-bearing"``) of each row of scan k."""
@@ -287,7 +324,11 @@ class Detections:
         """Flat columns ``time, x, y[, z][, sensor]`` or ``time, range, bearing[, sensor]``
         (the file layout); mixed detections: ``time, x, y, range, bearing, sensor``
         with NaN in the set a row does not fill; with :attr:`sensor_positions`
-        also ``sensor_x, sensor_y`` (NaN for rows without)."""
+        also ``sensor_x, sensor_y`` (NaN for rows without); with :attr:`labels` a
+        ``label`` column (strings, ``""`` unlabelled); with :attr:`velocities`
+        ``vx, vy[, vz]`` (NaN unknown); with :attr:`geo_reference` also ``lat,
+        lon[, alt]`` (WGS-84 degrees, metres) of the positions. Empty scans
+        have no row here (:func:`write_detections` marks them)."""
         n = [z.shape[0] for z in self.scans]
         Z = (
             np.concatenate(self.scans, axis=0)
@@ -313,6 +354,17 @@ class Detections:
         if self.sensor_positions is not None:
             S = np.concatenate(self.sensor_positions, axis=0) if self.scans else np.zeros((0, 2))
             out["sensor_x"], out["sensor_y"] = S[:, 0].copy(), S[:, 1].copy()
+        if self.labels is not None:
+            out["label"] = np.concatenate([np.asarray(a, dtype=str) for a in self.labels] or [[]])
+            out["label"] = out["label"].astype(str)
+        if self.velocities is not None:
+            V = np.concatenate(self.velocities, axis=0) if self.scans else np.zeros((0, self.dim))
+            for a, name in enumerate(VELOCITY_COLUMNS[: self.dim]):
+                out[name] = V[:, a].copy()
+        if self.geo_reference is not None:
+            geo = self.geo_frame().to_geodetic(Z)
+            for name, v in zip(GEO_COLUMNS, geo, strict=False):
+                out[name] = v
         return out
 
 
@@ -456,6 +508,77 @@ def _check_sensor_positions(d: Detections, scans, sensors, row_kinds) -> tuple |
     return tuple(out)
 
 
+def _check_labels(labels, scans) -> tuple | None:
+    """:attr:`Detections.labels` as string arrays, one per scan, of the scans' lengths."""
+    if labels is None:
+        return None
+    if isinstance(labels, str | np.ndarray) or not hasattr(labels, "__len__"):
+        raise ValueError("labels must be a tuple of K string arrays (one per scan) or None")
+    labels = tuple(labels)
+    if len(labels) != len(scans):
+        raise ValueError(f"{len(scans)} scans but {len(labels)} labels arrays")
+    out = []
+    for k, (a, z) in enumerate(zip(labels, scans, strict=True)):
+        arr = np.asarray(a) if not isinstance(a, np.ndarray) else a
+        if arr.size == 0:
+            arr = np.zeros(0, dtype=str)
+        if arr.dtype.kind == "O":
+            vals = arr.reshape(-1).tolist()
+            bad = next((v for v in vals if not isinstance(v, str)), None)
+            if bad is not None:
+                raise ValueError(f"labels[{k}] holds {bad!r}; labels are strings")
+            arr = np.array(vals, dtype=str).reshape(arr.shape)
+        if arr.dtype.kind != "U":
+            raise ValueError(f"labels[{k}] must hold strings, got dtype {arr.dtype}")
+        if arr.shape != (z.shape[0],):
+            raise ValueError(f"labels[{k}] must have shape ({z.shape[0]},), got {arr.shape}")
+        out.append(arr)
+    return tuple(out)
+
+
+def _check_velocities(velocities, scans, kind: str, dim: int) -> tuple | None:
+    """:attr:`Detections.velocities` as float arrays ``(M_k, dim)``: finite or NaN."""
+    if velocities is None:
+        return None
+    if kind != "position":
+        raise ValueError(f"velocities are for position detections, not {kind} ones")
+    velocities = tuple(velocities)
+    if len(velocities) != len(scans):
+        raise ValueError(f"{len(scans)} scans but {len(velocities)} velocities arrays")
+    out = []
+    for k, (v, z) in enumerate(zip(velocities, scans, strict=True)):
+        a = np.asarray(v)
+        if a.dtype == np.bool_ or a.dtype.kind not in "iuf" and a.size:
+            raise ValueError(f"velocities[{k}] must hold real numbers, got dtype {a.dtype}")
+        a = a.astype(np.float64)
+        if a.size == 0:
+            a = a.reshape(0, dim)
+        if a.shape != (z.shape[0], dim):
+            raise ValueError(
+                f"velocities[{k}] must have shape ({z.shape[0]}, {dim}), got {a.shape}"
+            )
+        if np.any(np.isinf(a)) or (a.size and np.nanmax(np.abs(a), initial=0) > MAX_COORDINATE):
+            raise ValueError(f"velocities[{k}] has an infinite or huge value (NaN = unknown)")
+        out.append(a)
+    return tuple(out)
+
+
+def _check_geo_reference(ref, kind: str, dim: int) -> tuple | None:
+    """:attr:`Detections.geo_reference` as ``(lat0, lon0, alt0)`` floats, checked."""
+    if ref is None:
+        return None
+    if kind != "position" or dim not in (2, 3):
+        raise ValueError("geo_reference is for 2-D or 3-D position detections")
+    from jointtrack.io.geodetic import LocalFrame
+
+    if isinstance(ref, str) or not hasattr(ref, "__len__") or len(ref) not in (2, 3):
+        raise ValueError(f"geo_reference must be (lat0, lon0[, alt0]), got {ref!r}")
+    try:
+        return LocalFrame(*ref).reference
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"geo_reference: {exc}") from None
+
+
 def _coord_names(dim: int) -> list[str]:
     if dim <= 3:
         return ["x", "y", "z"][:dim]
@@ -470,10 +593,16 @@ def _offsets_ns(times: np.ndarray) -> list[int]:
 # ----------------------------------------------------------------------------- reading
 
 
+_VELOCITY_INPUTS = (*VELOCITY_COLUMNS, *COURSE_COLUMNS)
+#: the columns read as text and parsed once empty-scan rows are set aside
+_RAW_COLUMNS = ("time", "sensor", "label", *POS_COLUMNS, *RB_COLUMNS, *GEO_COLUMNS)
+
+
 def _pick_detection_columns(path, names):
     """Required/optional columns of a detections file from its header: position
-    (``x, y[, z]``), range–bearing (``range, bearing``), or both sets with a
-    ``sensor`` column and no ``z`` (mixed: each row fills one set)."""
+    (``x, y[, z]``), geodetic (``lat, lon[, alt]``, no ``x, y``), range–bearing
+    (``range, bearing``), or both sets with a ``sensor`` column and no ``z``
+    (mixed: each row fills one set)."""
     low = [n.lower() for n in names]
     pos = [n for n in names if n.lower() in POS_COLUMNS]
     rb = [n for n in names if n.lower() in RB_COLUMNS]
@@ -481,7 +610,7 @@ def _pick_detection_columns(path, names):
     if pos and rb:
         if "sensor" in low and "z" not in low:
             required = ("time", "x", "y", *RB_COLUMNS, "sensor")
-            return required, where, "", ("x", "y", *RB_COLUMNS, *where)
+            return required, (*where, "label"), "", where
         raise DetectionFileError(
             path,
             f"has both position column(s) ({', '.join(pos)}) and range-bearing column(s) "
@@ -490,9 +619,18 @@ def _pick_detection_columns(path, names):
             "x, y, range, bearing (each row fills one set)",
         )
     if rb:
-        return ("time", *RB_COLUMNS), ("sensor", *where), "", where
-    hint = "" if pos else f"; or, for range-bearing detections: {', '.join(RB_COLUMNS)}"
-    return ("time", "x", "y"), ("z", "sensor"), hint
+        return ("time", *RB_COLUMNS), ("sensor", *where, "label"), "", where
+    extra = ("sensor", "label", *_VELOCITY_INPUTS)
+    if not pos and "lat" in low and "lon" in low:
+        return ("time", "lat", "lon"), ("alt", *extra), "", _VELOCITY_INPUTS
+    hint = (
+        ""
+        if pos
+        else f"; or, for range-bearing detections: {', '.join(RB_COLUMNS)}; or, for WGS-84 "
+        "positions: lat, lon (degrees)"
+    )
+    optional = ("z", *extra, *GEO_COLUMNS, *REFERENCE_COLUMNS)
+    return ("time", "x", "y"), optional, hint, (*_VELOCITY_INPUTS, *REFERENCE_COLUMNS)
 
 
 def _is_number(s: str) -> bool:
@@ -692,7 +830,7 @@ def _check_time_order(path, err, t: np.ndarray, origin, lines) -> None:
         )
 
 
-def read_detections(path, *, allow_empty: bool = False) -> Detections:
+def read_detections(path, *, allow_empty: bool = False, reference=None) -> Detections:
     """Read a detections file (CSV or Parquet; format in :mod:`jointtrack.io`).
 
     Returns a :class:`Detections`: rows grouped into scans by equal
@@ -701,10 +839,21 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
     ``"position"``, or ``"mixed"`` for a file with both sets and a ``sensor``
     column (rows' kinds in ``row_kinds``); ``sensor_positions`` is set when
     ``sensor_x, sensor_y`` columns are present (range-bearing and mixed
-    files); ``dim`` is 3 when a ``z`` column is present, else 2;
-    ``sensors`` is set when a ``sensor`` column is present. With ISO-8601
-    timestamps in the ``time`` column, ``times`` are seconds since the first
-    row's timestamp and ``time_origin`` is that timestamp (else ``None``).
+    files); ``dim`` is 3 when a ``z`` (or ``alt``) column is present, else 2;
+    ``sensors`` is set when a ``sensor`` column is present, ``labels`` with a
+    ``label`` column, ``velocities`` with ``vx, vy[, vz]`` or ``speed_knots,
+    course_deg`` columns. With ISO-8601 timestamps in the ``time`` column,
+    ``times`` are seconds since the first row's timestamp and ``time_origin``
+    is that timestamp (else ``None``). A row whose only filled cell is its
+    ``time`` is an empty scan.
+
+    A file of WGS-84 positions (``lat, lon[, alt]`` columns, no ``x, y``) is
+    projected into the local east-north(-up) frame about ``reference``
+    (``(lat0, lon0[, alt0])``; default: the centre of the data's lat/lon
+    bounding box at altitude 0, :meth:`LocalFrame.centre
+    <jointtrack.io.geodetic.LocalFrame.centre>`), recorded as
+    ``geo_reference``. A file with ``x, y`` is read as it is (``reference``
+    must then be None or the file's own ``ref_lat, ref_lon[, ref_alt]``).
 
     A file with a header but no data rows is an error ("has no detections")
     unless ``allow_empty`` (then an empty :class:`Detections` is returned).
@@ -713,19 +862,48 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
     ------
     DetectionFileError
         (a ValueError) with the file, row and column of the first problem.
+    ValueError, TypeError
+        for a bad ``reference``.
     """
+    if reference is not None:  # a bad argument is named before any file is opened
+        reference = _reference_argument(reference)
     err = DetectionFileError
     path, cols, _extras, lines, n_rows = load_columns(
-        path, err, (), (), parse_extras=False, pick=_pick_detection_columns, raw=("time", "sensor")
+        path, err, (), (), parse_extras=False, pick=_pick_detection_columns, raw=_RAW_COLUMNS
     )
     if n_rows == 0 and not allow_empty:
         raise err(path, "has no detections: a header but no data rows")
+    geo_in = "lat" in cols and "x" not in cols
     if "range" in cols:
         kind = "mixed" if "x" in cols else "range-bearing"
+        coords = ("x", "y", *RB_COLUMNS) if kind == "mixed" else RB_COLUMNS
     else:
         kind = "position"
-    t, origin = _time_column(path, err, cols["time"], lines)
-    _check_time_order(path, err, t, origin, lines)
+        coords = tuple(c for c in (GEO_COLUMNS if geo_in else POS_COLUMNS) if c in cols)
+    t_all, origin = _time_column(path, err, cols["time"], lines)
+    _check_time_order(path, err, t_all, origin, lines)
+    # A row with nothing but its time marks an empty scan: set such rows aside, and
+    # name the remaining rows by their place in the file (``err`` maps them back).
+    marker = np.ones(n_rows, dtype=bool)
+    for name, v in cols.items():
+        if name != "time" and name not in REFERENCE_COLUMNS:  # the frame is on every row
+            marker &= _empty_cells(v)
+    refs = {c: cols[c] for c in REFERENCE_COLUMNS if c in cols}
+    keep = np.flatnonzero(~marker)
+    lines_all = lines
+    if marker.any():
+        cols = {k: (v if k == "time" else _take(v, keep)) for k, v in cols.items()}
+        lines = None if lines is None else lines[keep]
+        err = _renumbered(keep)
+    t = t_all[keep]
+    for c in (*coords, *(c for c in GEO_COLUMNS if c in cols and not geo_in)):
+        nullable = kind == "mixed" or c not in coords
+        cols[c] = _parse_coordinate(path, err, cols[c], lines, c, nullable)
+    if geo_in:
+        Z, geo = _project(path, err, cols, lines, reference)
+        cols.update(x=Z[:, 0], y=Z[:, 1], **({"z": Z[:, 2]} if Z.shape[1] == 3 else {}))
+    else:
+        geo = _file_reference(path, err, cols, lines, reference, refs, lines_all)
     _check_magnitudes(path, err, cols, lines)
     sensor = None
     row_rb = None
@@ -762,29 +940,257 @@ def read_detections(path, *, allow_empty: bool = False) -> Detections:
         Z[~row_rb] = np.column_stack([cols["x"], cols["y"]])[~row_rb]
         Z[row_rb] = np.column_stack([cols[c] for c in RB_COLUMNS])[row_rb]
     else:
-        coords = ["x", "y"] + (["z"] if "z" in cols else [])
-        Z = np.column_stack([cols[c] for c in coords]) if t.size else np.zeros((0, len(coords)))
+        names = ["x", "y"] + (["z"] if "z" in cols else [])
+        Z = np.column_stack([cols[c] for c in names]) if t.size else np.zeros((0, len(names)))
     where = None
     if "sensor_x" in cols or "sensor_y" in cols:
         where = _sensor_position_rows(path, err, cols, t, sensor, row_rb, lines)
-    starts = np.flatnonzero(np.r_[True, np.diff(t) != 0]) if t.size else np.zeros(0, int)
-    ends = np.r_[starts[1:], t.size].astype(int) if t.size else np.zeros(0, int)
-    bounds = list(zip(starts, ends, strict=True))
-    scans = tuple(Z[s:e] for s, e in bounds)
-    sensors = None
-    if sensor is not None:
-        sensors = tuple(sensor[s:e] for s, e in bounds)
+    labels = _label_column(cols["label"]) if "label" in cols else None
+    velocities = _velocity_rows(path, err, cols, lines, Z.shape[1]) if kind == "position" else None
+    # scans: one per distinct time of the file, the empty-scan rows' times included
+    first = np.flatnonzero(np.r_[True, np.diff(t_all) != 0]) if t_all.size else np.zeros(0, int)
+    scan_times = t_all[first]
+    group = np.searchsorted(scan_times, t).astype(np.int64)
+    counts = np.bincount(group, minlength=scan_times.size)
+    full = np.flatnonzero(marker)
+    if full.size:
+        busy = full[counts[np.searchsorted(scan_times, t_all[full])] > 0]
+        if busy.size:
+            raise row_error(
+                DetectionFileError,
+                path,
+                "the row has a time but no other value (an empty scan), yet other rows at "
+                "this time have detections; give the time's detections or mark it empty",
+                int(busy[0]),
+                lines_all,
+                "time",
+            )
+    ends = np.cumsum(counts).astype(int)
+    bounds = list(zip((ends - counts).tolist(), ends.tolist(), strict=True))
+
+    def split(a):
+        return None if a is None else tuple(a[s:e] for s, e in bounds)
+
     return Detections(
-        times=t[starts],
-        scans=scans,
-        sensors=sensors,
+        times=scan_times,
+        scans=split(Z),
+        sensors=split(sensor),
         dim=Z.shape[1],
         source=str(path),
         kind=kind,
         time_origin=origin,
-        row_kinds=None if row_rb is None else tuple(row_rb[s:e] for s, e in bounds),
-        sensor_positions=None if where is None else tuple(where[s:e] for s, e in bounds),
+        row_kinds=split(row_rb),
+        sensor_positions=split(where),
+        labels=split(labels),
+        velocities=split(velocities),
+        geo_reference=geo,
     )
+
+
+def _reference_argument(reference) -> tuple[float, float, float]:
+    """``read_detections``'s ``reference`` as ``(lat0, lon0, alt0)``, checked."""
+    from jointtrack.io.geodetic import LocalFrame
+
+    sized = not isinstance(reference, str) and hasattr(reference, "__len__")
+    if not sized or len(reference) not in (2, 3):
+        raise ValueError(f"reference must be (lat0, lon0[, alt0]) or None, got {reference!r}")
+    try:
+        return LocalFrame(*reference).reference
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"reference: {exc}") from None
+
+
+def _empty_cells(v) -> np.ndarray:
+    """Which cells of a column are empty: blank text, Parquet nulls, NaN (parsed columns)."""
+    if isinstance(v, np.ndarray):
+        return np.isnan(v)
+    if isinstance(v, list):
+        return np.array([not str(c).strip() for c in v], dtype=bool).reshape(-1)
+
+    empty = np.asarray(v.is_null().to_numpy(zero_copy_only=False), dtype=bool)
+    if parquet_is_string(v.type):
+        empty |= np.array([c is not None and not c.strip() for c in v.to_pylist()], dtype=bool)
+    return empty
+
+
+def _take(v, idx: np.ndarray):
+    """Rows ``idx`` of a column (text cells, a pyarrow column or an array)."""
+    if isinstance(v, np.ndarray):
+        return v[idx]
+    if isinstance(v, list):
+        return [v[i] for i in idx.tolist()]
+    import pyarrow as pa
+
+    return v.take(pa.array(idx, pa.int64()))
+
+
+def _renumbered(rows: np.ndarray):
+    """A :class:`DetectionFileError` maker for columns holding only the file's data rows
+    ``rows`` (0-based): row i of them is reported as the file's data row ``rows[i] + 1``."""
+
+    def err(path, reason, *, row=None, line=None, column=None):
+        if row is not None:
+            row = int(rows[row - 1]) + 1
+        return DetectionFileError(path, reason, row=row, line=line, column=column)
+
+    return err
+
+
+def _parse_coordinate(path, err, raw, lines, name: str, nullable: bool) -> np.ndarray:
+    """float64 values of a raw coordinate column: finite (else ``err``), or NaN where
+    empty when ``nullable``."""
+    if isinstance(raw, list):
+        parse = strings_to_floats_nullable if nullable else strings_to_floats
+        v = parse(path, err, raw, lines, name)
+    else:
+        parse = parquet_column_nullable if nullable else parquet_column
+        v = parse(path, err, raw, name)
+    bad = np.isinf(v) if nullable else ~np.isfinite(v)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise row_error(err, path, f"non-finite value {v[i]}", i, lines, name)
+    return v
+
+
+def _geo_rows(path, err, cols, lines, names) -> None:
+    """``err`` at the first latitude outside [-90, 90] or longitude outside [-180, 360]."""
+    for name, lim in zip(names, ((-90.0, 90.0), (-180.0, 360.0)), strict=False):
+        v = cols[name]
+        bad = np.flatnonzero((v < lim[0]) | (v > lim[1]))
+        if bad.size:
+            i = int(bad[0])
+            raise row_error(
+                err,
+                path,
+                f"{float(v[i])!r} is outside [{lim[0]:g}, {lim[1]:g}] degrees",
+                i,
+                lines,
+                name,
+            )
+
+
+def _project(path, err, cols, lines, reference):
+    """Local east-north(-up) positions of ``lat, lon[, alt]`` rows, and the reference."""
+    from jointtrack.io.geodetic import LocalFrame
+
+    _geo_rows(path, err, cols, lines, ("lat", "lon"))
+    lat, lon = cols["lat"], cols["lon"]
+    alt = cols.get("alt")
+    dim = 2 if alt is None else 3
+    if not lat.size:
+        return np.zeros((0, dim)), reference
+    frame = LocalFrame(*reference) if reference is not None else LocalFrame.centre(lat, lon)
+    return frame.to_local(lat, lon, alt), frame.reference
+
+
+#: how far (metres) lat, lon may place a row from its x, y in the file's own frame: the
+#: written 17-digit degrees reproduce x, y to ~1e-9 m, so this flags edited values only
+_GEO_TOLERANCE = 1e-3
+
+
+def _file_reference(path, err, cols, lines, reference, refs, ref_lines):
+    """The ``ref_lat, ref_lon[, ref_alt]`` of an x, y file (``refs``: one value on every
+    row of the file, whose lines are ``ref_lines``), with its ``lat, lon[, alt]`` checked
+    against ``x, y[, z]``; ``None`` without them."""
+    from jointtrack.io.geodetic import LocalFrame
+
+    given = list(refs)
+    if not given:
+        if reference is not None:
+            raise err(
+                path,
+                "has x, y positions already (no lat, lon to project) and no ref_lat, ref_lon; "
+                "read it without a reference",
+            )
+        return None
+    if given[:2] != ["ref_lat", "ref_lon"]:
+        raise err(path, "has ref_alt without ref_lat, ref_lon; the reference needs both")
+    values = []
+    for c in given:
+        v = refs[c]
+        bad = np.flatnonzero(~np.isfinite(v) | (v != v[0])) if v.size else np.zeros(0, int)
+        if bad.size:
+            i = int(bad[0])
+            raise row_error(
+                DetectionFileError, path, f"{v[i]!r} differs from the reference of data row 1 "
+                f"({v[0]!r}) or is not a number; the frame's reference is one point, the same "
+                "on every row", i, ref_lines, c,
+            )  # fmt: skip
+        values.append(float(v[0]) if v.size else None)
+    if not refs["ref_lat"].size:
+        return reference
+    try:
+        frame = LocalFrame(*values)
+    except (TypeError, ValueError) as exc:
+        raise row_error(DetectionFileError, path, str(exc), 0, ref_lines, "ref_lat") from None
+    if reference is not None and frame.reference != tuple(reference):
+        raise err(
+            path,
+            f"has x, y in the frame about {frame.reference}, not the reference "
+            f"{tuple(reference)} asked for; read it without a reference",
+        )
+    if "lat" in cols and "lon" in cols:
+        dim = 3 if "z" in cols and "alt" in cols else 2
+        _geo_rows(path, err, cols, lines, ("lat", "lon"))
+        got = frame.to_local(cols["lat"], cols["lon"], cols["alt"] if dim == 3 else None)
+        want = np.column_stack([cols[c] for c in ("x", "y", "z")[:dim]])
+        off = np.sqrt(np.sum((got - want) ** 2, axis=1))
+        bad = np.flatnonzero(~(off <= _GEO_TOLERANCE))
+        if bad.size:
+            i = int(bad[0])
+            raise row_error(
+                err, path, f"lat, lon place the row {off[i]:.6g} m from its x, y in the frame "
+                f"about {frame.reference}; x, y are the positions read: fix lat, lon or drop "
+                "those columns", i, lines, "lat",
+            )  # fmt: skip
+    return frame.reference
+
+
+def _label_column(raw) -> np.ndarray:
+    """Labels as written (CSV text; a Parquet column's values as text, null → "")."""
+    if isinstance(raw, list):
+        return np.array([str(c) for c in raw] or [""], dtype=str)[: len(raw)]
+    cells = ["" if c is None else str(c) for c in raw.to_pylist()]
+    return np.array(cells or [""], dtype=str)[: len(cells)]
+
+
+def _velocity_rows(path, err, cols, lines, dim: int) -> np.ndarray | None:
+    """``(N, dim)`` reported velocities (NaN unknown) from ``vx, vy[, vz]`` or from
+    ``speed_knots, course_deg``; ``None`` without such columns."""
+    from jointtrack.io.geodetic import KNOT, velocity_en
+
+    have_v = [c for c in VELOCITY_COLUMNS if c in cols]
+    have_c = [c for c in COURSE_COLUMNS if c in cols]
+    if not have_v and not have_c:
+        return None
+    if have_v and have_c:
+        raise err(
+            path, "has both vx, vy and speed_knots, course_deg columns; give one velocity form"
+        )
+    for c in (*have_v, *have_c):
+        inf = np.flatnonzero(np.isinf(cols[c]))
+        if inf.size:
+            i = int(inf[0])
+            raise row_error(err, path, f"non-finite value {cols[c][i]}", i, lines, c)
+    n = cols["x"].size
+    V = np.full((n, dim), np.nan)
+    if have_c:
+        if len(have_c) != 2:
+            raise err(path, f"has column {have_c[0]} but not the other of speed_knots, course_deg")
+        s = cols["speed_knots"]
+        neg = np.flatnonzero(s < 0)
+        if neg.size:
+            i = int(neg[0])
+            raise row_error(err, path, f"negative speed {float(s[i])!r}", i, lines, "speed_knots")
+        V[:, :2] = velocity_en(s * KNOT, cols["course_deg"])
+        return V
+    if have_v[:2] != ["vx", "vy"]:
+        raise err(path, "velocity columns need vx and vy (and vz for 3-D positions)")
+    if "vz" in cols and dim != 3:
+        raise err(path, "has a vz column but 2-D positions (no z or alt)")
+    for a, c in enumerate(have_v):
+        V[:, a] = cols[c]
+    return V
 
 
 def _check_magnitudes(path, err, cols, lines) -> None:
@@ -941,22 +1347,46 @@ def write_detections(detections: Detections, path) -> Path:
     Positions as ``time, x, y[, z][, sensor]``, range–bearing detections as
     ``time, range, bearing[, sensor][, sensor_x, sensor_y]``, mixed ones as
     ``time, x, y, range, bearing, sensor[, sensor_x, sensor_y]`` (the set a
-    row does not fill: empty CSV cells, Parquet nulls). Empty scans are lost (a scan exists in
-    the file only through its rows). With a ``time_origin`` the ``time``
-    column holds ISO-8601 timestamps (CSV text; a Parquet ``timestamp[ns]``
-    column, UTC unless the origin is naive), so reading the file back gives
-    the same ``times`` and ``time_origin``; else numbers.
+    row does not fill: empty CSV cells, Parquet nulls); then ``label`` (with
+    :attr:`~Detections.labels`), ``vx, vy[, vz]`` (with
+    :attr:`~Detections.velocities`; unknown: empty) and, with a
+    :attr:`~Detections.geo_reference`, ``lat, lon[, alt]`` of each position and
+    the reference as ``ref_lat, ref_lon, ref_alt`` on every row. An empty scan
+    is a row with its time and every other cell empty. With a ``time_origin``
+    the ``time`` column holds ISO-8601 timestamps (CSV text; a Parquet
+    ``timestamp[ns]`` column, UTC unless the origin is naive), else numbers.
+    Reading the file back gives the same detections, exactly (x, y are read
+    before lat, lon: see :mod:`jointtrack.io`).
     """
     if not isinstance(detections, Detections):
         raise ValueError(f"expected Detections, got {type(detections).__name__}")
     if detections.dim not in (2, 3):
         raise ValueError(f"the file format holds 2-D or 3-D detections, got dim={detections.dim}")
     path, kind = out_path(path)
+    import pyarrow as pa
+
     table = detections.to_table()
+    n_rows = table["time"].size
+    # empty scans: a row with the scan's time and nothing else, at the scan's place
+    counts = np.array([z.shape[0] for z in detections.scans], dtype=int)
+    empty = np.flatnonzero(counts == 0)
+    at = (np.cumsum(counts) - counts)[empty]
+    blank = np.zeros(n_rows, dtype=bool)
+    if empty.size:
+        blank = np.insert(blank, at, True)
+        for name, v in table.items():
+            if name == "time":
+                fill = detections.times[empty]
+            elif v.dtype.kind == "U":
+                fill = ""
+            else:
+                fill = 0 if v.dtype.kind in "iu" else np.nan
+            table[name] = np.insert(v, at, fill)
+    if detections.geo_reference is not None:  # the frame: on every row, empty scans' too
+        for name, v in zip(REFERENCE_COLUMNS, detections.geo_reference, strict=True):
+            table[name] = np.full(blank.size, v)
     text_cols = {}
     if detections.time_origin is not None:
-        import pyarrow as pa
-
         _, ns0, aware = parse_origin(detections.time_origin)
         ns = [ns0 + v for v in _offsets_ns(table["time"])]
         text = [format_timestamp(v, aware) for v in ns]
@@ -964,19 +1394,20 @@ def write_detections(detections: Detections, path) -> Path:
             np.asarray(ns, dtype=np.int64), pa.timestamp("ns", tz="UTC" if aware else None)
         )
         text_cols["time"] = (text, arr)
-    if detections.kind == "mixed" or detections.sensor_positions is not None:
-        import pyarrow as pa
-
-        # a set a row does not fill: an empty CSV cell, a Parquet null
-        for name in ("x", "y", *RB_COLUMNS, *SENSOR_POSITION_COLUMNS):
-            if name in table and np.isnan(table[name]).any():
-                v = table[name]
-                text = ["" if np.isnan(a) else repr(float(a)) for a in v.tolist()]
-                text_cols[name] = (text, pa.array(v, pa.float64(), mask=np.isnan(v)))
-    if "sensor" in table and table["sensor"].dtype.kind == "U":
-        import pyarrow as pa
-
-        ids = table["sensor"].tolist()  # string ids: CSV text, a Parquet string column
-        text_cols["sensor"] = (ids, pa.array(ids, pa.string()))
+    for name, v in table.items():
+        if name == "time":
+            continue
+        if v.dtype.kind == "U":
+            # labels and string sensor ids: CSV text, a Parquet string column (null: empty scan)
+            vals = v.tolist()
+            text_cols[name] = (vals, pa.array(vals, pa.string(), mask=blank))
+        elif v.dtype.kind in "iu":
+            if blank.any():
+                vals = ["" if b else str(int(a)) for a, b in zip(v.tolist(), blank, strict=True)]
+                text_cols[name] = (vals, pa.array(v.astype(np.int64), pa.int64(), mask=blank))
+        elif np.isnan(v).any():
+            # a value a row does not have: an empty CSV cell, a Parquet null
+            text = ["" if np.isnan(a) else repr(float(a)) for a in v.tolist()]
+            text_cols[name] = (text, pa.array(v, pa.float64(), mask=np.isnan(v)))
     write_columns(path, kind, table, int_cols={"sensor"}, text_cols=text_cols)
     return path

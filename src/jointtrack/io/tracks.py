@@ -18,7 +18,7 @@ _TRACK_REQUIRED_2D = ("time", "track_id", "x", "y", "vx", "vy")
 _TRACK_REQUIRED_3D = ("time", "track_id", "x", "y", "z", "vx", "vy", "vz")
 
 
-def write_tracks(tracks_table, path) -> Path:
+def write_tracks(tracks_table, path, *, frame=None) -> Path:
     """Write a tracks table to CSV or Parquet (chosen by the extension).
 
     Parameters
@@ -30,6 +30,12 @@ def write_tracks(tracks_table, path) -> Path:
         Required columns must be finite and ``track_id`` integer-valued.
     path : ``.csv``, ``.csv.gz``, ``.parquet`` or ``.pq``; parent directories are
         created.
+    frame : optional :class:`~jointtrack.io.geodetic.LocalFrame` (or ``(lat0, lon0[,
+        alt0])``) that ``x, y[, z]`` are east/north(/up) metres in: then ``lat, lon``
+        (WGS-84 degrees; with ``z`` also ``alt``, metres) are written right after the
+        local position, the inverse of the frame's projection
+        (:meth:`~jointtrack.io.geodetic.LocalFrame.to_geodetic`). :func:`read_tracks`
+        reads them back as extra columns.
 
     Returns the path written.
     """
@@ -51,10 +57,43 @@ def write_tracks(tracks_table, path) -> Path:
         i = int(np.flatnonzero(tid != np.round(tid))[0])
         raise ValueError(f"tracks_table: track_id row {i} is not an integer ({tid[i]})")
     ordered = {c: cols[c] for c in required}
+    if frame is not None:
+        ordered = _with_geodetic(ordered, cols, frame, has_z)
     ordered.update({k: v for k, v in cols.items() if k not in ordered})
     path, kind = out_path(path)
     write_columns(path, kind, ordered, int_cols={"track_id"})
     return path
+
+
+def _with_geodetic(ordered: dict, cols: dict, frame, has_z: bool) -> dict:
+    """``ordered`` with ``lat, lon[, alt]`` of the local positions after ``x, y[, z]``."""
+    from jointtrack.io.geodetic import GEO_COLUMNS, LocalFrame
+
+    if not isinstance(frame, LocalFrame):
+        sized = not isinstance(frame, str) and hasattr(frame, "__len__")
+        if not sized or len(frame) not in (2, 3):
+            raise ValueError(f"frame must be a LocalFrame or (lat0, lon0[, alt0]), got {frame!r}")
+        try:
+            frame = LocalFrame(*frame)
+        except (TypeError, ValueError) as exc:
+            raise type(exc)(f"frame: {exc}") from None
+    names = GEO_COLUMNS if has_z else GEO_COLUMNS[:2]
+    clash = [c for c in names if c in cols]
+    if clash:
+        raise ValueError(
+            f"tracks_table already has column(s) {', '.join(clash)}; with a frame they are "
+            "computed from x, y"
+        )
+    local = np.column_stack(
+        [cols[c].astype(np.float64) for c in (("x", "y", "z") if has_z else ("x", "y"))]
+    )
+    geo = frame.to_geodetic(local)
+    out = {}
+    for k, v in ordered.items():
+        out[k] = v
+        if k == ("z" if has_z else "y"):
+            out.update(zip(names, geo, strict=True))
+    return out
 
 
 def read_tracks(path) -> dict[str, np.ndarray]:
