@@ -69,7 +69,7 @@ def test_png_and_what_it_shows(tmp_path):
         )
         np.testing.assert_allclose(np.array(ends, dtype=float), np.array(want), rtol=0, atol=0)
         # the legend explains the four marks and sits below the map
-        legend = ax.get_legend()
+        (legend,) = m.figure.legends
         texts = [t.get_text() for t in legend.get_texts()]
         assert texts[0].startswith("self-reports (60 from 3 identities)") and len(texts) == 4
         m.figure.canvas.draw()
@@ -105,6 +105,36 @@ def test_track_times_order_the_points(tmp_path):
         plt.close(m.figure)
 
 
+def test_garbage_position_is_left_out_of_view(tmp_path):
+    # one report at 54.8° E among ships near 1.1° W (as in the Solent AIS file):
+    # the view holds the ships, the stray point is counted and named in the legend
+    rlat, rlon, tlat, tlon, tid, rid = _scene()
+    rlon = rlon.copy()
+    rlon[5] = 54.83
+    m = plot_track_map(tmp_path / "o.png", rlat, rlon, tlat, tlon, tid, title="o", keep_figure=True)
+    try:
+        ax = m.figure.axes[0]
+        x0, x1 = ax.get_xlim()
+        others = np.delete(rlon, 5)
+        assert x0 <= min(others.min(), tlon.min()) and max(others.max(), tlon.max()) <= x1 < 0
+        assert m.n_outside == 1
+        texts = [t.get_text() for t in m.figure.legends[0].get_texts()]
+        assert texts[-1] == "1 points outside this view"
+    finally:
+        plt.close(m.figure)
+    # an explicit extent is used as given
+    box = (-1.2, -1.0, 50.7, 50.9)
+    m2 = plot_track_map(
+        tmp_path / "b.png", rlat, rlon, tlat, tlon, tid, title="b", extent=box, keep_figure=True
+    )
+    try:
+        ax = m2.figure.axes[0]
+        assert ax.get_xlim() == box[:2] and ax.get_ylim() == box[2:]
+        assert m2.aspect == pytest.approx(1 / math.cos(math.radians(50.8)), rel=1e-12)
+    finally:
+        plt.close(m2.figure)
+
+
 def test_closed_by_default_and_empty_input(tmp_path):
     before = plt.get_fignums()
     m = plot_track_map(tmp_path / "e.png", [], [], [], [], [], title="nothing")
@@ -127,6 +157,9 @@ def test_closed_by_default_and_empty_input(tmp_path):
         ({"title": None}, "title"),
         ({"report_lon": [1j] * 60}, "report_lon"),
         ({"track_times": np.arange(3.0)}, "track_times"),
+        ({"extent": (0.0, 1.0, 2.0)}, "extent"),
+        ({"extent": (1.0, 0.0, 50.0, 51.0)}, "extent"),
+        ({"extent": (0.0, 1.0, 50.0, 95.0)}, "extent"),
     ],
 )
 def test_bad_input(tmp_path, change, match):

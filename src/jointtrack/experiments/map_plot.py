@@ -39,7 +39,8 @@ class TrackMap:
     texts; ``n_track_lines``: the line artists on the axes (one per track
     drawn); ``n_tracks_skipped``: tracks with fewer than ``min_points`` points;
     ``n_reports``: report dots; ``n_identities``: distinct ``report_ids`` (None
-    without them); ``aspect``: the axes' aspect (1/cos lat0); ``figure``: the
+    without them); ``n_outside``: report and track points outside the view;
+    ``aspect``: the axes' aspect (1/cos lat0); ``figure``: the
     open :class:`matplotlib.figure.Figure` when ``keep_figure=True`` (the
     caller closes it with ``plt.close``), else None.
     """
@@ -52,6 +53,7 @@ class TrackMap:
     n_tracks_skipped: int
     n_reports: int
     n_identities: int | None
+    n_outside: int
     aspect: float
     figure: object | None = None
 
@@ -89,10 +91,41 @@ def _track_ids(ids, n: int) -> np.ndarray:
     return raw.astype(np.int64)
 
 
-def _limits(values: np.ndarray, pad_min: float) -> tuple[float, float]:
-    lo, hi = float(values.min()), float(values.max())
+def _view(values: np.ndarray, pad_min: float) -> tuple[float, float]:
+    """Axis limits holding the bulk of ``values`` and everything near it.
+
+    Real feeds hold garbage positions (the Solent AIS file has one report at
+    54.8° E among ships between 1.39° W and 0.76° W). The view is the run of
+    sorted values around the median with no empty stretch wider than the
+    1st–99th percentile range: a stray point beyond such a gap is out of view
+    (and counted), while spread-out genuine data, which has no such gap, is
+    shown whole. Then padded.
+    """
+    v = np.sort(values)
+    p1, p99 = np.percentile(v, [1.0, 99.0])
+    gap = max(float(p99 - p1), pad_min)
+    cut = np.flatnonzero(np.diff(v) > gap)  # a cut between v[i] and v[i + 1]
+    mid = v.size // 2
+    below, above = cut[cut < mid], cut[cut >= mid]
+    lo = float(v[below[-1] + 1]) if below.size else float(v[0])
+    hi = float(v[above[0]]) if above.size else float(v[-1])
     pad = max(0.04 * (hi - lo), pad_min)
     return lo - pad, hi + pad
+
+
+def _extent(extent) -> tuple[tuple[float, float], tuple[float, float]]:
+    box = _as_real_array(extent, "extent")
+    if box.shape != (4,) or not np.all(np.isfinite(box)):
+        raise ValueError(
+            "extent must be four finite numbers (lon_min, lon_max, lat_min, lat_max), "
+            f"got {extent!r}"
+        )
+    if not (box[0] < box[1] and box[2] < box[3] and -90 <= box[2] and box[3] <= 90):
+        raise ValueError(
+            "extent must be (lon_min, lon_max, lat_min, lat_max) with lon_min < lon_max and "
+            f"-90 <= lat_min < lat_max <= 90, got {tuple(box.tolist())}"
+        )
+    return (float(box[0]), float(box[1])), (float(box[2]), float(box[3]))
 
 
 def plot_track_map(
@@ -107,6 +140,7 @@ def plot_track_map(
     report_ids=None,
     min_points: int = 3,
     track_times=None,
+    extent=None,
     keep_figure: bool = False,
     dpi: int = 130,
 ) -> TrackMap:
@@ -132,6 +166,12 @@ def plot_track_map(
         ``n_tracks_skipped``).
     track_times : (S,) array, optional
         Times of the track rows, to order each track's points.
+    extent : (lon_min, lon_max, lat_min, lat_max), optional
+        The view. Default: the reports and tracks, less stray points beyond an
+        empty stretch wider than the data's 1st–99th percentile range (per
+        axis), so a few garbage positions do not shrink the map to a dot;
+        points outside the view are counted in ``TrackMap.n_outside`` and the
+        legend.
     keep_figure : bool
         Return the open figure in ``TrackMap.figure`` (the caller closes it)
         instead of closing it.
@@ -178,19 +218,26 @@ def plot_track_map(
 
     all_lat = np.concatenate([rla, tla])
     all_lon = np.concatenate([rlo, tlo])
-    if all_lat.size:
-        ylim = _limits(all_lat, 0.005)
-        lat0 = 0.5 * (ylim[0] + ylim[1])
+    if extent is not None:
+        xlim, ylim = _extent(extent)
+    elif all_lat.size:
+        xlim, ylim = _view(all_lon, 0.005), _view(all_lat, 0.005)
     else:
-        ylim, lat0 = (-1.0, 1.0), 0.0
+        xlim, ylim = (-1.0, 1.0), (-1.0, 1.0)
+    lat0 = 0.5 * (ylim[0] + ylim[1])
+    n_outside = int(
+        np.sum(
+            (all_lon < xlim[0]) | (all_lon > xlim[1]) | (all_lat < ylim[0]) | (all_lat > ylim[1])
+        )
+    )
     # a degree of longitude is cos(lat0) times a degree of latitude on the ground
     aspect = 1.0 / max(math.cos(math.radians(lat0)), 1e-3)
-    xlim = _limits(all_lon, 0.005) if all_lon.size else (-1.0, 1.0)
     ratio = (ylim[1] - ylim[0]) * aspect / (xlim[1] - xlim[0])
     width = 10.0
-    height = min(max(width * ratio, 4.0), 14.0) + 1.2  # room for the legend below
+    height = min(max(width * ratio, 3.0), 14.0) + 1.0  # room for the legend below
 
-    fig, ax = plt.subplots(figsize=(width, height))
+    # constrained layout keeps the legend below the axes, clear of the tick labels
+    fig, ax = plt.subplots(figsize=(width, height), layout="constrained")
     if rla.size:
         ax.scatter(rlo, rla, s=2, c="0.6", lw=0, zorder=1, rasterized=True)
 
@@ -241,13 +288,12 @@ def plot_track_map(
         ),
         Line2D([], [], ls="", marker=">", ms=6, color=_PALETTE[0], label="end, pointing onward"),
     ]
-    ax.legend(
-        handles=proxies,
-        loc="upper center",
-        bbox_to_anchor=(0.5, -0.09),
-        ncol=4,
-        fontsize=8,
-        frameon=False,
+    if n_outside:
+        proxies.append(
+            Line2D([], [], ls="", marker="", label=f"{n_outside} points outside this view")
+        )
+    fig.legend(
+        handles=proxies, loc="outside lower center", ncol=len(proxies), fontsize=8, frameon=False
     )
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -261,6 +307,7 @@ def plot_track_map(
         n_tracks_skipped=skipped,
         n_reports=int(rla.size),
         n_identities=n_ident,
+        n_outside=n_outside,
         aspect=float(ax.get_aspect()),
         figure=fig if keep_figure else None,
     )
