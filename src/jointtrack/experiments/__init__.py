@@ -8,6 +8,8 @@
 * :mod:`jointtrack.experiments.bojilov` — :func:`reproduce`: Bojilov et al.'s
   Tables 2–3 (hypotheses, multiplications, seconds per cluster) beside the paper's.
 * :mod:`jointtrack.experiments.plots` — the figures (matplotlib, Agg backend).
+* :mod:`jointtrack.experiments.map_plot` — :func:`plot_track_map`: tracks over the
+  targets' self-reports on a longitude/latitude map (PNG).
 
 Names are imported on first use, so importing this package stays cheap.
 """

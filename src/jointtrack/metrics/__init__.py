@@ -11,20 +11,27 @@
 * :func:`tracking_quality` — time to confirm, targets held after
   confirmation, false confirmed tracks per scan, breaks, switches and GOSPA
   with its parts, built on both (:mod:`jointtrack.metrics.quality`).
+* :func:`score_self_reports` — the same figures against the targets' own
+  reports (AIS, ADS-B), sampled at window ends: coverage, purity, tracks per
+  identity, switches, false tracks per hour, GOSPA
+  (:mod:`jointtrack.metrics.selfreport`).
 """
 
 from jointtrack.metrics.ospa import GOSPA, GOSPASeries, gospa, gospa_series, ospa
 from jointtrack.metrics.quality import TrackingQuality, tracking_quality
+from jointtrack.metrics.selfreport import SelfReportScore, score_self_reports
 from jointtrack.metrics.tracks import TrackStatistics, track_statistics
 
 __all__ = [
     "GOSPA",
     "GOSPASeries",
+    "SelfReportScore",
     "TrackStatistics",
     "TrackingQuality",
     "gospa",
     "gospa_series",
     "ospa",
+    "score_self_reports",
     "track_statistics",
     "tracking_quality",
 ]
