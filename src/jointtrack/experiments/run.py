@@ -378,7 +378,10 @@ def _step_scan(trk, t: float, src, k: int) -> list:
         out = []
         for sid, _kind, z, pos in det.sensor_scans(k):
             if pos is None:
-                out.append(trk.step(t, z) if sid is None else trk.step(t, z, sensor=sid))
+                extra = _report_fields(trk, src, det, k, sid)
+                out.append(
+                    trk.step(t, z, **extra) if sid is None else trk.step(t, z, sensor=sid, **extra)
+                )
                 continue
             # id None is the configuration's own sensor, which cannot be replaced; a
             # tuple key cannot clash with a sensor id (an int or a str)
@@ -394,6 +397,23 @@ def _step_scan(trk, t: float, src, k: int) -> list:
         return [trk.step(t, z)]
     ids = src.sensor_ids[k]
     return [trk.step(t, z[ids == sid], sensor=sid) for sid in np.unique(ids).tolist()]
+
+
+def _report_fields(trk, src, det, k: int, sid) -> dict:
+    """The ``labels`` / ``velocities`` of scan k's rows of sensor ``sid`` for ``trk.step``.
+
+    Given only to trackers that take them (``REPORT_FIELDS``): labels when the
+    run associates by label (:func:`jointtrack.experiments.realdata.run_reports`),
+    velocities (reported, e.g. AIS speed and course) always.
+    """
+    fields = getattr(trk, "REPORT_FIELDS", ())
+    rows = slice(None) if sid is None else det.sensors[k] == sid
+    extra = {}
+    if "labels" in fields and det.labels is not None and getattr(src, "labels_to_tracker", False):
+        extra["labels"] = det.labels[k][rows]
+    if "velocities" in fields and det.velocities is not None:
+        extra["velocities"] = det.velocities[k][rows]
+    return extra
 
 
 def _tracker_class(kind: str):
@@ -561,8 +581,10 @@ def _run(
     sensors: Mapping | None = None,
     particle=None,
     kind: str | None = None,
+    post=None,
 ) -> dict:
-    """The run loop (see the module docstring); ``particle``: a
+    """The run loop (see the module docstring); ``post(metrics, tracks, out_dir,
+    files)``: called before ``metrics.json`` is written, to add outputs; ``particle``: a
     :class:`~jointtrack.trackers.particle.ParticleConfig` to run the particle
     tracker instead of the Kalman JPDA tracker ``cfg``. ``kind``: ``"pmb"`` or
     ``"pmbm"`` with a :class:`PMBMConfig` ``cfg``; for a :class:`TrackerConfig`
@@ -677,6 +699,10 @@ def _run(
                 if src.x0 is not None and len(src.x0):
                     start_truth_tracks(trk, src.x0, dt)
 
+        if hasattr(trk, "keep_history"):
+            # the writer records the tracks (on disk): the tracker's own history would
+            # only grow the memory of a long run
+            trk.keep_history = False
         sensor_tables = {k: dict(v) for k, v in (sensors or {}).items()}
         if particle is None:
             _register_sensors(trk, src, sensor_tables, warn)
@@ -852,6 +878,8 @@ def _run(
             files["gospa"] = str(
                 _plots.plot_gospa(out_dir / "gospa.png", series, title=_describe(identity))
             )
+    if post is not None:
+        post(metrics, tracks, out_dir, files)
     metrics["files"] = files
     metrics["timing"]["total_seconds"] = time.perf_counter() - wall0
     write_metrics(metrics, out_dir / "metrics.json")
@@ -1220,9 +1248,16 @@ def run_detections(
     truth=None,
     tracker: str | None = None,
     pmbm: Mapping | None = None,
+    labels_to_tracker: bool = True,
+    run_identity: Mapping | None = None,
     **options,
 ) -> dict:
     """Run the tracker on detections (e.g. from :func:`jointtrack.io.read_detections`).
+
+    Detections with ``labels`` give them to the tracker (association given the
+    label) unless ``labels_to_tracker=False``; ``velocities`` seed new tracks.
+    ``run_identity``: more JSON-able entries of the run's identity (how the
+    detections were made), checked on resume.
 
     ``config``: a :class:`TrackerConfig` or a mapping of overrides on the
     defaults (``dim`` is taken from the detections). Range–bearing detections
@@ -1343,6 +1378,7 @@ def run_detections(
         path = Path(detections.source).resolve()
         # the file's content, so that a resume notices a changed file
         identity = {"detections": str(path), "sha256": _file_sha256(path)}
+    identity.update(run_identity or {})
     table, truth_ids, notes, scoring = None, None, [], None
     if truth is not None:
         table, entries, name = _load_truth(truth, detections)
@@ -1389,4 +1425,5 @@ def run_detections(
         tracker_notes=pmbm_notes,
     )
     src.detections = detections  # stepped by _step_scan, sensors checked by _register_sensors
+    src.labels_to_tracker = bool(labels_to_tracker)
     return _run(src, cfg, out_dir, fmt=fmt, progress=progress, kind=tkind, **options)

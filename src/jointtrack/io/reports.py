@@ -48,6 +48,7 @@ from jointtrack.io.times import format_timestamp, parse_origin, parse_timestamp
 
 __all__ = [
     "REPORT_FORMATS",
+    "report_format",
     "Reports",
     "read_ais_csv",
     "read_opensky_states",
@@ -800,30 +801,45 @@ def read_reports(path, format: str = "auto") -> Reports:  # noqa: A002 - the doc
             f"format must be 'auto' or one of {', '.join(REPORT_FORMATS)}, got {format!r}"
         )
     readers = {"ais": read_ais_csv, "opensky": read_opensky_states, "traffic": read_traffic_records}
-    if format != "auto":
-        return readers[format](path)
+    if format == "auto":
+        format = report_format(path)  # noqa: A001
+        if format is None:
+            p = Path(os.fspath(path))
+            raise DetectionFileError(
+                p,
+                "is not a known report format: expected an AIS CSV (Time, MMSI, "
+                "Latitude_degrees, Longitude_degrees, …), OpenSky states (time, icao24, lat, "
+                "lon, …) or traffic records (.json / .json.gz); found columns: "
+                f"{', '.join(_header(p)) or 'none'}",
+            )
+    return readers[format](path)
+
+
+def report_format(path) -> str | None:
+    """The report format of a file (``"ais"``, ``"opensky"``, ``"traffic"``), or None.
+
+    ``.json`` / ``.json.gz`` files are traffic records; for CSV or Parquet the
+    header decides (an ``MMSI`` column: AIS; ``icao24`` with ``lat``, ``lon``:
+    OpenSky). Only the header is read; a missing file raises DetectionFileError.
+    """
     p = Path(os.fspath(path))
-    name = p.name.lower()
-    if name.endswith((".json", ".json.gz")):
-        return read_traffic_records(p)
+    if p.name.lower().endswith((".json", ".json.gz")):
+        return "traffic"
+    low = {h.strip().lower() for h in _header(p)}
+    if "mmsi" in low:
+        return "ais"
+    if {"icao24", "lat", "lon"} <= low:
+        return "opensky"
+    return None
+
+
+def _header(p: Path) -> list[str]:
     from jointtrack.io._files import file_kind, parquet_table
 
-    kind = file_kind(p, DetectionFileError)
-    if kind == "csv":
-        header = _csv_header(p)
-    else:
-        header, _, _ = parquet_table(p, DetectionFileError)
-    low = {h.strip().lower() for h in header}
-    if "mmsi" in low:
-        return read_ais_csv(p)
-    if {"icao24", "lat", "lon"} <= low:
-        return read_opensky_states(p)
-    raise DetectionFileError(
-        p,
-        "is not a known report format: expected an AIS CSV (Time, MMSI, Latitude_degrees, "
-        "Longitude_degrees, …), OpenSky states (time, icao24, lat, lon, …) or traffic "
-        f"records (.json / .json.gz); found columns: {', '.join(header) or 'none'}",
-    )
+    if file_kind(p, DetectionFileError) == "csv":
+        return _csv_header(p)
+    header, _, _ = parquet_table(p, DetectionFileError)
+    return list(header)
 
 
 def _csv_header(path: Path) -> list[str]:

@@ -109,17 +109,23 @@ class ScanResult:
         return sum(1 for f in self.cluster_fallbacks if f)
 
 
-def merge_coincident(z: np.ndarray, t: float) -> tuple[np.ndarray, int]:
-    """``z`` with each set of identical rows kept once (first occurrence, order kept)."""
+def merge_coincident(z: np.ndarray, t: float, return_index: bool = False):
+    """``(z, n_dropped)``: ``z`` with each set of identical rows kept once (first
+    occurrence, order kept); with ``return_index`` also the kept rows' indices
+    (None when every row is kept)."""
+
+    def out(z, n, kept):
+        return (z, n, kept) if return_index else (z, n)
+
     if len(z) < 2:
-        return z, 0
+        return out(z, 0, None)
     x = np.sort(z[:, 0])
     if not (x[1:] == x[:-1]).any():  # the usual scan: no tie in the first coordinate
-        return z, 0
+        return out(z, 0, None)
     _, first = np.unique(z, axis=0, return_index=True)
     n_dropped = len(z) - len(first)
     if n_dropped == 0:
-        return z, 0
+        return out(z, 0, None)
     warnings.warn(
         f"scan at t={t}: {n_dropped} of {len(z)} returns repeat another return of the scan "
         f"exactly (identical measurement vectors; a stuck or replayed detector?); each set of "
@@ -127,7 +133,8 @@ def merge_coincident(z: np.ndarray, t: float) -> tuple[np.ndarray, int]:
         CoincidentReturnsWarning,
         stacklevel=4,
     )
-    return z[np.sort(first)], n_dropped
+    kept = np.sort(first)
+    return out(z[kept], n_dropped, kept)
 
 
 @dataclass(frozen=True)
@@ -408,7 +415,7 @@ class ScanTracker:
         if self.time is not None and not (t > self.time or (same_time_ok and t == self.time)):
             raise ValueError(f"scan times must increase: got t={t} after t={self.time}")
         dt = None if self.time is None else t - self.time
-        z, n_coincident = merge_coincident(z, t)
+        z, n_coincident, self._kept_rows = merge_coincident(z, t, return_index=True)
         return t, z, dt, n_coincident
 
     def _gate(self, x, P, z):

@@ -249,18 +249,14 @@ class JPDATracker(ScanTracker):
     def _check_report_fields(self, t, z, labels, velocities, n_coincident):
         """Validated ``labels`` (M,) str and ``velocities`` (M, dim) of a scan's reports.
 
-        The merged coincident returns of :meth:`_check_scan` have no rows here,
-        so labels or velocities are refused for a scan with exact repeats; two
-        reports naming one target in one scan keep the first (counted in
+        Given for the scan's rows as passed to ``step``; the rows of exactly
+        repeated returns that :meth:`_check_scan` merged are dropped with them.
+        Two reports naming one target in one scan keep the first (counted in
         ``n_coincident``, like a repeated return).
         """
         c = self.config
-        M = len(z)
-        if (labels is not None or velocities is not None) and n_coincident:
-            raise ValueError(
-                f"scan at t={t} has {n_coincident} exactly repeated report(s); with labels "
-                "or velocities, remove the repeats before step()"
-            )
+        kept = self._kept_rows
+        M = len(z) + (n_coincident if kept is not None else 0)
         if labels is not None:
             if isinstance(labels, str | bytes):
                 raise TypeError("labels must be a sequence of strings, one per report")
@@ -271,11 +267,13 @@ class JPDATracker(ScanTracker):
                 bad = next(v for v in arr if not isinstance(v, str))
                 raise TypeError(f"labels must be strings ('' for none), got {bad!r}")
             labels = np.asarray(arr.tolist() if M else [], dtype=str).reshape(M)
-            repeated = np.zeros(M, bool)
+            if kept is not None:
+                labels = labels[kept]
+            repeated = np.zeros(len(z), bool)
             named = np.flatnonzero(labels != "")
             _, first = np.unique(labels[named], return_index=True)
             if len(first) < len(named):
-                repeat = np.ones(M, bool)
+                repeat = np.ones(len(z), bool)
                 repeat[named[first]] = False
                 repeat[labels == ""] = False
                 n_coincident += int(repeat.sum())
@@ -288,7 +286,7 @@ class JPDATracker(ScanTracker):
                 raise ValueError(f"velocities must have shape ({M}, {c.dim}), got {v.shape}")
             if np.isinf(v).any():
                 raise ValueError("velocities must be finite (NaN where unknown)")
-            velocities = v
+            velocities = v if kept is None else v[kept]
         return labels, (repeated if labels is not None else None), velocities, n_coincident
 
     def _scan_detection(self, t, dt):

@@ -1,0 +1,214 @@
+"""``jointtrack run`` on real self-reports (AIS, ADS-B): lat/lon in, tracks in lat/lon out.
+
+A report file (:func:`jointtrack.io.reports.read_reports`: Stone Soup's AIS CSV,
+OpenSky states CSV, traffic's JSON records) is projected to a local east-north
+plane about a reference point (given, or the centre of the data;
+:class:`~jointtrack.io.geodetic.LocalFrame`, WGS-84 by pymap3d) and tracked by
+:func:`jointtrack.experiments.run.run_detections` — by default one scan per
+report time with the asynchronous-reporting model (``reporting = "async"`` in
+:class:`~jointtrack.trackers.config.TrackerConfig`: each target a Poisson
+reporter of its own rate, so a vessel silent for 30 s is not "missed" at
+every other vessel's report), or in windows of ``window`` seconds.
+
+Besides the usual outputs the run writes
+
+* ``tracks.csv`` with ``lat, lon`` columns next to the local ``x, y``;
+* ``metrics.json`` ``geo_reference`` (the frame's origin) and ``self_reports``:
+  the tracks scored against the targets' own reports
+  (:func:`jointtrack.metrics.selfreport.score_self_reports`: GOSPA per window
+  against the reported positions interpolated to the window end, coverage,
+  tracks per identity, identity switches, purity, false tracks per hour);
+* ``map.png``: the tracks over the reports on lat/lon axes.
+
+The identities in the file (MMSI, icao24) are used as ``labels``:
+``"associate"`` (default) — association given the label and scoring;
+``"score"`` — hidden from the tracker, used for scoring only; ``"ignore"``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from jointtrack.experiments.config import RunConfigError, make_tracker_config
+
+__all__ = ["LABEL_MODES", "REALDATA_TRACKER", "run_reports"]
+
+#: What the reports' identities are used for (see the module docstring).
+LABEL_MODES = ("associate", "score", "ignore")
+
+#: Tracker settings for self-reporting targets, per report format; a ``[tracker]``
+#: table overrides them. ``clutter_density`` is false reports per m² per second
+#: and, for a JIPDA tracker, also the density of a *new* target's first report:
+#: a smaller value lets an existing track claim reports far outside where it
+#: should be. Chosen on the Solent AIS file (see benchmarks/RESULTS.md, issue 24).
+REALDATA_TRACKER = {
+    "ais": {
+        "reporting": "async",
+        "report_interval": 120.0,
+        "clutter_density": 1e-11,
+        "p_d": 0.99,
+        "p_survive": 0.9999,
+        "p_survive_per": "second",
+        "measurement_noise": 225.0,  # σ = 15 m, as Stone Soup's AIS demo
+        "process_noise": 0.005,
+        "max_speed": 15.0,
+        "max_coast": 600.0,  # Stone Soup's demo deletes after 10 min without update
+        "r_delete": 0.0005,
+    },
+    "adsb": {
+        "reporting": "async",
+        "report_interval": 10.0,
+        "clutter_density": 1e-13,
+        "p_d": 0.99,
+        "p_survive": 0.9999,
+        "p_survive_per": "second",
+        "measurement_noise": 2500.0,
+        "process_noise": 1.0,
+        "max_speed": 350.0,
+        "max_coast": 120.0,
+        "r_delete": 0.0005,
+    },
+}
+#: report format → settings family
+_FAMILY = {"ais": "ais", "opensky": "adsb", "traffic": "adsb"}
+#: GOSPA cut-off (m) of the self-report scoring, per family
+_SCORE_C = {"ais": 500.0, "adsb": 2000.0}
+
+
+def run_reports(
+    reports,
+    config: Mapping | None = None,
+    out_dir="jointtrack-out",
+    fmt: str = "csv",
+    progress: bool = False,
+    *,
+    report_format: str = "auto",
+    window: float | None = None,
+    reference=None,
+    labels: str = "associate",
+    score_window: float | None = None,
+    score_c: float | None = None,
+    **options,
+) -> dict:
+    """Track self-reports and score the tracks against them (see the module docstring).
+
+    Parameters
+    ----------
+    reports : a report file path (read with ``report_format``) or a
+        :class:`~jointtrack.io.reports.Reports`.
+    config : ``[tracker]`` overrides on :data:`REALDATA_TRACKER` of the format.
+    window : None (one scan per report time) or the scan window in seconds
+        (Stone Soup's ``TimeSyncFeeder`` windows; several reports of one target
+        in a window then compete as separate returns).
+    reference : ``(lat, lon[, alt])`` of the local frame's origin; None: the
+        centre of the reports' bounding box.
+    labels : one of :data:`LABEL_MODES`.
+    score_window, score_c : the scoring window (s; default ``window`` or 60)
+        and GOSPA cut-off (m; default 500 for AIS, 2000 for ADS-B).
+    options : as :func:`~jointtrack.experiments.run.run_detections`
+        (``checkpoint``, ``resume``, ``max_scans``, ``console``, ``plots``, …).
+    """
+    from jointtrack.experiments.run import run_detections
+    from jointtrack.io.reports import Reports, read_reports
+    from jointtrack.io.reports import report_format as report_format_of
+
+    if labels not in LABEL_MODES:
+        raise RunConfigError(f"labels must be one of {', '.join(LABEL_MODES)}, got {labels!r}")
+    for name, value in (("window", window), ("score_window", score_window), ("score_c", score_c)):
+        if value is not None and (
+            isinstance(value, bool) or not isinstance(value, int | float) or not value > 0
+        ):
+            raise RunConfigError(f"{name} must be a positive number of seconds, got {value!r}")
+        if value is not None and not math.isfinite(value):
+            raise RunConfigError(f"{name} must be finite, got {value!r}")
+    if isinstance(reports, Reports):
+        if report_format == "auto":
+            raise RunConfigError("give report_format ('ais', 'opensky' or 'traffic') with Reports")
+        rep, fmt_name = reports, report_format
+    else:
+        fmt_name = report_format if report_format != "auto" else report_format_of(reports)
+        rep = read_reports(reports, format=fmt_name or "auto")
+    if not len(rep):
+        raise RunConfigError(f"{rep.source or 'the reports'}: no reports to track")
+    family = _FAMILY.get(fmt_name, "ais")
+    frame = rep.frame(reference)
+    dets = rep.detections(
+        frame, scan="report" if window is None else float(window), labels=labels != "ignore"
+    )
+    over = {**REALDATA_TRACKER[family], **dict(config or {})}
+    cfg = make_tracker_config({"dim": 2}, over)
+    truth = rep.truth(frame) if labels != "ignore" else None
+    swin = float(score_window or window or 60.0)
+    c = float(score_c or _SCORE_C[family])
+    lat0, lon0, alt0 = frame.reference
+
+    def post(metrics: dict, tracks, out: Path, files: dict) -> None:
+        from jointtrack.experiments.map_plot import plot_track_map
+        from jointtrack.io.tracks import read_tracks, write_tracks
+
+        metrics["geo_reference"] = {
+            "lat": lat0,
+            "lon": lon0,
+            "alt": alt0,
+            "frame": "x, y: metres east and north of this point (WGS-84, local ENU, pymap3d)",
+        }
+        metrics.setdefault("notes", []).append(
+            f"positions are metres east/north of lat {lat0:.6f}, lon {lon0:.6f} (WGS-84); "
+            "tracks file also in lat/lon"
+        )
+        path = Path(files["tracks"])
+        table = read_tracks(path)
+        write_tracks(table, path, frame=frame)
+        t, ids, xy = tracks
+        if truth is not None:
+            from jointtrack.metrics.selfreport import score_self_reports
+
+            tt, ti, tp, _ = truth
+            score = score_self_reports(
+                tt, ti, tp, t, ids, xy, window=swin, c=c, t0=float(rep.times[0])
+            )
+            metrics["self_reports"] = {
+                **score.as_dict(),
+                "window_seconds": swin,
+                "c": c,
+                "labels": labels,
+                "rule": "truth: each identity's reports, linearly interpolated to the window "
+                "ends (gaps up to max_gap); tracks: their latest estimate in the window",
+            }
+            metrics["notes"].append("self-reports: " + score.summary())
+        if options.get("plots", True):
+            track_lat, track_lon = frame.to_geodetic(xy)[:2] if len(xy) else ([], [])
+            plot_track_map(
+                out / "map.png",
+                rep.lat,
+                rep.lon,
+                np.asarray(track_lat),
+                np.asarray(track_lon),
+                ids,
+                title=f"{Path(rep.source or 'reports').name}: {len(np.unique(ids))} tracks",
+                track_times=t,
+            )
+            files["map"] = str(out / "map.png")
+
+    return run_detections(
+        dets,
+        cfg,
+        out_dir,
+        fmt,
+        progress,
+        labels_to_tracker=labels == "associate",
+        run_identity={
+            "reports": {
+                "format": fmt_name,
+                "window": window,
+                "reference": [lat0, lon0, alt0],
+                "labels": labels,
+            }
+        },
+        post=post,
+        **options,
+    )
