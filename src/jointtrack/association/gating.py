@@ -30,6 +30,7 @@ overflow before the final ratio.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from dataclasses import dataclass
 
@@ -134,6 +135,13 @@ def _gate_volumes(d: int, gamma: float, half_logdet: np.ndarray):
     log_vol = unit_ball_log_volume(d) + 0.5 * d * np.log(gamma) + half_logdet
     with np.errstate(over="ignore"):
         return log_vol, np.exp(log_vol)
+
+
+@functools.lru_cache(maxsize=64)
+def _gate_threshold(P_G: float, d: int) -> float:
+    """γ = χ²_d⁻¹(P_G), cached: a tracker gates every scan with the same (P_G, d), and
+    scipy's ppf costs about as much as gating one small scan."""
+    return float(stats.chi2.ppf(P_G, d))
 
 
 def _check_prob(p, name: str, *, open_left: bool = True) -> float:
@@ -316,7 +324,7 @@ def gate_measurements(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> Gati
     m = z.shape[0]
 
     chol = _cholesky_checked(S)
-    gamma = float(stats.chi2.ppf(P_G, d))
+    gamma = _gate_threshold(P_G, d)
     half_logdet = np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1) if n else np.zeros(0)
 
     if n and m:
@@ -695,7 +703,7 @@ def gate_pairs(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> PairGating:
 
     chol = _cholesky_checked(S)
     Ssym = 0.5 * (S + np.swapaxes(S, 1, 2))
-    gamma = float(stats.chi2.ppf(P_G, d))
+    gamma = _gate_threshold(P_G, d)
     half_logdet = np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1) if n else np.zeros(0)
 
     if n and m:

@@ -40,6 +40,7 @@ scalar ``dt`` (one ``(n, n)`` matrix) or a 1-D array of ``N`` steps (an
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -94,6 +95,8 @@ def _check_q(q) -> float:
 _FMAX = float(np.finfo(np.float64).max)
 
 
+# cached: a function of (order, q) alone, and a tracker asks for it twice every scan
+@functools.lru_cache(maxsize=256)
 def _max_dt(order: int, q: float) -> float:
     """Largest time step for which F(Δt) and Q(Δt) of a kinematic model are finite.
 
