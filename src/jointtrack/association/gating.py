@@ -434,6 +434,10 @@ def likelihood_ratios(gating: Gating, P_D, clutter_density) -> tuple[np.ndarray,
 # whitened distance d²_ij itself (≲ √cond(S)·ε ≈ 3e-8 at the singularity limit of
 # _cholesky_checked), so that no pair the dense computation would gate is ever missed.
 _RADIUS_SLACK = 1e-4
+#: Up to this many pairs N·M, :func:`gate_pairs` evaluates d² for every pair instead of
+#: querying a KD-tree (the tree's set-up dominates tiny scans, e.g. one AIS report
+#: against a hundred tracks); the gated set is the same, the candidates a superset.
+ALL_PAIRS_MAX = 512
 #: Largest number of candidate pairs listed by the KD-tree ball query (about
 #: 100 bytes each downstream); past it each gate keeps its nearest returns.
 MAX_CANDIDATES = 2**21
@@ -464,7 +468,8 @@ class PairGating:
     n_candidates : int
         number of (track, measurement) pairs whose d² was evaluated: the
         KD-tree ball candidates, or N·M on the dense fallback (``residual``
-        given). At constant density this grows like N + M, not N·M.
+        given) and for tiny problems (N·M ≤ :data:`ALL_PAIRS_MAX`). At
+        constant density this grows like N + M, not N·M.
     z_pred : (N, d) float
         gate centres.
     S : (N, d, d) float
@@ -657,7 +662,8 @@ def gate_pairs(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> PairGating:
     3. d² is evaluated for the candidates only, with the per-track Cholesky
        factors (batched forward substitution), and the pairs with d² ≤ γ kept.
 
-    Cost O((N + M) log M + candidates) time and O(N + M + candidates) memory.
+    When N·M ≤ :data:`ALL_PAIRS_MAX` steps 1–2 are skipped and every pair is a
+    candidate. Cost O((N + M) log M + candidates) time and O(N + M + candidates) memory.
     The candidates are counted before they are listed (a slab bound, then the
     tree's ball counts): past :data:`MAX_CANDIDATES` (e.g. thousands of tracks and
     returns piled on one spot, where the lists are N·M long) each gate keeps only
@@ -706,7 +712,11 @@ def gate_pairs(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> PairGating:
     gamma = _gate_threshold(P_G, d)
     half_logdet = np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1) if n else np.zeros(0)
 
-    if n and m:
+    if n and m and n * m <= ALL_PAIRS_MAX:
+        # a few pairs: d² of all of them costs less than building and querying a tree
+        rows = np.repeat(np.arange(n, dtype=np.int64), m)
+        cols = np.tile(np.arange(m, dtype=np.int64), n)
+    elif n and m:
         rows, cols = _ball_candidates(z_pred, Ssym, z, gamma)
     else:
         rows = cols = np.zeros(0, dtype=np.int64)
