@@ -89,15 +89,14 @@ def main() -> None:
             res = json.loads(out.stdout.strip().splitlines()[-1])
             rates[tree].append(res["scans_per_s"])
             tracks[tree] = res["tracks"]
-    base = statistics.median(rates[here])
+    ours = statistics.median(rates[here])
     for tree in trees:
         med = statistics.median(rates[tree])
         print(
-            f"{tree}: {med:8.0f} scans/s (median of {args.repeats}; "
-            f"{', '.join(f'{r:.0f}' for r in rates[tree])}), {tracks[tree]} tracks at the end, "
-            f"{base / med:.2f}× of it for {here}"
+            f"{tree}: {med:8.0f} scans/s (median of {args.repeats}: "
+            f"{', '.join(f'{r:.0f}' for r in rates[tree])}), {tracks[tree]} tracks at the end"
+            + ("" if tree == here else f"; {here} is {ours / med:.2f}× as fast")
         )
-
 
 if __name__ == "__main__":
     main()

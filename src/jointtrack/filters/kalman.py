@@ -48,6 +48,8 @@ Numerics
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -127,32 +129,45 @@ def _check_psd(A: np.ndarray, name: str, batched: bool) -> None:
     """
     if A.shape[0] == 0:
         return
-    diag = np.diagonal(A, axis1=-2, axis2=-1)
-    neg = (diag < 0).any(axis=1)
-    if neg.any():
-        i = int(np.argmax(neg))
+    # compiled: numpy's scaling and a batched LAPACK call (~0.5 µs per small matrix)
+    # were most of a tracker's scan, which checks ~100 track covariances several times
+    i, negative = _psd_failure(A, _PSD_TOL)
+    if negative:
         raise ValueError(
             f"{_who(name, i, batched)} is not positive semi-definite (negative variance)"
         )
-    s = np.sqrt(np.where(diag > 0, diag, 1.0))
-    C = A / (s[:, :, None] * s[:, None, :])
-    C = C + _PSD_TOL * np.eye(A.shape[-1])
-    # compiled: a batched LAPACK call costs ~0.5 µs per small matrix, which is most of
-    # a tracker's scan when it checks its ~100 track covariances several times
-    i = _first_not_factorisable(C)
     if i >= 0:
         raise ValueError(f"{_who(name, i, batched)} is not positive semi-definite")
 
 
 @njit(cache=True)
-def _first_not_factorisable(C):
-    """Index of the first matrix of the stack ``C`` (K, d, d) with no Cholesky factor, or −1."""
-    L = np.empty(C.shape[1:])
-    for i in range(C.shape[0]):
-        ok, _ = cholesky_lower(C[i], L)
+def _psd_failure(A, tol):
+    """``(i, negative)``: the first matrix of the stack ``A`` (K, d, d) failing :func:`_check_psd`.
+
+    First the first matrix with a negative variance (``negative`` True), else the
+    first whose scaled matrix ``D^{-1/2} A D^{-1/2} + tol·I`` has no Cholesky
+    factor; ``(-1, False)`` when all pass. Zero variances are scaled by 1.
+    """
+    k, d = A.shape[0], A.shape[1]
+    for i in range(k):
+        for a in range(d):
+            if A[i, a, a] < 0.0:
+                return i, True
+    s = np.empty(d)
+    C = np.empty((d, d))
+    L = np.empty((d, d))
+    for i in range(k):
+        for a in range(d):
+            v = A[i, a, a]
+            s[a] = math.sqrt(v) if v > 0.0 else 1.0
+        for a in range(d):
+            for b in range(d):
+                C[a, b] = A[i, a, b] / (s[a] * s[b])
+            C[a, a] += tol
+        ok, _ = cholesky_lower(C, L)
         if not ok:
-            return i
-    return -1
+            return i, False
+    return -1, False
 
 
 def _chol_pd(S: np.ndarray, name: str, batched: bool) -> np.ndarray:
