@@ -163,14 +163,16 @@ def _cholesky_checked(S: np.ndarray) -> np.ndarray:
         i = int(np.argmin(finite))
         raise ValueError(f"innovation covariance S[{i}] (track {i}) has non-finite entries")
     scale = np.abs(S).reshape(n, -1).max(axis=1)
-    asym = np.abs(S - np.swapaxes(S, 1, 2)).reshape(n, -1).max(axis=1)
-    bad = asym > 1e-9 * np.maximum(scale, np.finfo(np.float64).tiny)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(
-            f"innovation covariance S[{i}] (track {i}) is not symmetric "
-            f"(max |S − Sᵀ| = {asym[i]:.3g})"
-        )
+    St = np.swapaxes(S, 1, 2)
+    if not (S == St).all():  # an exactly symmetric S (a filter's output) has no asymmetry
+        asym = np.abs(S - St).reshape(n, -1).max(axis=1)
+        bad = asym > 1e-9 * np.maximum(scale, np.finfo(np.float64).tiny)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(
+                f"innovation covariance S[{i}] (track {i}) is not symmetric "
+                f"(max |S − Sᵀ| = {asym[i]:.3g})"
+            )
     zero = scale == 0
     if zero.any():
         i = int(np.argmax(zero))
@@ -714,8 +716,7 @@ def gate_pairs(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> PairGating:
 
     if n and m and n * m <= ALL_PAIRS_MAX:
         # a few pairs: d² of all of them costs less than building and querying a tree
-        rows = np.repeat(np.arange(n, dtype=np.int64), m)
-        cols = np.tile(np.arange(m, dtype=np.int64), n)
+        rows, cols = np.divmod(np.arange(n * m, dtype=np.int64), m)
     elif n and m:
         rows, cols = _ball_candidates(z_pred, Ssym, z, gamma)
     else:
