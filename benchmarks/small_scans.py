@@ -98,5 +98,6 @@ def main() -> None:
             + ("" if tree == here else f"; {here} is {ours / med:.2f}× as fast")
         )
 
+
 if __name__ == "__main__":
     main()
