@@ -13,6 +13,8 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from scipy import stats
 
+import jointtrack.association.clustering as clustering_module
+import jointtrack.association.gating as gating_module
 from jointtrack.association.clustering import clusters, has_feasible_event
 from jointtrack.association.clutter import (
     cluster_clutter_density,
@@ -536,6 +538,45 @@ def test_gate_pairs_matches_dense(problem):
     # any order, duplicates allowed
     perm = np.random.default_rng(n * 31 + m).permutation(2 * p.n_pairs) % max(p.n_pairs, 1)
     _assert_same_clustering(clusters((n, m, p.rows[perm], p.cols[perm])), ref)
+
+
+@settings(max_examples=150, deadline=None)
+@given(problem=_gating_problem())
+def test_gate_pairs_all_pairs_path_equals_kd_tree_path(problem):
+    """Tiny problems skip the KD-tree (every pair is a candidate): the same gating, bit for bit."""
+    z_pred, S, z, P_G, _, _ = problem
+    n, m = z_pred.shape[0], z.shape[0]
+    assert n * m <= gating_module.ALL_PAIRS_MAX  # the drawn problems take the all-pairs path
+    fast = gate_pairs(z_pred, S, z, P_G=P_G)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(gating_module, "ALL_PAIRS_MAX", -1)
+        tree = gate_pairs(z_pred, S, z, P_G=P_G)
+    for name in ("rows", "cols", "d2", "log_g", "gate_volume", "log_gate_volume", "S", "chol"):
+        a, b = getattr(fast, name), getattr(tree, name)
+        assert a.dtype == b.dtype, name
+        np.testing.assert_array_equal(a, b, err_msg=name)
+    assert fast.n_candidates == n * m >= tree.n_candidates
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    n=st.integers(0, 9),
+    m=st.integers(0, 9),
+    pairs=st.lists(st.tuples(st.integers(0, 8), st.integers(0, 8)), max_size=90),
+)
+def test_clusters_union_find_equals_sparse_graph(n, m, pairs):
+    """Few pairs go through a Python union–find, many through scipy: the same Clustering."""
+    pairs = [(i, j) for i, j in pairs if i < n and j < m]  # duplicates and any order kept
+    rows = np.array([i for i, _ in pairs], dtype=np.int64)
+    cols = np.array([j for _, j in pairs], dtype=np.int64)
+    small = clusters((n, m, rows, cols))
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(clustering_module, "_SMALL_PAIRS", -1)
+        graph = clusters((n, m, rows, cols))
+    _assert_same_clustering(small, graph)
+    dense = np.zeros((n, m), dtype=bool)
+    dense[rows, cols] = True
+    _assert_same_clustering(small, clusters(dense))
 
 
 def test_gate_pairs_scales_linearly():

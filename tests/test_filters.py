@@ -687,3 +687,43 @@ def test_long_gap_update_is_accurate(accel, dt):
         E = np.array([[float(Em[i, j]) for j in range(n)] for i in range(n)])
     s = np.sqrt(np.diag(E))
     np.testing.assert_allclose(Pu / np.outer(s, s), E / np.outer(s, s), rtol=0, atol=1e-12)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    d=st.integers(1, 4),
+    eigen=st.lists(
+        st.lists(
+            st.one_of(st.just(0.0), st.floats(0.01, 10.0), st.floats(-10.0, -1e-3)),
+            min_size=4,
+            max_size=4,
+        ),
+        min_size=1,
+        max_size=6,
+    ),
+    mixing=st.lists(st.floats(-1.0, 1.0), min_size=16, max_size=16),
+    log_scales=st.lists(st.floats(-6.0, 6.0), min_size=4, max_size=4),
+)
+def test_psd_check_names_the_first_matrix_with_a_negative_eigenvalue(d, eigen, mixing, log_scales):
+    """The batched PSD check (compiled) against the eigenvalues it certifies.
+
+    P_k = D V diag(w_k) Vᵀ D with drawn eigenvalues w_k (positive, zero or clearly
+    negative), a drawn rotation V and drawn axis scales D: the check must name the
+    first k with a negative variance, else the first with a negative w_k, and accept
+    batches with none, in any units.
+    """
+    w = np.array([row[:d] for row in eigen])
+    V, _ = np.linalg.qr(np.array(mixing).reshape(4, 4)[:d, :d] + 3.0 * np.eye(d))
+    D = np.diag(10.0 ** np.array(log_scales[:d]))
+    P = np.einsum("ij,kj,jl->kil", D @ V, w, V.T @ D)
+    P = 0.5 * (P + np.swapaxes(P, 1, 2))
+    x, H, R = np.zeros((len(w), d)), np.eye(d), np.eye(d)
+    # a negative variance is named first (the cheap test), then a negative eigenvalue
+    negative_variance = np.flatnonzero((np.diagonal(P, axis1=1, axis2=2) < 0).any(axis=1))
+    bad = negative_variance if negative_variance.size else np.flatnonzero((w < 0).any(axis=1))
+    if bad.size:
+        with pytest.raises(ValueError, match=rf"P\[{bad[0]}\] \(track {bad[0]}\) is not positive"):
+            predict_measurement(x, P, H, R)
+    else:
+        z_pred, S = predict_measurement(x, P, H, R)
+        np.testing.assert_array_equal(S, 0.5 * ((P + R) + np.swapaxes(P + R, 1, 2)))

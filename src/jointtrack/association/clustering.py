@@ -187,29 +187,64 @@ def clusters(mask) -> Clustering:
     return _clustering_from_pairs(n, m, rows, cols)
 
 
+#: At most this many gated pairs: components by a union–find over the pairs in Python
+#: instead of a sparse graph for scipy (whose set-up costs ~0.3 ms whatever the size:
+#: the usual scan of a tracker with a few returns gates a handful of pairs).
+_SMALL_PAIRS = 64
+#: The ``measurements`` of every cluster whose gates hold none (read-only, so sharing it
+#: is safe): most clusters of a scan with few returns.
+_NO_MEASUREMENTS = np.zeros(0, dtype=np.int64)
+_NO_MEASUREMENTS.flags.writeable = False
+
+
+def _representatives(n: int, m: int, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """(N,) int64: the smallest track index in each track's connected component."""
+    if rows.size > _SMALL_PAIRS:
+        graph = coo_matrix(
+            (np.ones(rows.size, dtype=np.float64), (rows, n + cols)), shape=(n + m, n + m)
+        ).tocsr()
+        _, labels = connected_components(graph, directed=False)
+        t_lab = labels[:n].astype(np.int64, copy=False)
+        first = np.full(int(labels.max()) + 1 if labels.size else 0, n, dtype=np.int64)
+        np.minimum.at(first, t_lab, np.arange(n, dtype=np.int64))
+        return first[t_lab]
+    rep = np.arange(n, dtype=np.int64)
+    if rows.size == 0:
+        return rep
+    # union–find on the touched nodes (tracks i, measurements ~j), roots = smallest track
+    parent: dict = {}
+
+    def find(a):
+        root = a
+        while parent.get(root, root) != root:
+            root = parent[root]
+        while a != root:  # path compression
+            parent[a], a = root, parent[a]
+        return root
+
+    for i, j in zip(rows.tolist(), cols.tolist(), strict=True):
+        a, b = find(i), find(~j)
+        if a != b:
+            # keep a track as the root, the smaller one when both are tracks (j ≥ 0 ⇒ ~j < 0)
+            if b >= 0 and (a < 0 or b < a):
+                a, b = b, a
+            parent[b] = a
+    touched = np.unique(rows)
+    rep[touched] = [find(int(i)) for i in touched.tolist()]
+    return rep
+
+
 def _clustering_from_pairs(n: int, m: int, rows: np.ndarray, cols: np.ndarray) -> Clustering:
     """:class:`Clustering` of the bipartite graph with edges (rows[p], cols[p]); O(N + M + P)."""
-    graph = coo_matrix(
-        (np.ones(rows.size, dtype=np.float64), (rows, n + cols)), shape=(n + m, n + m)
-    ).tocsr()
-    _, labels = connected_components(graph, directed=False)
-    labels = labels.astype(np.int64, copy=False)
-    t_lab = labels[:n]
-    m_lab = labels[n:]
-    # relabel components by first appearance among tracks: cluster order = min track index
-    n_lab = int(labels.max()) + 1 if labels.size else 0
-    first = np.full(n_lab, n, dtype=np.int64)
-    np.minimum.at(first, t_lab, np.arange(n, dtype=np.int64))
-    has_track = first < n
-    is_first = np.zeros(n, dtype=bool)
-    is_first[first[has_track]] = True
-    rank = np.cumsum(is_first, dtype=np.int64) - 1  # rank[first track of a cluster] = its index
+    rep = _representatives(n, m, rows, cols)
+    # clusters ordered by their smallest track: rank of each component's first track
+    is_first = rep == np.arange(n, dtype=np.int64)
+    rank = np.cumsum(is_first, dtype=np.int64) - 1
     n_clusters = int(is_first.sum())
-    remap = np.full(n_lab, -1, dtype=np.int64)
-    remap[has_track] = rank[first[has_track]]
-    track_cluster = remap[t_lab]
-    gated = np.bincount(cols, minlength=m) > 0 if cols.size else np.zeros(m, dtype=bool)
-    measurement_cluster = np.where(gated, remap[m_lab], -1).astype(np.int64)
+    track_cluster = rank[rep]
+    measurement_cluster = np.full(m, -1, dtype=np.int64)
+    measurement_cluster[cols] = track_cluster[rows]  # all of a return's pairs agree
+    gated = measurement_cluster >= 0
 
     # gather members: stable argsort by cluster label keeps indices increasing in each cluster
     t_order = np.argsort(track_cluster, kind="stable")
@@ -220,12 +255,12 @@ def _clustering_from_pairs(n: int, m: int, rows: np.ndarray, cols: np.ndarray) -
     m_order = g_idx[np.argsort(g_lab, kind="stable")]
     m_bounds = np.zeros(n_clusters + 1, dtype=np.int64)
     np.cumsum(np.bincount(g_lab, minlength=n_clusters), out=m_bounds[1:])
+    # Python ints: slicing with them is several times cheaper than with numpy scalars,
+    # and a scan of a large tracker builds one Cluster per track
+    tb, mb = t_bounds.tolist(), m_bounds.tolist()
     out = tuple(
-        Cluster(
-            tracks=t_order[t_bounds[k] : t_bounds[k + 1]],
-            measurements=m_order[m_bounds[k] : m_bounds[k + 1]],
-        )
-        for k in range(n_clusters)
+        Cluster(t_order[t0:t1], m_order[m0:m1] if m1 > m0 else _NO_MEASUREMENTS)
+        for t0, t1, m0, m1 in zip(tb[:-1], tb[1:], mb[:-1], mb[1:], strict=True)
     )
     return Clustering(
         clusters=out,

@@ -30,6 +30,7 @@ overflow before the final ratio.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from dataclasses import dataclass
 
@@ -136,6 +137,13 @@ def _gate_volumes(d: int, gamma: float, half_logdet: np.ndarray):
         return log_vol, np.exp(log_vol)
 
 
+@functools.lru_cache(maxsize=64)
+def _gate_threshold(P_G: float, d: int) -> float:
+    """γ = χ²_d⁻¹(P_G), cached: a tracker gates every scan with the same (P_G, d), and
+    scipy's ppf costs about as much as gating one small scan."""
+    return float(stats.chi2.ppf(P_G, d))
+
+
 def _check_prob(p, name: str, *, open_left: bool = True) -> float:
     """A gate probability in (0, 1]; 1 is the infinite gate (γ = ∞, everything gated)."""
     return as_float(p, name, minimum=0.0, maximum=1.0, open_min=open_left)
@@ -155,14 +163,16 @@ def _cholesky_checked(S: np.ndarray) -> np.ndarray:
         i = int(np.argmin(finite))
         raise ValueError(f"innovation covariance S[{i}] (track {i}) has non-finite entries")
     scale = np.abs(S).reshape(n, -1).max(axis=1)
-    asym = np.abs(S - np.swapaxes(S, 1, 2)).reshape(n, -1).max(axis=1)
-    bad = asym > 1e-9 * np.maximum(scale, np.finfo(np.float64).tiny)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(
-            f"innovation covariance S[{i}] (track {i}) is not symmetric "
-            f"(max |S − Sᵀ| = {asym[i]:.3g})"
-        )
+    St = np.swapaxes(S, 1, 2)
+    if not (S == St).all():  # an exactly symmetric S (a filter's output) has no asymmetry
+        asym = np.abs(S - St).reshape(n, -1).max(axis=1)
+        bad = asym > 1e-9 * np.maximum(scale, np.finfo(np.float64).tiny)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(
+                f"innovation covariance S[{i}] (track {i}) is not symmetric "
+                f"(max |S − Sᵀ| = {asym[i]:.3g})"
+            )
     zero = scale == 0
     if zero.any():
         i = int(np.argmax(zero))
@@ -316,7 +326,7 @@ def gate_measurements(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> Gati
     m = z.shape[0]
 
     chol = _cholesky_checked(S)
-    gamma = float(stats.chi2.ppf(P_G, d))
+    gamma = _gate_threshold(P_G, d)
     half_logdet = np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1) if n else np.zeros(0)
 
     if n and m:
@@ -426,6 +436,10 @@ def likelihood_ratios(gating: Gating, P_D, clutter_density) -> tuple[np.ndarray,
 # whitened distance d²_ij itself (≲ √cond(S)·ε ≈ 3e-8 at the singularity limit of
 # _cholesky_checked), so that no pair the dense computation would gate is ever missed.
 _RADIUS_SLACK = 1e-4
+#: Up to this many pairs N·M, :func:`gate_pairs` evaluates d² for every pair instead of
+#: querying a KD-tree (the tree's set-up dominates tiny scans, e.g. one AIS report
+#: against a hundred tracks); the gated set is the same, the candidates a superset.
+ALL_PAIRS_MAX = 512
 #: Largest number of candidate pairs listed by the KD-tree ball query (about
 #: 100 bytes each downstream); past it each gate keeps its nearest returns.
 MAX_CANDIDATES = 2**21
@@ -456,7 +470,8 @@ class PairGating:
     n_candidates : int
         number of (track, measurement) pairs whose d² was evaluated: the
         KD-tree ball candidates, or N·M on the dense fallback (``residual``
-        given). At constant density this grows like N + M, not N·M.
+        given) and for tiny problems (N·M ≤ :data:`ALL_PAIRS_MAX`). At
+        constant density this grows like N + M, not N·M.
     z_pred : (N, d) float
         gate centres.
     S : (N, d, d) float
@@ -649,7 +664,8 @@ def gate_pairs(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> PairGating:
     3. d² is evaluated for the candidates only, with the per-track Cholesky
        factors (batched forward substitution), and the pairs with d² ≤ γ kept.
 
-    Cost O((N + M) log M + candidates) time and O(N + M + candidates) memory.
+    When N·M ≤ :data:`ALL_PAIRS_MAX` steps 1–2 are skipped and every pair is a
+    candidate. Cost O((N + M) log M + candidates) time and O(N + M + candidates) memory.
     The candidates are counted before they are listed (a slab bound, then the
     tree's ball counts): past :data:`MAX_CANDIDATES` (e.g. thousands of tracks and
     returns piled on one spot, where the lists are N·M long) each gate keeps only
@@ -695,10 +711,13 @@ def gate_pairs(z_pred, S, z, *, P_G: float = 0.99, residual=None) -> PairGating:
 
     chol = _cholesky_checked(S)
     Ssym = 0.5 * (S + np.swapaxes(S, 1, 2))
-    gamma = float(stats.chi2.ppf(P_G, d))
+    gamma = _gate_threshold(P_G, d)
     half_logdet = np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1) if n else np.zeros(0)
 
-    if n and m:
+    if n and m and n * m <= ALL_PAIRS_MAX:
+        # a few pairs: d² of all of them costs less than building and querying a tree
+        rows, cols = np.divmod(np.arange(n * m, dtype=np.int64), m)
+    elif n and m:
         rows, cols = _ball_candidates(z_pred, Ssym, z, gamma)
     else:
         rows = cols = np.zeros(0, dtype=np.int64)

@@ -48,7 +48,12 @@ Numerics
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
+
+from jointtrack._numba_linalg import cholesky_lower
 
 __all__ = [
     "ekf_innovation",
@@ -97,9 +102,12 @@ def _check_sym(A: np.ndarray, name: str, batched: bool) -> np.ndarray:
     """
     if A.shape[0] == 0:
         return A
+    At = np.swapaxes(A, -1, -2)
+    if (A == At).all():  # exactly symmetric (every covariance a filter returns): no asymmetry
+        _check_finite(A, name, batched)
+        return 0.5 * (A + At)
     _check_finite(A, name, batched)
     k = A.shape[0]
-    At = np.swapaxes(A, -1, -2)
     asym = np.abs(A - At).reshape(k, -1).max(axis=1)
     scale = np.abs(A).reshape(k, -1).max(axis=1)
     bad = asym > _SYM_TOL * scale
@@ -121,27 +129,45 @@ def _check_psd(A: np.ndarray, name: str, batched: bool) -> None:
     """
     if A.shape[0] == 0:
         return
-    diag = np.diagonal(A, axis1=-2, axis2=-1)
-    neg = (diag < 0).any(axis=1)
-    if neg.any():
-        i = int(np.argmax(neg))
+    # compiled: numpy's scaling and a batched LAPACK call (~0.5 µs per small matrix)
+    # were most of a tracker's scan, which checks ~100 track covariances several times
+    i, negative = _psd_failure(A, _PSD_TOL)
+    if negative:
         raise ValueError(
             f"{_who(name, i, batched)} is not positive semi-definite (negative variance)"
         )
-    s = np.sqrt(np.where(diag > 0, diag, 1.0))
-    C = A / (s[:, :, None] * s[:, None, :])
-    C = C + _PSD_TOL * np.eye(A.shape[-1])
-    try:
-        np.linalg.cholesky(C)
-        return
-    except np.linalg.LinAlgError:
-        pass
-    for i in range(A.shape[0]):
-        try:
-            np.linalg.cholesky(C[i])
-        except np.linalg.LinAlgError:
-            raise ValueError(f"{_who(name, i, batched)} is not positive semi-definite") from None
-    raise AssertionError("unreachable")  # pragma: no cover
+    if i >= 0:
+        raise ValueError(f"{_who(name, i, batched)} is not positive semi-definite")
+
+
+@njit(cache=True)
+def _psd_failure(A, tol):
+    """``(i, negative)``: the first matrix of the stack ``A`` (K, d, d) failing :func:`_check_psd`.
+
+    First the first matrix with a negative variance (``negative`` True), else the
+    first whose scaled matrix ``D^{-1/2} A D^{-1/2} + tol·I`` has no Cholesky
+    factor; ``(-1, False)`` when all pass. Zero variances are scaled by 1.
+    """
+    k, d = A.shape[0], A.shape[1]
+    for i in range(k):
+        for a in range(d):
+            if A[i, a, a] < 0.0:
+                return i, True
+    s = np.empty(d)
+    C = np.empty((d, d))
+    L = np.empty((d, d))
+    for i in range(k):
+        for a in range(d):
+            v = A[i, a, a]
+            s[a] = math.sqrt(v) if v > 0.0 else 1.0
+        for a in range(d):
+            for b in range(d):
+                C[a, b] = A[i, a, b] / (s[a] * s[b])
+            C[a, a] += tol
+        ok, _ = cholesky_lower(C, L)
+        if not ok:
+            return i, False
+    return -1, False
 
 
 def _chol_pd(S: np.ndarray, name: str, batched: bool) -> np.ndarray:

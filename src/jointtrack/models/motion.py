@@ -40,6 +40,7 @@ scalar ``dt`` (one ``(n, n)`` matrix) or a 1-D array of ``N`` steps (an
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -94,6 +95,8 @@ def _check_q(q) -> float:
 _FMAX = float(np.finfo(np.float64).max)
 
 
+# cached: a function of (order, q) alone, and a tracker asks for it twice every scan
+@functools.lru_cache(maxsize=256)
 def _max_dt(order: int, q: float) -> float:
     """Largest time step for which F(Δt) and Q(Δt) of a kinematic model are finite.
 
@@ -136,37 +139,40 @@ def _check_dt_range(dt: np.ndarray, order: int, q: float, what: str) -> None:
 def _blocks(order: int, dt: np.ndarray, q: float):
     """One-axis (F, Q) blocks, evaluated so that no intermediate overflows before the
     final entry does (products taken left to right, ``q`` first)."""
-    one, zero = np.ones_like(dt), np.zeros_like(dt)
+    scalar = dt.ndim == 0
+    if scalar:  # one dt (a tracker's scan): the same IEEE products on Python floats
+        dt = float(dt)
+        one, zero = 1.0, 0.0
+    else:
+        one, zero = np.ones_like(dt), np.zeros_like(dt)
     if order == 2:
-        F = np.stack([np.stack([one, dt], -1), np.stack([zero, one], -1)], -2)
+        F = _assemble([[one, dt], [zero, one]], scalar)
         qd = q * dt
         qd2 = qd * dt
-        Q = np.stack(
-            [np.stack([qd2 * (dt / 3.0), qd2 / 2.0], -1), np.stack([qd2 / 2.0, qd], -1)], -2
-        )
+        Q = _assemble([[qd2 * (dt / 3.0), qd2 / 2.0], [qd2 / 2.0, qd]], scalar)
         return F, Q
     half2 = dt * (0.5 * dt)
-    F = np.stack(
-        [
-            np.stack([one, dt, half2], -1),
-            np.stack([zero, one, dt], -1),
-            np.stack([zero, zero, one], -1),
-        ],
-        -2,
-    )
+    F = _assemble([[one, dt, half2], [zero, one, dt], [zero, zero, one]], scalar)
     qd = q * dt
     qd2 = qd * dt
     qd3 = qd2 * dt
     qd4 = qd3 * dt
-    Q = np.stack(
+    Q = _assemble(
         [
-            np.stack([qd4 * (dt / 20.0), qd4 / 8.0, qd3 / 6.0], -1),
-            np.stack([qd4 / 8.0, qd3 / 3.0, qd2 / 2.0], -1),
-            np.stack([qd3 / 6.0, qd2 / 2.0, qd], -1),
+            [qd4 * (dt / 20.0), qd4 / 8.0, qd3 / 6.0],
+            [qd4 / 8.0, qd3 / 3.0, qd2 / 2.0],
+            [qd3 / 6.0, qd2 / 2.0, qd],
         ],
-        -2,
+        scalar,
     )
     return F, Q
+
+
+def _assemble(rows: list, scalar: bool) -> np.ndarray:
+    """A (k, k) block from Python floats, or an (N, k, k) stack from (N,) arrays."""
+    if scalar:
+        return np.array(rows, dtype=np.float64)
+    return np.stack([np.stack(row, -1) for row in rows], -2)
 
 
 def _kron_axes(block: np.ndarray, dim: int) -> np.ndarray:

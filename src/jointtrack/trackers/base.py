@@ -583,7 +583,14 @@ class ScanTracker:
             name: np.array(getattr(self, self._attr(name)), copy=True) for name in self._ARRAYS
         }
         state.update({name: getattr(self, name) for name in self._SCALARS})
-        state["config"] = self.config.to_dict()
+        # step() snapshots the state every scan: the configuration is frozen and its
+        # dict holds only immutable values (numbers, strings, tuples), so its
+        # to_dict() (a deep copy) is taken once per config object and each state gets
+        # a fresh shallow copy of it
+        cached = self.__dict__.get("_config_state")
+        if cached is None or cached[0] is not self.config:
+            cached = self._config_state = (self.config, self.config.to_dict())
+        state["config"] = dict(cached[1])
         state["rng"] = self.rng.bit_generator.state
         return state
 
