@@ -399,6 +399,13 @@ def _step_scan(trk, t: float, src, k: int) -> list:
     return [trk.step(t, z[ids == sid], sensor=sid) for sid in np.unique(ids).tolist()]
 
 
+def _last_before_boundary(times, k: int, interval: float) -> bool:
+    """Whether scan k is the last one before a multiple of ``interval`` seconds is passed."""
+    if k + 1 >= len(times):
+        return True
+    return math.floor(times[k + 1] / interval) > math.floor(times[k] / interval)
+
+
 def _report_fields(trk, src, det, k: int, sid) -> dict:
     """The ``labels`` / ``velocities`` of scan k's rows of sensor ``sid`` for ``trk.step``.
 
@@ -582,9 +589,12 @@ def _run(
     particle=None,
     kind: str | None = None,
     post=None,
+    output_interval: float | None = None,
 ) -> dict:
     """The run loop (see the module docstring); ``post(metrics, tracks, out_dir,
-    files)``: called before ``metrics.json`` is written, to add outputs; ``particle``: a
+    files)``: called before ``metrics.json`` is written, to add outputs;
+    ``output_interval`` (seconds): write the tracks only at the last scan before
+    each multiple of it (one scan per report makes thousands of scans a minute); ``particle``: a
     :class:`~jointtrack.trackers.particle.ParticleConfig` to run the particle
     tracker instead of the Kalman JPDA tracker ``cfg``. ``kind``: ``"pmb"`` or
     ``"pmbm"`` with a :class:`PMBMConfig` ``cfg``; for a :class:`TrackerConfig`
@@ -788,7 +798,10 @@ def _run(
                                 tier = method + ("" if conf else ", tentative tracks")
                                 tiers[tier] = tiers.get(tier, 0) + 1
                         coincident[0] += res.n_coincident
-                    writer.write_scan(t, res)  # the tracks after the time's last sensor
+                    if output_interval is None or _last_before_boundary(
+                        src.times, k, output_interval
+                    ):
+                        writer.write_scan(t, res)  # the tracks after the time's last sensor
                     fault("scan", k)
                     n_done += 1
                     if checkpoint is not None and trk.n_scans % checkpoint_every == 0:

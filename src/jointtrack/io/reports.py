@@ -182,7 +182,10 @@ class Reports:
 
     def frame(self, reference=None) -> LocalFrame:
         """The local frame about ``reference`` ``(lat0, lon0[, alt0])``, or (None)
-        about the centre of the reports' lat/lon bounding box (:meth:`LocalFrame.centre`)."""
+        about the centre of the reports' lat/lon bounding box (:meth:`LocalFrame.centre`)
+        without the 1 % most extreme reports on each side in latitude and
+        longitude: one glitch (the Solent AIS file has a report at 54.8° E among
+        ships near 1° W) would otherwise move the centre ~1,900 km away."""
         if reference is not None:
             if isinstance(reference, LocalFrame):
                 return reference
@@ -193,7 +196,13 @@ class Reports:
             return LocalFrame(*reference)
         if not len(self):
             raise ValueError("no reports: give a reference to build a frame")
-        return LocalFrame.centre(self.lat, self.lon)
+        lat_lo, lat_hi = np.quantile(self.lat, [0.01, 0.99])
+        lon_lo, lon_hi = np.quantile(self.lon, [0.01, 0.99])
+        core = (self.lat >= lat_lo) & (self.lat <= lat_hi)
+        core &= (self.lon >= lon_lo) & (self.lon <= lon_hi)
+        if not core.any():  # (data across the antimeridian) the full box
+            core[:] = True
+        return LocalFrame.centre(self.lat[core], self.lon[core])
 
     # ------------------------------------------------------------------ degradation
 

@@ -190,8 +190,21 @@ class JPDATracker(ScanTracker):
             w = np.concatenate(pair_w) if pair_w else np.zeros(0)
             if c.reporting == "async":  # reports seen: the track's own reporting rate
                 self.report_count += 1.0 - beta0
-            self.x, self.P = pda_pairs_update(
-                self.x, self.P, z, beta0, rows, cols, w, **self._measurement_model()
+            # Only tracks with a pair change: β₀ = 1 leaves x and P as they are (bit
+            # for bit), and with one report per scan most tracks have no pair.
+            touched = np.flatnonzero(beta0 < 1.0)
+            local = np.full(N, -1)
+            local[touched] = np.arange(len(touched))
+            on = local[rows] >= 0
+            self.x[touched], self.P[touched] = pda_pairs_update(
+                self.x[touched],
+                self.P[touched],
+                z,
+                beta0[touched],
+                local[rows[on]],
+                cols[on],
+                w[on],
+                **self._measurement_model(),
             )
             if len(lab_rows):
                 self._restart(
@@ -205,10 +218,17 @@ class JPDATracker(ScanTracker):
                 r, pd = self.existence[unheard], self._scan_pd[unheard]
                 self.existence[unheard] = r * (1.0 - pd) / (1.0 - r * pd)
             self._track_logic(hit, t)
-            keep, self.existence = merge_duplicates(
-                self.x, self.P, self.ids, self.existence, self.confirmed, c.dim, c.merge_threshold
-            )
-            self._keep(keep)
+            if not self.confirmed.all():  # only a tentative track can be a duplicate
+                keep, self.existence = merge_duplicates(
+                    self.x,
+                    self.P,
+                    self.ids,
+                    self.existence,
+                    self.confirmed,
+                    c.dim,
+                    c.merge_threshold,
+                )
+                self._keep(keep)
         if len(open_cols):
             self._initiate(
                 z[open_cols],
