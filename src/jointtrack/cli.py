@@ -218,6 +218,32 @@ def run_command(
             help="--scenario acoustic: the filter's likelihood method (default gaussian).",
         ),
     ] = None,
+    window: Annotated[
+        float | None,
+        typer.Option(
+            "--window",
+            help="Report files (AIS, OpenSky, traffic): scans of this many seconds instead "
+            "of one scan per report time.",
+        ),
+    ] = None,
+    reference: Annotated[
+        str | None,
+        typer.Option(
+            "--reference",
+            metavar="LAT,LON",
+            help="Geodetic data: origin of the local east-north frame in degrees (default: "
+            "the centre of the data).",
+        ),
+    ] = None,
+    labels: Annotated[
+        str | None,
+        typer.Option(
+            "--labels",
+            metavar="[associate|score|ignore]",
+            help="Report files: the identities (MMSI, icao24) associate reports to tracks "
+            "and score them (associate, default), only score them, or are ignored.",
+        ),
+    ] = None,
 ) -> None:
     """Track: detections in, tracks out (default: Bojilov's five targets, beta = 1, seed 0).
 
@@ -354,8 +380,23 @@ def run_command(
                     "only): use --start-from nothing, which is what a detections run does"
                 )
             from jointtrack.io import read_detections
+            from jointtrack.io.reports import report_format
 
-            dets = read_detections(detections)
+            rfmt = report_format(detections)
+            if rfmt is not None:
+                metrics = _run_report_file(
+                    detections, rfmt, kind, jpda_table, resume, window, reference, labels, common
+                )
+                runmod.print_summary(metrics, console)
+                console.print(f"outputs in {out}/", markup=False, highlight=False)
+                return
+            for flag, value in (("--window", window), ("--labels", labels)):
+                if value is not None:
+                    raise runmod.RunConfigError(
+                        f"{flag} is for report files (AIS, OpenSky, traffic); {detections} is a "
+                        "detections file"
+                    )
+            dets = read_detections(detections, reference=_reference(reference))
             tracker_cfg = runmod.make_tracker_config(
                 {"dim": dets.dim}, jpda_table, source=cfg.source
             )
@@ -468,6 +509,59 @@ def _run_acoustic(flags: dict, console, show: bool) -> None:
         _fail(exc)
     print_acoustic_summary(metrics, console)
     console.print(f"outputs in {out}/", markup=False, highlight=False)
+
+
+def _reference(text):
+    """``--reference LAT,LON[,ALT]`` as a tuple of floats (None when not given)."""
+    if text is None:
+        return None
+    from jointtrack.experiments.run import RunConfigError
+
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) not in (2, 3):
+        raise RunConfigError(f"--reference must be LAT,LON[,ALT] in degrees, got {text!r}")
+    return values
+
+
+def _run_report_file(path, rfmt, kind, table, resume, window, reference, labels, common):
+    """``jointtrack run --detections`` on a report file: :func:`run_reports`.
+
+    On ``--resume`` the window, frame and label use come from the checkpoint
+    (the run's identity); flags that differ are an error.
+    """
+    from jointtrack.experiments.realdata import run_reports
+    from jointtrack.experiments.run import RunConfigError, read_run
+
+    if kind not in (None, "jipda"):
+        raise RunConfigError(
+            f"report files run the JIPDA tracker with the asynchronous reporting model; "
+            f"--tracker {kind} is not available for them"
+        )
+    ref = _reference(reference)
+    if resume is not None:
+        saved = ((read_run(resume) or {}).get("inputs") or {}).get("reports") or {}
+        for flag, given, key in (
+            ("--window", window, "window"),
+            ("--labels", labels, "labels"),
+            ("--reference", list(ref) if ref else None, "reference"),
+        ):
+            if given is not None and key != "reference" and given != saved.get(key):
+                raise RunConfigError(
+                    f"{flag} {given} differs from the checkpoint's ({saved.get(key)}); omit it"
+                )
+        window, labels, ref = saved.get("window"), saved.get("labels"), saved.get("reference")
+    return run_reports(
+        path,
+        {k: v for k, v in table.items() if k != "kind"},
+        report_format=rfmt,
+        window=window,
+        reference=ref,
+        labels=labels or "associate",
+        **common,
+    )
 
 
 def _from_checkpoint(

@@ -96,6 +96,9 @@ class JPDATracker(ScanTracker):
         self.born = np.zeros(0)
         self.report_count = np.zeros(0)
         self.labels = np.zeros(0, dtype="U1")
+        # every label seen (sorted) and the id of its target's track
+        self.label_names = np.zeros(0, dtype="U1")
+        self.label_ids = np.zeros(0, np.int64)
         # unassociated returns of the previous scan (positions, covariances): two-point seeds
         self.seeds = np.zeros((0, c.dim))
         self.seed_covs = np.zeros((0, c.dim, c.dim))
@@ -561,6 +564,18 @@ class JPDATracker(ScanTracker):
         self.labels = np.concatenate([self.labels, new_labels])
         ids = np.arange(self.next_id, self.next_id + k)
         self.next_id += k
+        if labels is not None and len(self.label_names):
+            # a target that reports under a label again takes back its old id: the
+            # label is its identity, whatever happened to its track in between
+            pos = np.searchsorted(self.label_names, new_labels)
+            pos = np.minimum(pos, len(self.label_names) - 1)
+            known = self.label_names[pos] == new_labels
+            ids[known] = self.label_ids[pos[known]]
+        if labels is not None and k:
+            names = np.concatenate([self.label_names, new_labels])
+            numbers = np.concatenate([self.label_ids, ids])
+            names, first = np.unique(names, return_index=True)
+            self.label_names, self.label_ids = names, numbers[first]
         self.x = np.concatenate([self.x, x0])
         self.P = np.concatenate([self.P, P0])
         self.ids = np.concatenate([self.ids, ids])
@@ -648,6 +663,8 @@ class JPDATracker(ScanTracker):
         "born",
         "report_count",
         "labels",
+        "label_names",
+        "label_ids",
     )
     # state key -> attribute (``history()`` is the track-history method)
     _ATTRS = {"history": "hit_history"}

@@ -218,6 +218,8 @@ def _upgrade(header: dict, arrays: dict) -> None:
     arrays.setdefault("born", np.full(n, clock))
     arrays.setdefault("report_count", np.zeros(n))
     arrays.setdefault("labels", np.full(n, "", dtype="U1"))
+    arrays.setdefault("label_names", np.zeros(0, dtype="U1"))
+    arrays.setdefault("label_ids", np.zeros(0, np.int64))
 
 
 def read_run(path):
@@ -248,6 +250,8 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
         "born": ("f", 1),
         "report_count": ("f", 1),
         "labels": ("U", 1),
+        "label_names": ("U", 1),
+        "label_ids": ("i", 1),
     }
     for name, (kind, ndim) in spec.items():
         if name not in arrays:
@@ -286,6 +290,11 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
         if (arrays[name] < 0).any():
             raise bad(f"field {name!r} has negative values")
     validate_counters(path, arrays["ids"], scalars)
+    names, numbers = arrays["label_names"], arrays["label_ids"]
+    if names.shape != numbers.shape or (len(names) and not (names[1:] > names[:-1]).all()):
+        raise bad("fields 'label_names'/'label_ids' are not one sorted list of distinct labels")
+    if len(numbers) and ((numbers < 1) | (numbers >= scalars["next_id"])).any():
+        raise bad("field 'label_ids' holds ids the tracker never issued")
 
 
 def validate_counters(path, ids: np.ndarray, scalars: dict, field: str = "ids") -> None:
