@@ -103,7 +103,8 @@ def run_reports(
     config : ``[tracker]`` overrides on :data:`REALDATA_TRACKER` of the format.
     window : None (one scan per report time) or the scan window in seconds
         (Stone Soup's ``TimeSyncFeeder`` windows; several reports of one target
-        in a window then compete as separate returns).
+        in a window then compete as separate returns; reports with a velocity
+        are dead-reckoned to the window's end).
     reference : ``(lat, lon[, alt])`` of the local frame's origin; None: the
         centre of the reports' bounding box.
     labels : one of :data:`LABEL_MODES`.
@@ -139,7 +140,10 @@ def run_reports(
     family = _FAMILY.get(fmt_name, "ais")
     frame = rep.frame(reference)
     dets = rep.detections(
-        frame, scan="report" if window is None else float(window), labels=labels != "ignore"
+        frame,
+        scan="report" if window is None else float(window),
+        labels=labels != "ignore",
+        propagate=True,
     )
     over = {**REALDATA_TRACKER[family], **dict(config or {})}
     cfg = make_tracker_config({"dim": 2}, over)

@@ -335,7 +335,13 @@ class Reports:
         return self.times[rows].copy(), truth_ids, positions, ids
 
     def detections(
-        self, frame=None, *, scan="report", labels: bool = False, velocities: bool = True
+        self,
+        frame=None,
+        *,
+        scan="report",
+        labels: bool = False,
+        velocities: bool = True,
+        propagate: bool = False,
     ) -> Detections:
         """The reports as :class:`Detections` in a local east-north frame.
 
@@ -349,6 +355,10 @@ class Reports:
         velocities : attach east/north velocities from speed and course
             (:func:`velocity_en`; NaN unknown; a speed of 0 is a zero velocity
             whatever the course).
+        propagate : with a window, move each report with a known velocity to
+            its scan's time (dead reckoning, x + v·(t_scan − t_report)): a scan
+            is taken to be at its window's end, and a ship at 10 m/s moves 600 m
+            in a 60 s window. Reports without a velocity stay where they were.
         """
         frame = self.frame(frame)
         xy = frame.to_local(self.lat, self.lon)
@@ -363,6 +373,11 @@ class Reports:
                 times, group = np.zeros(0), np.zeros(0, np.int64)
         else:
             group, times = self.window_index(scan)
+        v = velocity_en(self.speed, self.course)
+        v[self.speed == 0] = 0.0
+        if propagate and not isinstance(scan, str) and len(self):
+            lag = (times[group] - self.times)[:, None]
+            xy = np.where(np.isfinite(v), xy + v * lag, xy)
         counts = np.bincount(group, minlength=times.size) if times.size else np.zeros(0, int)
         ends = np.cumsum(counts)
         bounds = list(zip((ends - counts).tolist(), ends.tolist(), strict=True))
@@ -370,11 +385,7 @@ class Reports:
         def split(a):
             return tuple(a[s:e] for s, e in bounds)
 
-        vel = None
-        if velocities:
-            v = velocity_en(self.speed, self.course)
-            v[self.speed == 0] = 0.0
-            vel = split(v)
+        vel = split(v) if velocities else None
         return Detections(
             times=times,
             scans=split(xy),
