@@ -63,6 +63,7 @@ the tracking loop's own wall and CPU time from the child.
 
 from __future__ import annotations
 
+import csv
 import datetime
 import json
 import os
@@ -270,6 +271,70 @@ def check_inputs(times, positions, labels, scan_index, scan_times) -> tuple:
         if lab.shape != (r,):
             raise ValueError(f"labels must have shape ({r},) like times, got {lab.shape}")
     return t, z, lab, k, st
+
+
+def demo_pipeline_reports(csv_path, window: float = 60.0) -> dict:
+    """The AIS reports as Stone Soup's Solent demo pipeline feeds them to its tracker.
+
+    Runs the demo's own reader and feeders on ``csv_path`` (a CSV in the layout of
+    ``SolentAIS_20160112_130211.csv``): ``CSVDetectionReader(state_vector_fields=
+    ("Longitude_degrees", "Latitude_degrees"), time_field="Time")`` →
+    ``TimeSyncFeeder(time_window=window s)`` → ``MetadataReducer("MMSI")`` (the
+    latest report of each vessel per window). The demo's last stage, the UTM
+    conversion, is left to the caller (the benchmark projects into its own local
+    plane).
+
+    Returns a dict of arrays, one row per kept report, in scan order (by time,
+    then MMSI, within a scan): ``times`` (seconds since ``time_origin``, the
+    first report's time as ISO-8601 UTC), ``lat``, ``lon`` (degrees), ``labels``
+    (the MMSI strings), ``scan_index``; per scan ``scan_times`` (the feeder's
+    window ends, empty windows included); and ``n_raw``, the reports read.
+    """
+    from stonesoup.feeder.filter import MetadataReducer
+    from stonesoup.feeder.time import TimeSyncFeeder
+    from stonesoup.reader.generic import CSVDetectionReader
+
+    path = Path(csv_path)
+    if not path.is_file():
+        raise FileNotFoundError(f"csv_path {path} is not a file")
+    _positive("window", window)
+    reader = CSVDetectionReader(
+        str(path),
+        state_vector_fields=("Longitude_degrees", "Latitude_degrees"),
+        time_field="Time",
+    )
+    feeder = MetadataReducer(
+        TimeSyncFeeder(reader, time_window=datetime.timedelta(seconds=float(window))),
+        LABEL_KEY,
+    )
+    rows = []
+    scan_stamps = []
+    for k, (stamp, detections) in enumerate(feeder):
+        scan_stamps.append(stamp)
+        rows.extend(
+            (k, d.timestamp, str(d.metadata.get(LABEL_KEY, "")), *np.ravel(d.state_vector))
+            for d in detections
+        )
+    if not scan_stamps:
+        raise ValueError(f"csv_path {path} holds no reports")
+    rows.sort(key=lambda r: (r[0], r[1], r[2]))
+    origin = min([r[1] for r in rows], default=scan_stamps[0])
+
+    def seconds(stamp):
+        return (stamp - origin).total_seconds()
+
+    with open(path, newline="") as f:
+        n_raw = sum(1 for _ in csv.DictReader(f))
+    return {
+        "time_origin": origin.isoformat(timespec="milliseconds") + "Z",
+        "times": np.array([seconds(r[1]) for r in rows], dtype=np.float64),
+        "lon": np.array([float(r[3]) for r in rows], dtype=np.float64),
+        "lat": np.array([float(r[4]) for r in rows], dtype=np.float64),
+        "labels": np.array([r[2] for r in rows], dtype=str),
+        "scan_index": np.array([r[0] for r in rows], dtype=np.int64),
+        "scan_times": np.array([seconds(s) for s in scan_stamps], dtype=np.float64),
+        "n_raw": n_raw,
+    }
 
 
 class StopTracking(BaseException):
