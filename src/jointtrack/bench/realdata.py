@@ -447,7 +447,7 @@ def _stonesoup_runner(config: str):
                 "loop_wall_s": r.loop_wall,
                 "loop_cpu_s": r.loop_cpu,
                 "measured": "child process: wall = its life, CPU = wait4 user+system, "
-                "peak RSS = max(ru_maxrss, 0.5 s samples)",
+                "peak RSS = max(VmHWM, 0.5 s samples)",
             },
         )
 

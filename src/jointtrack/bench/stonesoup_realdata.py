@@ -610,7 +610,8 @@ def _supervise(folder, config, total, wall_cap, rss_cap, poll, grace, progress) 
     wall = time.perf_counter() - start
     proc.returncode = os.waitstatus_to_exitcode(status)
     cpu = rusage.ru_utime + rusage.ru_stime
-    peak = max([rusage.ru_maxrss * 1024, *rss_v])  # ru_maxrss is in KiB on Linux
+    # not rusage.ru_maxrss: Linux keeps the parent's size at the fork in it (_own_peak_rss)
+    peak = max(rss_v, default=0)
     run = StoneSoupRun(
         config=config,
         scans_done=0,
@@ -635,6 +636,7 @@ def _supervise(folder, config, total, wall_cap, rss_cap, poll, grace, progress) 
     run.scans_done = int(info["scans_done"])
     run.completed = run.scans_done == total
     run.loop_wall, run.loop_cpu = float(info["loop_wall"]), float(info["loop_cpu"])
+    run.peak_rss = max(run.peak_rss, int(info.get("vm_hwm_bytes") or 0))
     table = np.loadtxt(folder / "tracks.csv", delimiter=",", skiprows=1, ndmin=2)
     table = table.reshape(-1, len(TRACK_COLUMNS))
     run.track_times = table[:, 0]
@@ -643,6 +645,22 @@ def _supervise(folder, config, total, wall_cap, rss_cap, poll, grace, progress) 
     run.track_velocities = table[:, 4:6]
     run.track_updated = table[:, 6] > 0
     return run
+
+
+def _own_peak_rss() -> int | None:
+    """This process's peak RSS since its ``exec`` (Linux ``VmHWM``), else ``None``.
+
+    Not ``getrusage``: Linux carries ``ru_maxrss`` over ``fork`` + ``exec``, so a
+    child would report the parent's size at the fork if that was larger.
+    """
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
 
 
 def _read_progress(folder: Path) -> int:
@@ -696,6 +714,7 @@ def _child(folder: Path) -> None:
     )
     status = {key: result[key] for key in ("scans_done", "scans_total", "loop_wall", "loop_cpu")}
     status["stopped"] = result["stopped"]
+    status["vm_hwm_bytes"] = _own_peak_rss()
     (folder / "status.json").write_text(json.dumps(status))
 
 
