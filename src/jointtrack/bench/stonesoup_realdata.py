@@ -368,7 +368,8 @@ def track_stonesoup(
     every track the tracker ever held — updates and predictions, ``updated`` 1
     for an update — time in seconds on the scene's time base, integer ids by
     first appearance), ``scans_done``, ``scans_total``, ``loop_wall``,
-    ``loop_cpu`` (seconds of the ``update_tracker`` loop) and ``stopped``.
+    ``loop_cpu`` (seconds of the loop: building each scan's ``Detection`` objects
+    and ``update_tracker``) and ``stopped``.
     """
     from stonesoup.types.detection import Detection
 
@@ -382,27 +383,26 @@ def track_stonesoup(
         return EPOCH + datetime.timedelta(seconds=float(seconds))
 
     starts = np.searchsorted(k, np.arange(len(st) + 1))
-    scans = []
-    for j in range(len(st)):
-        rows = range(starts[j], starts[j + 1])
-        scans.append(
-            {
-                Detection(
-                    z[i].reshape(2, 1),
-                    timestamp=stamp(t[i]),
-                    measurement_model=measurement,
-                    metadata={LABEL_KEY: str(lab[i])} if use_labels and lab[i] else {},
-                )
-                for i in rows
-            }
-        )
+
+    def scan(j):
+        # built scan by scan: a long record's Detection objects are never all alive twice
+        return {
+            Detection(
+                z[i].reshape(2, 1),
+                timestamp=stamp(t[i]),
+                measurement_model=measurement,
+                metadata={LABEL_KEY: str(lab[i])} if use_labels and lab[i] else {},
+            )
+            for i in range(starts[j], starts[j + 1])
+        }
+
     every_track: dict = {}  # Stone Soup track → (integer id); insertion order = first appearance
     done = 0
     stopped = False
     wall0, cpu0 = time.perf_counter(), time.process_time()
     try:
         for j in range(len(st)):
-            _, current = tracker.update_tracker(stamp(st[j]), scans[j])
+            _, current = tracker.update_tracker(stamp(st[j]), scan(j))
             for track in current:
                 every_track.setdefault(track, len(every_track))
             done = j + 1
@@ -595,7 +595,12 @@ def _supervise(folder, config, total, wall_cap, rss_cap, poll, grace, progress) 
                     stopped_by = "wall_cap"
                 elif rss_cap is not None and rss > rss_cap:
                     stopped_by = "rss_cap"
-                if stopped_by:
+                if stopped_by and not (folder / "progress").exists():
+                    # the child has not yet installed its handler: SIGUSR1 would kill it
+                    # anyway, with no tracks to write
+                    proc.kill()
+                    told_at = now
+                elif stopped_by:
                     told_at = now
                     proc.send_signal(signal.SIGUSR1)
             elif now - told_at > grace:
@@ -637,7 +642,8 @@ def _supervise(folder, config, total, wall_cap, rss_cap, poll, grace, progress) 
     run.completed = run.scans_done == total
     run.loop_wall, run.loop_cpu = float(info["loop_wall"]), float(info["loop_cpu"])
     run.peak_rss = max(run.peak_rss, int(info.get("vm_hwm_bytes") or 0))
-    table = np.loadtxt(folder / "tracks.csv", delimiter=",", skiprows=1, ndmin=2)
+    lines = (folder / "tracks.csv").read_text().splitlines()[1:]  # below the header
+    table = np.loadtxt(lines, delimiter=",", ndmin=2) if lines else np.zeros((0, 0))
     table = table.reshape(-1, len(TRACK_COLUMNS))
     run.track_times = table[:, 0]
     run.track_ids = table[:, 1].astype(np.int64)
@@ -677,6 +683,8 @@ def _child(folder: Path) -> None:
         raise StopTracking
 
     signal.signal(signal.SIGUSR1, stop)
+    # tells the parent the stop signal is handled from now on (before, it kills instead)
+    (folder / "progress").write_text("0")
     params = json.loads((folder / "params.json").read_text())
     with np.load(folder / "input.npz", allow_pickle=False) as data:
         arrays = {key: data[key] for key in data.files}
@@ -689,18 +697,28 @@ def _child(folder: Path) -> None:
             (folder / "progress").write_text(str(done))
             last_write[0] = now
 
-    result = track_stonesoup(
-        params["config"],
-        arrays["times"],
-        arrays["positions"],
-        arrays.get("labels"),
-        arrays["scan_index"],
-        arrays["scan_times"],
-        measurement_noise=params["measurement_noise"],
-        p_d=params["p_d"],
-        clutter_density=params["clutter_density"],
-        on_scan=on_scan,
-    )
+    try:
+        result = track_stonesoup(
+            params["config"],
+            arrays["times"],
+            arrays["positions"],
+            arrays.get("labels"),
+            arrays["scan_index"],
+            arrays["scan_times"],
+            measurement_noise=params["measurement_noise"],
+            p_d=params["p_d"],
+            clutter_density=params["clutter_density"],
+            on_scan=on_scan,
+        )
+    except StopTracking:  # stopped before the first scan (importing, building the tracker)
+        result = {
+            "table": np.zeros((0, len(TRACK_COLUMNS))),
+            "scans_done": 0,
+            "scans_total": len(arrays["scan_times"]),
+            "loop_wall": 0.0,
+            "loop_cpu": 0.0,
+            "stopped": True,
+        }
     # no stop may interrupt the writing
     signal.signal(signal.SIGUSR1, signal.SIG_IGN)
     (folder / "progress").write_text(str(result["scans_done"]))
