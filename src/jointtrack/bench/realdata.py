@@ -22,12 +22,15 @@ Scenes (:func:`build_scenes`)
 ``adsb``
     traffic's ``switzerland.json.gz`` (about 17 h, 842 aircraft; ``--quick``:
     ``quickstart.json.gz``, 3 h, 213 aircraft) through
-    :class:`jointtrack.io.reports.Reports`: identities stripped, each report kept
-    with probability P_D = 0.9, Poisson clutter of 20 false returns per 10 s scan
-    (seeded), scans of 10 s, and a synthetic sensor's position noise of 50 m
-    (σ per axis, seeded) added to every row. Every report of a scan is taken at
-    the scan's time (a sensor that scans every 10 s). Scored against the
-    undegraded reports at 10 s instants, c = 500 m.
+    :class:`jointtrack.io.reports.Reports`: reduced to one report per aircraft per
+    10 s window (``Reports.reduce``, the Solent demo's pipeline: a sensor scanning
+    every 10 s sees each aircraft once), then each report kept with probability
+    P_D = 0.9, Poisson clutter of 20 false returns per 10 s scan over the
+    reports' lat/lon box, identities stripped (``Reports.degrade``, seeded), and a
+    synthetic sensor's position noise of 50 m (σ per axis, seeded) added to every
+    row. As in the Solent scene each report keeps its own time and a scan is the
+    10 s window. Scored against all the undegraded reports at 10 s instants,
+    c = 500 m.
 
 Runners (:data:`RUNNERS`)
 -------------------------
@@ -45,8 +48,9 @@ RSS, scans done / total, and the scores of
 :func:`jointtrack.metrics.selfreport.score_self_reports` (coverage, purity,
 tracks per identity, identity switches, false tracks per hour, mean GOSPA)
 on every track state the runner reported. ``--out DIR`` writes
-``realdata.json`` (figures, RSS series), each run's track table as CSV and
-``rss_<scene>.png`` (RSS over time).
+``realdata.json`` (figures, RSS series), each run's track table as CSV,
+``rss_<scene>.png`` (RSS over time) and ``map_<scene>_<runner>.png`` (the
+tracks over the self-reports in lon/lat, :mod:`jointtrack.experiments.map_plot`).
 """
 
 from __future__ import annotations
@@ -330,26 +334,32 @@ def adsb_scene(path, *, seed: int = SEED) -> Scene:
 
     reports = read_traffic_records(path)
     frame = reports.frame()
-    degraded = reports.degrade(
+    # the sensor sees an aircraft at most once per scan: its latest report in the window
+    reduced = reports.reduce(ADSB_SCAN)
+    degraded = reduced.degrade(
         p_d=ADSB_P_D,
-        # clutter_rate counts false reports per second of data
+        # io.reports counts clutter in false reports per second of data
         clutter_rate=ADSB_CLUTTER_PER_SCAN / ADSB_SCAN,
         seed=seed,
         strip_identities=True,
     )
-    det = degraded.detections(frame, scan=ADSB_SCAN, labels=False, velocities=False)
-    scan_times = np.asarray(det.times, dtype=np.float64)
-    counts = np.array([len(z) for z in det.scans], dtype=np.int64)
-    scan_index = np.repeat(np.arange(len(scan_times)), counts)
-    positions = np.concatenate([np.asarray(z)[:, :2] for z in det.scans]).reshape(-1, 2)
+    # the windows of the reduction (TimeSyncFeeder's, from the first report), in whole
+    # nanoseconds as io.reports counts them; clutter lies within the reports' span
+    w_ns = round(ADSB_SCAN * 1e9)
+    t0_ns = round(float(reduced.times[0]) * 1e9)
+    rel = np.round(degraded.times * 1e9).astype(np.int64) - t0_ns
+    scan_index = np.maximum(-(-rel // w_ns), 0)
+    scan_times = (t0_ns + np.arange(int(scan_index[-1]) + 1) * w_ns) / 1e9
+    # each report at its own time, as in the Solent scene (a float may sit an ulp past
+    # its window's end when the nanosecond count puts it on the end)
+    times = np.minimum(degraded.times, scan_times[scan_index])
+    positions = np.asarray(frame.to_local(degraded.lat, degraded.lon), dtype=np.float64)
     # the synthetic sensor's noise, on every row (clutter too), the same for every runner
     rng = np.random.default_rng([seed, 24])
-    positions = positions + rng.normal(0.0, ADSB_NOISE_SD, positions.shape)
+    positions = positions[:, :2] + rng.normal(0.0, ADSB_NOISE_SD, (len(times), 2))
     n_clutter = int(np.count_nonzero(degraded.is_clutter))
     # clutter density from the false rows themselves: over the box they were drawn in
-    clutter_xy = np.asarray(
-        frame.to_local(degraded.lat[degraded.is_clutter], degraded.lon[degraded.is_clutter])
-    )[:, :2]
+    clutter_xy = positions[degraded.is_clutter]
     box = float(np.prod(np.ptp(clutter_xy, axis=0))) if n_clutter > 1 else 0.0
     clutter_density = n_clutter / (len(scan_times) * box) if box > 0 else 1e-12
 
@@ -366,7 +376,7 @@ def adsb_scene(path, *, seed: int = SEED) -> Scene:
         ),
         time_origin=degraded.time_origin,
         frame=frame,
-        times=scan_times[scan_index],
+        times=times,
         positions=positions,
         labels=None,
         scan_index=scan_index,
@@ -386,6 +396,7 @@ def adsb_scene(path, *, seed: int = SEED) -> Scene:
             "data": Path(path).name,
             "raw_reports": int(len(reports.times)),
             "aircraft": int(len(set(reports.identity.tolist()) - {""})),
+            "reduced_reports": int(len(reduced.times)),
             "clutter_rows": n_clutter,
             "seed": seed,
         },
@@ -576,6 +587,31 @@ def plot_rss(results: list[RunResult], path) -> Path:
     return path
 
 
+def plot_map(scene: Scene, result: RunResult, truth, path) -> Path | None:
+    """A run's tracks over the self-reports in lon/lat
+    (:func:`jointtrack.experiments.map_plot.plot_track_map`); ``None`` (nothing drawn)
+    when that module is not available."""
+    try:
+        from jointtrack.experiments.map_plot import plot_track_map
+    except ImportError:
+        return None
+    _, ids, xy = truth
+    report_lat, report_lon = scene.frame.to_geodetic(xy)[:2]
+    track_lat, track_lon = scene.frame.to_geodetic(result.track_positions)[:2]
+    plot_track_map(
+        Path(path),
+        report_lat,
+        report_lon,
+        track_lat,
+        track_lon,
+        result.track_ids,
+        title=f"{scene.name}: {result.runner} ({len(np.unique(result.track_ids))} track ids)",
+        report_ids=ids,
+        track_times=result.track_times,
+    )
+    return Path(path)
+
+
 def _write_tracks(result: RunResult, path: Path) -> None:
     data = np.column_stack([result.track_times, result.track_ids, result.track_positions])
     np.savetxt(
@@ -661,6 +697,9 @@ def run(
             entry["runs"][name] = result.as_dict()
             if folder:
                 _write_tracks(result, folder / f"tracks_{scene.name}_{name}.csv")
+                if truth is not None and len(result.track_ids):
+                    png = plot_map(scene, result, truth, folder / f"map_{scene.name}_{name}.png")
+                    entry["runs"][name]["map_png"] = None if png is None else png.name
         if folder and results:
             entry["rss_png"] = plot_rss(results, folder / f"rss_{scene.name}.png").name
         if not_run:
