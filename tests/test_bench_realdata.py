@@ -340,7 +340,14 @@ def test_cli_bad_cache_dir_exits_non_zero_with_one_line(tmp_path):
 
 
 class Frame:
+    """A stand-in local frame: the harness only needs the reference and the way back to
+    lat/lon for the map (a crude flat-earth inverse is enough for a picture)."""
+
     reference = (50.0, -1.0, 0.0)
+
+    def to_geodetic(self, xy):
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        return 50.0 + xy[:, 1] / 111_000.0, -1.0 + xy[:, 0] / 71_000.0
 
 
 def tiny_scene(labels=False):
@@ -427,6 +434,12 @@ def test_run_writes_json_tracks_and_plot_and_lists_unrun_runners(monkeypatch, tm
         assert "selfreport" in nn["score_error"]
     else:  # two moored vessels held by two tracks: perfect scores
         assert nn["score"]["coverage"] == 1.0 and nn["score"]["purity"] == 1.0
+    try:
+        import jointtrack.experiments.map_plot  # noqa: F401
+    except ImportError:
+        assert nn.get("map_png") is None
+    else:
+        assert (out / nn["map_png"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_stonesoup_runner_reports_the_child_run(monkeypatch):
