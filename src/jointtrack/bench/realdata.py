@@ -641,7 +641,8 @@ def run(
     """Fetch the data, build the scenes, run the runners, score, print and write.
 
     ``runners`` (names of :data:`RUNNERS`) restricts every scene to those among
-    them (``None``: each scene's defaults); a default runner that is not
+    its defaults (``None``: all of them); a named runner that is no built scene's
+    default runs on every scene (e.g. ``stonesoup-nn`` on ``adsb``). A runner that is not
     registered (jointtrack's, until the benchmark script registers them) is
     listed as not run. Returns the results as a JSON-ready dict; with ``out``
     also writes ``out/realdata.json``, ``out/tracks_<scene>_<runner>.csv`` and
@@ -658,10 +659,11 @@ def run(
         folder.mkdir(parents=True, exist_ok=True)
     report: dict = {"quick": quick, "wall_cap_s": wall_cap, "seed": seed, "scenes": {}}
     all_results: list[RunResult] = []
+    defaults = {r for scene in built for r in scene.default_runners}
     for scene in built:
         wanted = [r for r in scene.default_runners if runners is None or r in runners]
-        if runners is not None:
-            wanted += [r for r in runners if r not in wanted]
+        if runners is not None:  # a runner no built scene has by default runs on every scene
+            wanted += [r for r in runners if r not in wanted and r not in defaults]
         not_run = {r: "not registered" for r in wanted if r not in RUNNERS}
         if scene.labels is None and "stonesoup-demo" in wanted:
             not_run["stonesoup-demo"] = "gates on labels; this scene has none"
