@@ -669,9 +669,11 @@ def run(
             not_run["stonesoup-demo"] = "gates on labels; this scene has none"
         todo = [r for r in wanted if r not in not_run]
         entry = {"scene": scene.describe(), "runs": {}, "not_run": not_run}
+        ref = entry["scene"]["reference_lat_lon_alt"]
         console.print(
             f"[bold]{scene.name}[/]: {scene.description}; {len(scene.times)} reports "
             f"in {scene.n_scans} scans"
+            + (f"; local frame about {ref[0]:.5f}°N {ref[1]:.5f}°E" if ref else "")
         )
         truth = None
         results = []
