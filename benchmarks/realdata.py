@@ -49,6 +49,7 @@ if __name__ == "__main__":
     parser.add_argument("--cache-dir", help="data cache (default $JOINTTRACK_DATA)")
     parser.add_argument("--cap", type=float, default=realdata.WALL_CAP, help="seconds per run")
     parser.add_argument("--seed", type=int, default=realdata.SEED)
+    parser.add_argument("--stamp", choices=realdata.STAMPS, help="Stone Soup's detection times")
     args = parser.parse_args()
     for name in ("jipda", "pmbm"):
         realdata.register_runner(f"jointtrack-{name}", _jointtrack(name))
@@ -61,4 +62,5 @@ if __name__ == "__main__":
         cache_dir=args.cache_dir,
         wall_cap=args.cap,
         seed=args.seed,
+        stamp=args.stamp,
     )

@@ -446,10 +446,12 @@ def test_stonesoup_runner_reports_the_child_run(monkeypatch):
     from jointtrack.bench import stonesoup_realdata as ss
 
     calls = []
+    stamped = []
 
     def child(config, times, positions, labels, scan_index, scan_times, **kwargs):
         # the child's work, in this process (test_child_run_… runs a real child)
         calls.append((config, labels is not None, kwargs["wall_cap"]))
+        stamped.append(np.array(times))
         r = track_stonesoup(config, times, positions, labels, scan_index, scan_times)
         tab = r["table"]
         return ss.StoneSoupRun(
@@ -481,6 +483,13 @@ def test_stonesoup_runner_reports_the_child_run(monkeypatch):
     assert calls[-1] == ("nn", False, 5.0)  # labels never reach the label-blind trackers
     with pytest.raises(ValueError, match="labels"):
         realdata.RUNNERS["stonesoup-demo"](tiny_scene(labels=False), wall_cap=60.0)
+    # detection times: each report's own by default, its scan's on request
+    np.testing.assert_array_equal(stamped[0], scene.times)
+    realdata.RUNNERS["stonesoup-nn"](scene, wall_cap=5.0, stamp="scan")
+    np.testing.assert_array_equal(stamped[-1], scene.scan_times[scene.scan_index])
+    assert np.any(stamped[-1] != scene.times)
+    with pytest.raises(ValueError, match="stamp"):
+        realdata.RUNNERS["stonesoup-nn"](scene, wall_cap=5.0, stamp="now")
     d = r.as_dict()
     assert d["scans_done"] == 4 and d["details"]["loop_cpu_s"] > 0
     with pytest.raises(ValueError, match="name"):

@@ -103,6 +103,11 @@ def bench_realdata(
     ),
     cap: float = typer.Option(600.0, "--cap", help="Wall-time cap of each run, seconds."),
     seed: int = typer.Option(0, "--seed", help="Seed of the ADS-B degradation and noise."),
+    stamp: str = typer.Option(
+        None,
+        "--stamp",
+        help="Stone Soup's detection times: report (own; Solent's default) or scan (ADS-B's).",
+    ),
 ) -> None:
     """Real AIS (Solent) and ADS-B data: jointtrack beside Stone Soup's own demo trackers on
     identical reports — wall, CPU, peak RSS and the scores against the self-reports. Downloads
@@ -116,6 +121,8 @@ def bench_realdata(
         _fail(f"--scene must be among {', '.join(realdata.SCENE_NAMES)} or all, got {bad}")
     if not cap > 0:
         _fail(f"--cap must be > 0 seconds, got {cap}")
+    if stamp is not None and stamp not in realdata.STAMPS:
+        _fail(f"--stamp must be one of {', '.join(realdata.STAMPS)}, got {stamp!r}")
     try:
         realdata.run(
             quick=quick,
@@ -125,6 +132,7 @@ def bench_realdata(
             cache_dir=cache_dir,
             wall_cap=cap,
             seed=seed,
+            stamp=stamp,
         )
     except RealDataError as exc:
         _fail(exc, code=1)
