@@ -28,8 +28,8 @@ Scenes (:func:`build_scenes`)
     P_D = 0.9, Poisson clutter of 20 false returns per 10 s scan over the
     reports' lat/lon box, identities stripped (``Reports.degrade``, seeded), and a
     synthetic sensor's position noise of 50 m (σ per axis, seeded) added to every
-    row. As in the Solent scene each report keeps its own time and a scan is the
-    10 s window. Scored against all the undegraded reports at 10 s instants,
+    row. A scan is the 10 s window; the scene keeps each report's own time, but
+    Stone Soup gets the scan's (below). Scored against all the undegraded reports at 10 s instants,
     c = 500 m.
 
 Detection times. Stone Soup's Solent demo keeps each report's own time (its
