@@ -334,6 +334,8 @@ def test_cli_bad_cache_dir_exits_non_zero_with_one_line(tmp_path):
     assert len(errors) == 1 and "not a folder" in errors[0]
     result = CliRunner().invoke(app, ["bench", "realdata", "--scene", "nowhere"])
     assert result.exit_code == 2 and "--scene" in result.output
+    result = CliRunner().invoke(app, ["bench", "realdata", "--stamp", "now"])
+    assert result.exit_code == 2 and "--stamp" in result.output
 
 
 # ------------------------------------------------------------------ harness
