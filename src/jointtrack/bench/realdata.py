@@ -22,14 +22,14 @@ Scenes (:func:`build_scenes`)
 ``adsb``
     traffic's ``switzerland.json.gz`` (about 17 h, 842 aircraft; ``--quick``:
     ``quickstart.json.gz``, 3 h, 213 aircraft) through
-    :class:`jointtrack.io.reports.Reports`: reduced to one report per aircraft per
-    10 s window (``Reports.reduce``, the Solent demo's pipeline: a sensor scanning
-    every 10 s sees each aircraft once), then each report kept with probability
-    P_D = 0.9, Poisson clutter of 20 false returns per 10 s scan over the
-    reports' lat/lon box, identities stripped (``Reports.degrade``, seeded), and a
-    synthetic sensor's position noise of 50 m (σ per axis, seeded) added to every
-    row. A scan is the 10 s window; the scene keeps each report's own time, but
-    Stone Soup gets the scan's (below). Scored against all the undegraded reports at 10 s instants,
+    :class:`jointtrack.io.reports.Reports`, seen by a synthetic sensor scanning
+    every 10 s (:func:`scanning_sensor`): at each scan time each aircraft at its
+    reported positions interpolated to that time (not the last report before it:
+    at 250 m/s up to 10 s of lag would be 2.5 km), then each detection kept with
+    probability P_D = 0.9, Poisson clutter of 20 false returns per 10 s scan over
+    the reports' lat/lon box, identities stripped (``Reports.degrade``, seeded),
+    and position noise of 50 m (σ per axis, seeded) added to every row. Every row
+    carries its scan's time. Scored against all the undegraded reports at 10 s instants,
     c = 500 m.
 
 Detection times. Stone Soup's Solent demo keeps each report's own time (its
@@ -351,40 +351,99 @@ def solent_scenes(path, *, quick: bool = False) -> list[Scene]:
     ]
 
 
+def scanning_sensor(reports, frame, scan: float, max_gap: float):
+    """What a sensor scanning every ``scan`` seconds sees of self-reporting targets.
+
+    Scan times are the windows' ends of ``reports.window_index(scan)`` (the first
+    report's time, then every ``scan`` seconds). At each scan time every identity
+    is seen at its reported position linearly interpolated in the local ``frame``
+    between its two reports around that time — the same reference the scores use
+    (:mod:`jointtrack.metrics.selfreport`) — if those two reports are at most
+    ``max_gap`` seconds apart (or one falls on the scan time); outside its reports'
+    span an identity is not seen. Returns ``(Reports at the scan times, in lat/lon
+    with identities, scan_times)``.
+    """
+    from jointtrack.io.reports import Reports
+
+    _, scan_times = reports.window_index(scan)
+    scan_times = np.asarray(scan_times, dtype=np.float64)
+    xy = np.asarray(frame.to_local(reports.lat, reports.lon), dtype=np.float64)[:, :2]
+    ident = reports.identity
+    has = np.flatnonzero(ident != "")
+    order = has[np.argsort(ident[has], kind="stable")]  # by identity, then time
+    names, starts = np.unique(ident[order], return_index=True)
+    bounds = np.r_[starts, len(order)]
+    out_t, out_xy, out_id = [], [], []
+    for n, name in enumerate(names):
+        rows = order[bounds[n] : bounds[n + 1]]
+        tau, p = reports.times[rows], xy[rows]
+        lo = np.searchsorted(scan_times, tau[0], side="left")
+        hi = np.searchsorted(scan_times, tau[-1], side="right")
+        t = scan_times[lo:hi]
+        if not t.size:
+            continue
+        after = np.minimum(np.searchsorted(tau, t, side="left"), len(tau) - 1)
+        before = np.maximum(np.searchsorted(tau, t, side="right") - 1, 0)
+        seen = (tau[after] == t) | (tau[after] - tau[before] <= max_gap)
+        t = t[seen]
+        out_t.append(t)
+        out_xy.append(np.column_stack([np.interp(t, tau, p[:, 0]), np.interp(t, tau, p[:, 1])]))
+        out_id.append(np.full(t.size, name))
+    t = np.concatenate(out_t) if out_t else np.zeros(0)
+    ids = np.concatenate(out_id) if out_id else np.zeros(0, dtype=str)
+    pos = np.concatenate(out_xy) if out_xy else np.zeros((0, 2))
+    by_time = np.lexsort((ids, t))
+    lat, lon = frame.to_geodetic(pos[by_time])[:2]
+    sensor = Reports(
+        times=t[by_time],
+        time_origin=reports.time_origin,
+        lat=lat,
+        lon=lon,
+        identity=ids[by_time],
+        source=reports.source,
+    )
+    return sensor, scan_times
+
+
 def adsb_scene(path, *, seed: int = SEED) -> Scene:
     """``adsb`` (module docstring) from a traffic records file, via jointtrack.io.reports."""
     from jointtrack.io.reports import read_traffic_records
 
     reports = read_traffic_records(path)
     frame = reports.frame()
-    # the sensor sees an aircraft at most once per scan: its latest report in the window
-    reduced = reports.reduce(ADSB_SCAN)
-    degraded = reduced.degrade(
+    sensor, scan_times = scanning_sensor(reports, frame, ADSB_SCAN, MAX_GAP)
+    degraded = sensor.degrade(
         p_d=ADSB_P_D,
         # io.reports counts clutter in false reports per second of data
         clutter_rate=ADSB_CLUTTER_PER_SCAN / ADSB_SCAN,
         seed=seed,
         strip_identities=True,
     )
-    # the windows of the reduction (TimeSyncFeeder's, from the first report), in whole
-    # nanoseconds as io.reports counts them; clutter lies within the reports' span
+    # aircraft rows sit on a scan time; a clutter row belongs to the scan whose window
+    # (previous scan time, scan time] holds it — counted in whole nanoseconds
     w_ns = round(ADSB_SCAN * 1e9)
-    t0_ns = round(float(reduced.times[0]) * 1e9)
+    t0_ns = round(float(scan_times[0]) * 1e9)
     rel = np.round(degraded.times * 1e9).astype(np.int64) - t0_ns
-    scan_index = np.maximum(-(-rel // w_ns), 0)
-    scan_times = (t0_ns + np.arange(int(scan_index[-1]) + 1) * w_ns) / 1e9
-    # each report at its own time, as in the Solent scene (a float may sit an ulp past
-    # its window's end when the nanosecond count puts it on the end)
-    times = np.minimum(degraded.times, scan_times[scan_index])
+    scan_index = np.where(
+        degraded.is_clutter,
+        -(-rel // w_ns),
+        np.round((degraded.times - scan_times[0]) / ADSB_SCAN).astype(np.int64),
+    )
+    scan_index = np.clip(scan_index, 0, len(scan_times) - 1)
+    order = np.argsort(scan_index, kind="stable")
+    scan_index = scan_index[order]
     positions = np.asarray(frame.to_local(degraded.lat, degraded.lon), dtype=np.float64)
+    positions = positions[order, :2]
+    is_clutter = degraded.is_clutter[order]
     # the synthetic sensor's noise, on every row (clutter too), the same for every runner
     rng = np.random.default_rng([seed, 24])
-    positions = positions[:, :2] + rng.normal(0.0, ADSB_NOISE_SD, (len(times), 2))
-    n_clutter = int(np.count_nonzero(degraded.is_clutter))
+    positions = positions + rng.normal(0.0, ADSB_NOISE_SD, positions.shape)
+    n_clutter = int(np.count_nonzero(is_clutter))
     # clutter density from the false rows themselves: over the box they were drawn in
-    clutter_xy = positions[degraded.is_clutter]
+    clutter_xy = positions[is_clutter]
     box = float(np.prod(np.ptp(clutter_xy, axis=0))) if n_clutter > 1 else 0.0
     clutter_density = n_clutter / (len(scan_times) * box) if box > 0 else 1e-12
+    times = scan_times[scan_index]
 
     def truth():
         t, ids, xy = truth_arrays(reports.truth(frame))
@@ -420,7 +479,7 @@ def adsb_scene(path, *, seed: int = SEED) -> Scene:
             "data": Path(path).name,
             "raw_reports": int(len(reports.times)),
             "aircraft": int(len(set(reports.identity.tolist()) - {""})),
-            "reduced_reports": int(len(reduced.times)),
+            "sensor_detections": int(len(sensor.times)),
             "clutter_rows": n_clutter,
             "seed": seed,
         },
