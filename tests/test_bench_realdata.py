@@ -498,3 +498,37 @@ def test_stonesoup_runner_reports_the_child_run(monkeypatch):
         realdata.register_runner("", not_yet)
     with pytest.raises(TypeError, match="runner"):
         realdata.register_runner("x", 3)
+
+
+def test_scanning_sensor_interpolates_each_identity_to_the_scan_times():
+    # needs jointtrack.io.reports (issue 24 item 3); runs once that is merged
+    reports_mod = pytest.importorskip("jointtrack.io.reports")
+    from jointtrack.io.geodetic import LocalFrame
+
+    frame = LocalFrame(50.0, -1.0)
+    # "a": reports at 0, 7, 26 s (east 0, 70, 260 m); "b": at 3 s and 900 s (a gap > max_gap)
+    t = np.array([0.0, 3.0, 7.0, 26.0, 900.0])
+    east = np.array([0.0, 500.0, 70.0, 260.0, 600.0])
+    ident = np.array(["a", "b", "a", "a", "b"])
+    lat, lon = frame.to_geodetic(np.column_stack([east, np.zeros(5)]))[:2]
+    reports = reports_mod.Reports(
+        times=t, time_origin="2020-01-01T00:00:00Z", lat=lat, lon=lon, identity=ident
+    )
+    sensor, scan_times = realdata.scanning_sensor(reports, frame, 10.0, max_gap=600.0)
+    np.testing.assert_allclose(scan_times[:4], [0.0, 10.0, 20.0, 30.0])
+    # "a" at 0 (its report), 10 and 20 (between 7 and 26 s), not at 30 (after its last);
+    # "b" only at 900 s, its report on a scan time: not across its 897 s gap
+    assert sensor.identity.tolist() == ["a", "a", "a", "b"]
+    np.testing.assert_array_equal(sensor.times, [0.0, 10.0, 20.0, 900.0])
+    xy = frame.to_local(sensor.lat, sensor.lon)
+    expected = np.interp([0.0, 10.0, 20.0], [0.0, 7.0, 26.0], [0.0, 70.0, 260.0])
+    np.testing.assert_allclose(xy[:, 0], [*expected, 600.0], atol=1e-6)
+    np.testing.assert_allclose(xy[:, 1], 0.0, atol=1e-6)
+    # with a longer max_gap "b" is seen at every scan time from 10 s to 900 s
+    sensor, _ = realdata.scanning_sensor(reports, frame, 10.0, max_gap=1000.0)
+    b = sensor.identity == "b"
+    np.testing.assert_array_equal(sensor.times[b], np.arange(10.0, 901.0, 10.0))
+    xy = frame.to_local(sensor.lat[b], sensor.lon[b])
+    np.testing.assert_allclose(
+        xy[:, 0], np.interp(sensor.times[b], [3, 900], [500, 600]), atol=1e-6
+    )
