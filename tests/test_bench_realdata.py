@@ -532,3 +532,16 @@ def test_scanning_sensor_interpolates_each_identity_to_the_scan_times():
     np.testing.assert_allclose(
         xy[:, 0], np.interp(sensor.times[b], [3, 900], [500, 600]), atol=1e-6
     )
+
+
+def test_rss_sampler_sees_an_allocation():
+    import time
+
+    with realdata.RssSampler(poll=0.02) as s:
+        time.sleep(0.1)
+        block = np.ones(64 * 2**20 // 8)  # 64 MiB, touched
+        time.sleep(0.2)
+        del block
+    assert len(s.times) == len(s.rss) >= 5 and np.all(np.diff(s.times) > 0)
+    assert max(s.rss) - s.rss[0] > 48 * 2**20
+    assert s.peak >= max(s.rss)
