@@ -80,6 +80,64 @@ def bench_quality(
     _run_bench("quality", quick, out)
 
 
+@bench_app.command("realdata")
+def bench_realdata(
+    quick: bool = typer.Option(
+        False, "--quick", help="Solent's first 30 scans; ADS-B quickstart instead of switzerland."
+    ),
+    out: str = typer.Option(
+        None, "--out", help="Folder for realdata.json, the track tables and the RSS plots."
+    ),
+    scene: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--scene", help="solent-labels, solent, adsb or all (repeatable; default all)."
+        ),
+    ] = None,
+    runner: Annotated[
+        list[str] | None,
+        typer.Option("--runner", help="Only these runners, e.g. stonesoup-nn (repeatable)."),
+    ] = None,
+    cache_dir: str = typer.Option(
+        None, "--cache-dir", help="Data cache (default $JOINTTRACK_DATA or ~/.cache/jointtrack)."
+    ),
+    cap: float = typer.Option(600.0, "--cap", help="Wall-time cap of each run, seconds."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the ADS-B degradation and noise."),
+    stamp: str = typer.Option(
+        None,
+        "--stamp",
+        help="Stone Soup's detection times: report (own; Solent's default) or scan (ADS-B's).",
+    ),
+) -> None:
+    """Real AIS (Solent) and ADS-B data: jointtrack beside Stone Soup's own demo trackers on
+    identical reports — wall, CPU, peak RSS and the scores against the self-reports. Downloads
+    the public data with pip on first use."""
+    from jointtrack.bench import realdata
+    from jointtrack.bench.realdata_data import RealDataError
+
+    scenes = list(realdata.SCENE_NAMES) if not scene or "all" in scene else scene
+    bad = [s for s in scenes if s not in realdata.SCENE_NAMES]
+    if bad:
+        _fail(f"--scene must be among {', '.join(realdata.SCENE_NAMES)} or all, got {bad}")
+    if not cap > 0:
+        _fail(f"--cap must be > 0 seconds, got {cap}")
+    if stamp is not None and stamp not in realdata.STAMPS:
+        _fail(f"--stamp must be one of {', '.join(realdata.STAMPS)}, got {stamp!r}")
+    try:
+        realdata.run(
+            quick=quick,
+            out=out,
+            scenes=scenes,
+            runners=runner or None,
+            cache_dir=cache_dir,
+            wall_cap=cap,
+            seed=seed,
+            stamp=stamp,
+        )
+    except RealDataError as exc:
+        _fail(exc, code=1)
+
+
 reproduce_app = typer.Typer(
     help="Reproduce a paper's tables beside the paper's own numbers.", no_args_is_help=True
 )

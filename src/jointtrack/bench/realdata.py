@@ -1,0 +1,820 @@
+"""Real AIS and ADS-B data end to end: jointtrack beside Stone Soup's own demo trackers.
+
+Run as ``jointtrack bench realdata [--quick] [--scene solent|adsb|all] [--out DIR]``
+or ``python benchmarks/realdata.py``. The data (public, from the package
+registry) is fetched on first use by :func:`jointtrack.bench.realdata_data.fetch_realdata`
+into ``--cache-dir`` (default ``$JOINTTRACK_DATA`` or ``~/.cache/jointtrack/realdata``).
+
+Scenes (:func:`build_scenes`)
+-----------------------------
+``solent-labels`` / ``solent``
+    Stone Soup's ``SolentAIS_20160112_130211.csv`` (18,623 AIS reports of 91
+    vessels, 86 minutes) reduced exactly as Stone Soup's Solent demo feeds its
+    tracker — its own ``CSVDetectionReader`` → ``TimeSyncFeeder(60 s)`` →
+    ``MetadataReducer("MMSI")``, the latest report of each vessel per minute
+    (:func:`jointtrack.bench.stonesoup_realdata.demo_pipeline_reports`; 3,626
+    reports in 86 scans) — projected to local east/north metres about the
+    reports' centre (:class:`jointtrack.io.geodetic.LocalFrame`). ``solent-labels``
+    gives the trackers the MMSI of each report as a label, ``solent`` does not.
+    Each report keeps its own time; a scan is the feeder's one-minute window.
+    Scored against every report of the file (the vessels' self-reports) at
+    one-minute instants, c = 500 m. ``--quick``: the first 30 scans.
+``adsb``
+    traffic's ``switzerland.json.gz`` (about 17 h, 842 aircraft; ``--quick``:
+    ``quickstart.json.gz``, 3 h, 213 aircraft) through
+    :class:`jointtrack.io.reports.Reports`, seen by a synthetic sensor scanning
+    every 10 s (:func:`scanning_sensor`): at each scan time each aircraft at its
+    reported positions interpolated to that time (not the last report before it:
+    at 250 m/s up to 10 s of lag would be 2.5 km), then each detection kept with
+    probability P_D = 0.9, Poisson clutter of 20 false returns per 10 s scan over
+    the reports' lat/lon box, identities stripped (``Reports.degrade``, seeded),
+    and position noise of 50 m (σ per axis, seeded) added to every row. Every row
+    carries its scan's time. Scored against all the undegraded reports at 10 s instants,
+    c = 500 m.
+
+Detection times. Stone Soup's Solent demo keeps each report's own time (its
+``TimeSyncFeeder`` groups reports but does not re-stamp them), and so does the
+``solent`` scenes' default (``Scene.stamp = "report"``). That is costly for a
+tracker without the label gate: Stone Soup then predicts every track to every
+report's own time — on the first 25 Solent scans ``stonesoup-nn`` took 110 s of
+CPU with own times against 4 s with every report at its scan's time (67 and 69
+track ids). The ``adsb`` scene stamps every report at its scan's time
+(``stamp = "scan"``: a scanning sensor's output, and what jointtrack's
+``Detections`` hold). ``--stamp report|scan`` overrides both.
+
+Runners (:data:`RUNNERS`)
+-------------------------
+``stonesoup-demo`` (labels), ``stonesoup-nn``, ``stonesoup-gnn``, ``stonesoup-jpda``:
+:mod:`jointtrack.bench.stonesoup_realdata` (the configurations and their sources
+are listed there), each in a child process capped at ``--cap`` seconds (600)
+whose RSS is sampled every 0.5 s. jointtrack's runners (``jointtrack-jipda``,
+``jointtrack-pmbm``) are registered with :func:`register_runner`; every runner
+returns a :class:`RunResult` with the same figures.
+
+Figures
+-------
+Wall and CPU time (of the whole run: the child's life for Stone Soup), peak
+RSS, scans done / total, and the scores of
+:func:`jointtrack.metrics.selfreport.score_self_reports` (coverage, purity,
+tracks per identity, identity switches, false tracks per hour, mean GOSPA)
+on every track state the runner reported. ``--out DIR`` writes
+``realdata.json`` (figures, RSS series), each run's track table as CSV,
+``rss_<scene>.png`` (RSS over time) and ``map_<scene>_<runner>.png`` (the
+tracks over the self-reports in lon/lat, :mod:`jointtrack.experiments.map_plot`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from jointtrack._console import make_console
+
+__all__ = [
+    "RUNNERS",
+    "RssSampler",
+    "RunResult",
+    "Scene",
+    "build_scenes",
+    "register_runner",
+    "run",
+    "score_run",
+]
+
+SOLENT_WINDOW = 60.0  # s: the demo's TimeSyncFeeder window, and the scoring instants
+QUICK_SOLENT_SCANS = 30
+ADSB_SCAN = 10.0  # s
+ADSB_NOISE_SD = 50.0  # m, per axis
+ADSB_P_D = 0.9
+ADSB_CLUTTER_PER_SCAN = 20.0
+CUTOFF = 500.0  # m: GOSPA cut-off and association gate of the scores
+MAX_GAP = 600.0  # s: a self-report gap longer than this is not interpolated
+WALL_CAP = 600.0  # s
+SEED = 0
+SCENE_NAMES = ("solent-labels", "solent", "adsb")
+STAMPS = ("report", "scan")
+
+
+@dataclass(eq=False)
+class Scene:
+    """The identical reports every runner gets, and what the scores need.
+
+    ``times`` (R,) s since ``time_origin`` (ISO-8601 UTC); ``positions`` (R, 2)
+    east/north metres in ``frame`` (a :class:`jointtrack.io.geodetic.LocalFrame`);
+    ``labels`` (R,) str (``""`` none) or ``None``; ``scan_index`` (R,) and
+    ``scan_times`` (K,) as :func:`jointtrack.bench.stonesoup_realdata.check_inputs`
+    wants them. ``measurement_noise`` m² per axis, ``p_d``, ``clutter_density``
+    per m² per scan: the sensor as the scene built it (runners that need a sensor
+    model use these). ``truth`` loads ``(times, ids, positions)`` of the
+    self-reports in ``frame`` for the scores.
+    """
+
+    name: str
+    description: str
+    time_origin: str
+    frame: object
+    times: np.ndarray
+    positions: np.ndarray
+    labels: np.ndarray | None
+    scan_index: np.ndarray
+    scan_times: np.ndarray
+    measurement_noise: float
+    p_d: float
+    clutter_density: float
+    window: float
+    truth: Callable[[], tuple]
+    cutoff: float = CUTOFF
+    default_runners: tuple = ()
+    info: dict = field(default_factory=dict)
+    #: the time Stone Soup's Detection objects carry: "report" (each its own, as the
+    #: Solent demo's TimeSyncFeeder leaves them) or "scan" (the scan's time, what a
+    #: scanning sensor reports and what jointtrack's Detections hold)
+    stamp: str = "report"
+
+    def stamps(self, stamp: str | None = None) -> np.ndarray:
+        """Per-report times for Stone Soup under ``stamp`` (default the scene's)."""
+        stamp = self.stamp if stamp is None else stamp
+        if stamp not in STAMPS:
+            raise ValueError(f"stamp must be one of {STAMPS}, got {stamp!r}")
+        return self.times if stamp == "report" else self.scan_times[self.scan_index]
+
+    @property
+    def n_scans(self) -> int:
+        return len(self.scan_times)
+
+    @property
+    def duration(self) -> float:
+        """Seconds from the first scan to the last."""
+        return float(self.scan_times[-1] - self.scan_times[0]) if self.n_scans else 0.0
+
+    def describe(self) -> dict:
+        reference = getattr(self.frame, "reference", None)
+        return {
+            "description": self.description,
+            "time_origin": self.time_origin,
+            "reference_lat_lon_alt": None if reference is None else [float(v) for v in reference],
+            "reports": int(len(self.times)),
+            "scans": self.n_scans,
+            "duration_s": self.duration,
+            "labels": self.labels is not None,
+            "measurement_noise_m2": self.measurement_noise,
+            "p_d": self.p_d,
+            "clutter_density_per_m2_per_scan": self.clutter_density,
+            "score_window_s": self.window,
+            "cutoff_m": self.cutoff,
+            "stonesoup_detection_times": self.stamp,
+            **self.info,
+        }
+
+
+@dataclass(eq=False)
+class RunResult:
+    """One runner on one scene: costs, the track table (every reported track state) and
+    the scores. Times in seconds, memory in bytes; ``error`` says why a run has no
+    tracks."""
+
+    runner: str
+    scene: str
+    wall: float
+    cpu: float
+    peak_rss: int
+    scans_done: int
+    scans_total: int
+    rss_times: np.ndarray
+    rss: np.ndarray
+    track_times: np.ndarray
+    track_ids: np.ndarray
+    track_positions: np.ndarray
+    stopped_by: str | None = None
+    error: str | None = None
+    details: dict = field(default_factory=dict)
+    score: dict | None = None
+    score_error: str | None = None
+
+    @property
+    def completed(self) -> bool:
+        return self.error is None and self.scans_done == self.scans_total
+
+    def as_dict(self) -> dict:
+        return {
+            "runner": self.runner,
+            "scene": self.scene,
+            "wall_s": round(self.wall, 3),
+            "cpu_s": round(self.cpu, 3),
+            "peak_rss_bytes": int(self.peak_rss),
+            "scans_done": self.scans_done,
+            "scans_total": self.scans_total,
+            "completed": self.completed,
+            "stopped_by": self.stopped_by,
+            "error": self.error,
+            "n_track_ids": int(len(np.unique(self.track_ids))),
+            "n_track_states": int(len(self.track_ids)),
+            "details": self.details,
+            "score": self.score,
+            "score_error": self.score_error,
+            "rss_series": {
+                "t_s": [round(float(v), 2) for v in self.rss_times],
+                "rss_bytes": [int(v) for v in self.rss],
+            },
+        }
+
+
+class RssSampler:
+    """Sample this process's RSS every ``poll`` seconds in a background thread.
+
+    For runners measured in-process: ``with RssSampler() as s: ...`` then
+    ``s.times`` (s since entry), ``s.rss`` (bytes) and ``s.peak`` (the largest
+    sample, and the process's peak RSS so far from ``getrusage`` — which includes
+    whatever ran before in this process, so prefer a fresh process for peaks).
+    """
+
+    def __init__(self, poll: float = 0.5):
+        self.poll = float(poll)
+        self.times: list = []
+        self.rss: list = []
+        self._stop = threading.Event()
+
+    def _sample(self):
+        import psutil
+
+        me = psutil.Process()
+        while True:
+            self.times.append(time.perf_counter() - self._t0)
+            self.rss.append(me.memory_info().rss)
+            if self._stop.wait(self.poll):
+                return
+
+    def __enter__(self):
+        self._t0 = time.perf_counter()
+        self._thread = threading.Thread(target=self._sample, daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+        return False
+
+    @property
+    def peak(self) -> int:
+        import resource
+
+        return max([*self.rss, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024])
+
+
+# --------------------------------------------------------------------------- scenes
+
+
+def truth_arrays(truth) -> tuple:
+    """``(times, ids, positions (R, 2))`` from ``Reports.truth(frame)``, which returns the
+    three arrays and the identity → truth id dict (as ``((t, ids, xy), dict)`` or
+    ``(t, ids, xy, dict)``)."""
+    if len(truth) == 2:
+        truth = truth[0]
+    t, ids, xy = truth[:3]
+    xy = np.asarray(xy, dtype=np.float64)
+    return np.asarray(t, dtype=np.float64), np.asarray(ids, dtype=np.int64), xy[:, :2]
+
+
+def _local_frame_about(lat, lon):
+    """The local east/north frame about the data's centre (jointtrack.io.geodetic)."""
+    from jointtrack.io.geodetic import LocalFrame
+
+    return LocalFrame.centre(np.asarray(lat), np.asarray(lon))
+
+
+def solent_scenes(path, *, quick: bool = False) -> list[Scene]:
+    """``solent-labels`` and ``solent`` (module docstring) from the Solent AIS CSV."""
+    from jointtrack.bench.stonesoup_realdata import demo_pipeline_reports
+
+    d = demo_pipeline_reports(path, window=SOLENT_WINDOW)
+    times, scan_index, scan_times = d["times"], d["scan_index"], d["scan_times"]
+    lat, lon, labels = d["lat"], d["lon"], d["labels"]
+    if quick:
+        keep = scan_index < QUICK_SOLENT_SCANS
+        times, lat, lon = times[keep], lat[keep], lon[keep]
+        labels, scan_index = labels[keep], scan_index[keep]
+        scan_times = scan_times[:QUICK_SOLENT_SCANS]
+    frame = _local_frame_about(lat, lon)
+    positions = np.asarray(frame.to_local(lat, lon), dtype=np.float64)[:, :2]
+    last = float(scan_times[-1])
+
+    def truth():
+        from jointtrack.io.reports import read_ais_csv
+
+        t, ids, xy = truth_arrays(read_ais_csv(path).truth(frame))
+        keep = t <= last
+        return t[keep], ids[keep], np.asarray(xy)[keep, :2]
+
+    info = {
+        "data": Path(path).name,
+        "raw_reports": int(d["n_raw"]),
+        "vessels": int(len(set(labels.tolist()))),
+        "reduction": "Stone Soup TimeSyncFeeder(60 s) + MetadataReducer('MMSI')",
+    }
+    common = dict(
+        time_origin=d["time_origin"],
+        frame=frame,
+        times=times,
+        positions=positions,
+        scan_index=scan_index,
+        scan_times=scan_times,
+        measurement_noise=15.0,  # the demo's LinearGaussian diag(15, 15)
+        p_d=1.0,
+        clutter_density=0.0,
+        window=SOLENT_WINDOW,
+        truth=truth,
+        info=info,
+    )
+    return [
+        Scene(
+            name="solent-labels",
+            description="Solent AIS, demo pipeline (60 s), MMSI labels given",
+            labels=labels,
+            default_runners=("jointtrack-jipda", "stonesoup-demo"),
+            **common,
+        ),
+        Scene(
+            name="solent",
+            description="Solent AIS, demo pipeline (60 s), no labels",
+            labels=None,
+            default_runners=("jointtrack-jipda", "jointtrack-pmbm", "stonesoup-nn"),
+            **common,
+        ),
+    ]
+
+
+def scanning_sensor(reports, frame, scan: float, max_gap: float):
+    """What a sensor scanning every ``scan`` seconds sees of self-reporting targets.
+
+    Scan times are the windows' ends of ``reports.window_index(scan)`` (the first
+    report's time, then every ``scan`` seconds). At each scan time every identity
+    is seen at its reported position linearly interpolated in the local ``frame``
+    between its two reports around that time — the same reference the scores use
+    (:mod:`jointtrack.metrics.selfreport`) — if those two reports are at most
+    ``max_gap`` seconds apart (or one falls on the scan time); outside its reports'
+    span an identity is not seen. Returns ``(Reports at the scan times, in lat/lon
+    with identities, scan_times)``.
+    """
+    from jointtrack.io.reports import Reports
+
+    _, scan_times = reports.window_index(scan)
+    scan_times = np.asarray(scan_times, dtype=np.float64)
+    xy = np.asarray(frame.to_local(reports.lat, reports.lon), dtype=np.float64)[:, :2]
+    ident = reports.identity
+    has = np.flatnonzero(ident != "")
+    order = has[np.argsort(ident[has], kind="stable")]  # by identity, then time
+    names, starts = np.unique(ident[order], return_index=True)
+    bounds = np.r_[starts, len(order)]
+    out_t, out_xy, out_id = [], [], []
+    for n, name in enumerate(names):
+        rows = order[bounds[n] : bounds[n + 1]]
+        tau, p = reports.times[rows], xy[rows]
+        lo = np.searchsorted(scan_times, tau[0], side="left")
+        hi = np.searchsorted(scan_times, tau[-1], side="right")
+        t = scan_times[lo:hi]
+        if not t.size:
+            continue
+        after = np.minimum(np.searchsorted(tau, t, side="left"), len(tau) - 1)
+        before = np.maximum(np.searchsorted(tau, t, side="right") - 1, 0)
+        seen = (tau[after] == t) | (tau[after] - tau[before] <= max_gap)
+        t = t[seen]
+        out_t.append(t)
+        out_xy.append(np.column_stack([np.interp(t, tau, p[:, 0]), np.interp(t, tau, p[:, 1])]))
+        out_id.append(np.full(t.size, name))
+    t = np.concatenate(out_t) if out_t else np.zeros(0)
+    ids = np.concatenate(out_id) if out_id else np.zeros(0, dtype=str)
+    pos = np.concatenate(out_xy) if out_xy else np.zeros((0, 2))
+    by_time = np.lexsort((ids, t))
+    lat, lon = frame.to_geodetic(pos[by_time])[:2]
+    sensor = Reports(
+        times=t[by_time],
+        time_origin=reports.time_origin,
+        lat=lat,
+        lon=lon,
+        identity=ids[by_time],
+        source=reports.source,
+    )
+    return sensor, scan_times
+
+
+def adsb_scene(path, *, seed: int = SEED) -> Scene:
+    """``adsb`` (module docstring) from a traffic records file, via jointtrack.io.reports."""
+    from jointtrack.io.reports import read_traffic_records
+
+    reports = read_traffic_records(path)
+    frame = reports.frame()
+    sensor, scan_times = scanning_sensor(reports, frame, ADSB_SCAN, MAX_GAP)
+    degraded = sensor.degrade(
+        p_d=ADSB_P_D,
+        # io.reports counts clutter in false reports per second of data
+        clutter_rate=ADSB_CLUTTER_PER_SCAN / ADSB_SCAN,
+        seed=seed,
+        strip_identities=True,
+    )
+    # aircraft rows sit on a scan time; a clutter row belongs to the scan whose window
+    # (previous scan time, scan time] holds it — counted in whole nanoseconds
+    w_ns = round(ADSB_SCAN * 1e9)
+    t0_ns = round(float(scan_times[0]) * 1e9)
+    rel = np.round(degraded.times * 1e9).astype(np.int64) - t0_ns
+    scan_index = np.where(
+        degraded.is_clutter,
+        -(-rel // w_ns),
+        np.round((degraded.times - scan_times[0]) / ADSB_SCAN).astype(np.int64),
+    )
+    scan_index = np.clip(scan_index, 0, len(scan_times) - 1)
+    order = np.argsort(scan_index, kind="stable")
+    scan_index = scan_index[order]
+    positions = np.asarray(frame.to_local(degraded.lat, degraded.lon), dtype=np.float64)
+    positions = positions[order, :2]
+    is_clutter = degraded.is_clutter[order]
+    # the synthetic sensor's noise, on every row (clutter too), the same for every runner
+    rng = np.random.default_rng([seed, 24])
+    positions = positions + rng.normal(0.0, ADSB_NOISE_SD, positions.shape)
+    n_clutter = int(np.count_nonzero(is_clutter))
+    # clutter density from the false rows themselves: over the box they were drawn in
+    clutter_xy = positions[is_clutter]
+    box = float(np.prod(np.ptp(clutter_xy, axis=0))) if n_clutter > 1 else 0.0
+    clutter_density = n_clutter / (len(scan_times) * box) if box > 0 else 1e-12
+    times = scan_times[scan_index]
+
+    def truth():
+        t, ids, xy = truth_arrays(reports.truth(frame))
+        return t, ids, xy
+
+    return Scene(
+        name="adsb",
+        description=(
+            f"ADS-B {Path(path).name}: identities stripped, P_D {ADSB_P_D}, "
+            f"{ADSB_CLUTTER_PER_SCAN:g} false returns per {ADSB_SCAN:g} s scan, "
+            f"{ADSB_NOISE_SD:g} m noise (seed {seed})"
+        ),
+        time_origin=degraded.time_origin,
+        frame=frame,
+        times=times,
+        positions=positions,
+        labels=None,
+        scan_index=scan_index,
+        scan_times=scan_times,
+        measurement_noise=ADSB_NOISE_SD**2,
+        stamp="scan",
+        p_d=ADSB_P_D,
+        clutter_density=float(clutter_density),
+        window=ADSB_SCAN,
+        truth=truth,
+        default_runners=(
+            "jointtrack-jipda",
+            "jointtrack-pmbm",
+            "stonesoup-gnn",
+            "stonesoup-jpda",
+        ),
+        info={
+            "data": Path(path).name,
+            "raw_reports": int(len(reports.times)),
+            "aircraft": int(len(set(reports.identity.tolist()) - {""})),
+            "sensor_detections": int(len(sensor.times)),
+            "clutter_rows": n_clutter,
+            "seed": seed,
+        },
+    )
+
+
+def build_scenes(names, paths: dict, *, quick: bool = False, seed: int = SEED) -> list[Scene]:
+    """The scenes called ``names`` (of :data:`SCENE_NAMES`) from the fetched files."""
+    unknown = [n for n in names if n not in SCENE_NAMES]
+    if unknown:
+        raise ValueError(f"scene must be among {SCENE_NAMES}, got {unknown}")
+    scenes = []
+    if {"solent", "solent-labels"} & set(names):
+        scenes += [s for s in solent_scenes(paths["solent_ais"], quick=quick) if s.name in names]
+    if "adsb" in names:
+        scenes.append(adsb_scene(paths["quickstart" if quick else "switzerland"], seed=seed))
+    return scenes
+
+
+# --------------------------------------------------------------------------- runners
+
+
+def _stonesoup_runner(config: str):
+    def runner(
+        scene: Scene, *, wall_cap: float, workdir=None, progress=None, stamp=None
+    ) -> RunResult:
+        from jointtrack.bench.stonesoup_realdata import run_stonesoup
+
+        if config == "demo" and scene.labels is None:
+            raise ValueError(f"stonesoup-demo gates on labels; scene {scene.name!r} has none")
+        r = run_stonesoup(
+            config,
+            scene.stamps(stamp),
+            scene.positions,
+            scene.labels if config == "demo" else None,
+            scene.scan_index,
+            scene.scan_times,
+            measurement_noise=scene.measurement_noise,
+            p_d=scene.p_d,
+            clutter_density=scene.clutter_density,
+            wall_cap=wall_cap,
+            workdir=workdir,
+            progress=progress,
+        )
+        return RunResult(
+            runner=f"stonesoup-{config}",
+            scene=scene.name,
+            wall=r.wall,
+            cpu=r.cpu,
+            peak_rss=r.peak_rss,
+            scans_done=r.scans_done,
+            scans_total=r.scans_total,
+            rss_times=r.rss_times,
+            rss=r.rss,
+            track_times=r.track_times,
+            track_ids=r.track_ids,
+            track_positions=r.track_positions,
+            stopped_by=r.stopped_by,
+            error=r.error,
+            details={
+                "detection_times": scene.stamp if stamp is None else stamp,
+                "loop_wall_s": r.loop_wall,
+                "loop_cpu_s": r.loop_cpu,
+                "measured": "child process: wall = its life, CPU = wait4 user+system, "
+                "peak RSS = max(VmHWM, 0.5 s samples)",
+            },
+        )
+
+    runner.__name__ = f"run_stonesoup_{config}"
+    return runner
+
+
+#: name → runner(scene, *, wall_cap, workdir=None, progress=None) -> RunResult
+RUNNERS: dict[str, Callable] = {
+    f"stonesoup-{c}": _stonesoup_runner(c) for c in ("demo", "nn", "gnn", "jpda")
+}
+
+
+def register_runner(name: str, runner: Callable) -> None:
+    """Add (or replace) a runner ``runner(scene, *, wall_cap, workdir=None, progress=None)``
+    returning a :class:`RunResult`."""
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"name must be a non-empty string, got {name!r}")
+    if not callable(runner):
+        raise TypeError(f"runner must be callable, got {type(runner).__name__}")
+    RUNNERS[name] = runner
+
+
+# --------------------------------------------------------------------------- scores
+
+
+def score_run(scene: Scene, result: RunResult, truth=None) -> RunResult:
+    """Fill ``result.score`` with :func:`jointtrack.metrics.selfreport.score_self_reports`
+    of its track table against the scene's self-reports (``truth``: the scene's, loaded
+    once by the caller and passed in to save reloading), over the scans the run
+    completed; ``result.score_error`` says why when it cannot be scored."""
+    try:
+        from jointtrack.metrics.selfreport import score_self_reports
+    except ImportError as exc:
+        result.score_error = f"jointtrack.metrics.selfreport unavailable ({exc})"
+        return result
+    if result.error is not None and not len(result.track_ids):
+        result.score_error = "no tracks (the run failed)"
+        return result
+    if not result.scans_done:
+        result.score_error = "no scan completed"
+        return result
+    try:
+        t, ids, xy = scene.truth() if truth is None else truth
+    except ImportError as exc:
+        result.score_error = f"self-reports unavailable ({exc})"
+        return result
+    end = float(scene.scan_times[result.scans_done - 1])
+    keep = t <= end
+    score = score_self_reports(
+        t[keep],
+        ids[keep],
+        xy[keep],
+        result.track_times,
+        result.track_ids,
+        result.track_positions,
+        window=scene.window,
+        c=scene.cutoff,
+        max_gap=MAX_GAP,
+        duration=max(end - float(scene.scan_times[0]), scene.window),
+        t0=float(scene.scan_times[0]),
+    )
+    result.score = score.as_dict()
+    result.score.pop("per_identity", None)  # large; the per-run CSVs allow recomputing it
+    return result
+
+
+# --------------------------------------------------------------------------- output
+
+#: (column title, score key, format)
+SCORE_COLUMNS = (
+    ("coverage", "coverage", ".3f"),
+    ("purity", "purity", ".3f"),
+    ("tracks / id", "tracks_per_identity", ".2f"),
+    ("switches", "n_id_switches", "d"),
+    ("false tracks / h", "false_tracks_per_hour", ".1f"),
+    ("GOSPA", "gospa_mean", ".0f"),
+)
+
+
+def table(results: list[RunResult], title: str = "real data"):
+    """The side-by-side rich table of the runs."""
+    from rich.table import Table
+
+    t = Table(title=title)
+    for col in ("scene", "runner", "scans", "wall s", "CPU s", "peak RSS MiB"):
+        t.add_column(col, justify="left" if col in ("scene", "runner") else "right")
+    for name, _, _ in SCORE_COLUMNS:
+        t.add_column(name, justify="right")
+    for r in results:
+        scans = f"{r.scans_done}/{r.scans_total}" + (f" ({r.stopped_by})" if r.stopped_by else "")
+        row = [r.scene, r.runner, scans, f"{r.wall:.1f}", f"{r.cpu:.1f}"]
+        row.append(f"{r.peak_rss / 2**20:.0f}" if r.peak_rss else "—")
+        for _, key, fmt in SCORE_COLUMNS:
+            v = None if r.score is None else r.score.get(key)
+            row.append(
+                "—" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
+            )
+        t.add_row(*row)
+    return t
+
+
+def plot_rss(results: list[RunResult], path) -> Path:
+    """RSS over time of each run of one scene (matplotlib, Agg)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
+    for r in results:
+        if len(r.rss):
+            ax.plot(
+                r.rss_times,
+                np.asarray(r.rss) / 2**20,
+                label=f"{r.runner} ({r.scans_done}/{r.scans_total} scans)",
+            )
+    ax.set_xlabel("seconds since the run started")
+    ax.set_ylabel("RSS (MiB)")
+    ax.set_title(f"{results[0].scene}: resident memory")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_map(scene: Scene, result: RunResult, truth, path) -> Path | None:
+    """A run's tracks over the self-reports in lon/lat
+    (:func:`jointtrack.experiments.map_plot.plot_track_map`); ``None`` (nothing drawn)
+    when that module is not available."""
+    try:
+        from jointtrack.experiments.map_plot import plot_track_map
+    except ImportError:
+        return None
+    _, ids, xy = truth
+    report_lat, report_lon = scene.frame.to_geodetic(xy)[:2]
+    track_lat, track_lon = scene.frame.to_geodetic(result.track_positions)[:2]
+    plot_track_map(
+        Path(path),
+        report_lat,
+        report_lon,
+        track_lat,
+        track_lon,
+        result.track_ids,
+        title=f"{scene.name}: {result.runner} ({len(np.unique(result.track_ids))} track ids)",
+        report_ids=ids,
+        track_times=result.track_times,
+    )
+    return Path(path)
+
+
+def _write_tracks(result: RunResult, path: Path) -> None:
+    data = np.column_stack([result.track_times, result.track_ids, result.track_positions])
+    np.savetxt(
+        path,
+        data,
+        delimiter=",",
+        header="time,track_id,x,y",
+        comments="",
+        fmt=["%.6f", "%d", "%.3f", "%.3f"],
+    )
+
+
+# --------------------------------------------------------------------------- run
+
+
+def run(
+    quick: bool = False,
+    out: str | None = None,
+    *,
+    scenes=("solent-labels", "solent", "adsb"),
+    runners=None,
+    cache_dir=None,
+    wall_cap: float = WALL_CAP,
+    seed: int = SEED,
+    stamp: str | None = None,
+    console=None,
+) -> dict:
+    """Fetch the data, build the scenes, run the runners, score, print and write.
+
+    ``runners`` (names of :data:`RUNNERS`) restricts every scene to those among
+    its defaults (``None``: all of them); a named runner that is no built scene's
+    default runs on every scene (e.g. ``stonesoup-nn`` on ``adsb``). A runner that is not
+    registered (jointtrack's, until the benchmark script registers them) is
+    listed as not run. ``stamp`` (``"report"`` / ``"scan"``) overrides every scene's
+    :attr:`Scene.stamp` for the Stone Soup runners. Returns the results as a JSON-ready
+    dict; with ``out``
+    also writes ``out/realdata.json``, ``out/tracks_<scene>_<runner>.csv`` and
+    ``out/rss_<scene>.png``.
+    """
+    from jointtrack._console import progress_bar
+    from jointtrack.bench.realdata_data import fetch_realdata
+
+    if stamp is not None and stamp not in STAMPS:
+        raise ValueError(f"stamp must be one of {STAMPS}, got {stamp!r}")
+    console = console or make_console()
+    paths = fetch_realdata(cache_dir, progress=console.print)
+    built = build_scenes(list(scenes), paths, quick=quick, seed=seed)
+    folder = Path(out) if out else None
+    if folder:
+        folder.mkdir(parents=True, exist_ok=True)
+    report: dict = {
+        "quick": quick,
+        "wall_cap_s": wall_cap,
+        "seed": seed,
+        "stamp": stamp,
+        "scenes": {},
+    }
+    all_results: list[RunResult] = []
+    defaults = {r for scene in built for r in scene.default_runners}
+    for scene in built:
+        wanted = [r for r in scene.default_runners if runners is None or r in runners]
+        if runners is not None:  # a runner no built scene has by default runs on every scene
+            wanted += [r for r in runners if r not in wanted and r not in defaults]
+        not_run = {r: "not registered" for r in wanted if r not in RUNNERS}
+        if scene.labels is None and "stonesoup-demo" in wanted:
+            not_run["stonesoup-demo"] = "gates on labels; this scene has none"
+        todo = [r for r in wanted if r not in not_run]
+        entry = {"scene": scene.describe(), "runs": {}, "not_run": not_run}
+        ref = entry["scene"]["reference_lat_lon_alt"]
+        console.print(
+            f"[bold]{scene.name}[/]: {scene.description}; {len(scene.times)} reports "
+            f"in {scene.n_scans} scans"
+            + (f"; local frame about {ref[0]:.5f}°N {ref[1]:.5f}°E" if ref else "")
+        )
+        truth = None
+        results = []
+        for name in todo:
+            with progress_bar(console, transient=True) as bar:
+                task = bar.add_task(f"{scene.name}: {name}", total=scene.n_scans)
+
+                def progress(done, total, _task=task, _bar=bar):
+                    _bar.update(_task, completed=done)
+
+                extra = (
+                    {"stamp": stamp} if stamp is not None and name.startswith("stonesoup-") else {}
+                )
+                try:
+                    result = RUNNERS[name](scene, wall_cap=wall_cap, progress=progress, **extra)
+                except NotImplementedError as exc:
+                    not_run[name] = f"not implemented: {exc}"
+                    continue
+            if result.error:
+                console.print(f"  {name}: {result.error}", markup=False)
+            if truth is None:
+                try:
+                    truth = scene.truth()
+                except ImportError:
+                    pass  # score_run says why
+            score_run(scene, result, truth)
+            results.append(result)
+            entry["runs"][name] = result.as_dict()
+            if folder:
+                _write_tracks(result, folder / f"tracks_{scene.name}_{name}.csv")
+                if truth is not None and len(result.track_ids):
+                    png = plot_map(scene, result, truth, folder / f"map_{scene.name}_{name}.png")
+                    entry["runs"][name]["map_png"] = None if png is None else png.name
+        if folder and results:
+            entry["rss_png"] = plot_rss(results, folder / f"rss_{scene.name}.png").name
+        if not_run:
+            console.print(f"  not run: {not_run}", markup=False)
+        report["scenes"][scene.name] = entry
+        all_results += results
+    console.print(table(all_results))
+    unscored = {r.score_error for r in all_results if r.score_error}
+    for reason in unscored:
+        console.print(f"not scored: {reason}", markup=False)
+    if folder:
+        (folder / "realdata.json").write_text(json.dumps(report, indent=1))
+        console.print(f"wrote {folder / 'realdata.json'}")
+    return report
