@@ -1,42 +1,13 @@
 """Real AIS / ADS-B data, jointtrack beside Stone Soup; see jointtrack.bench.realdata.
 
-Same as `jointtrack bench realdata`, plus jointtrack's own runners registered here.
+Same as `jointtrack bench realdata` (the runners, jointtrack's and Stone Soup's, live in
+jointtrack.bench.realdata; jointtrack-pmbm has no real-data runner yet and is listed as
+not run).
 """
 
 import argparse
 
 from jointtrack.bench import realdata
-
-
-def run_jointtrack(scene, *, tracker="jipda", wall_cap, workdir=None, progress=None):
-    """jointtrack on ``scene`` → :class:`jointtrack.bench.realdata.RunResult`.
-
-    COORDINATOR (issue 24): not written yet — it needs the merged asynchronous
-    reporting mode (TrackerConfig.report_interval, p_survive_interval, max_coast;
-    JPDATracker.step(t, z, labels=...)) and the PMBM equivalent. Once merged:
-    build one scan per ``scene.scan_times[k]`` from the rows with
-    ``scene.scan_index == k`` (``scene.labels`` as ``labels=`` when not None),
-    configure from ``scene.measurement_noise``, ``scene.p_d``,
-    ``scene.clutter_density`` and the reporting rate, run with history on (or
-    collect confirmed tracks per scan) inside
-    ``realdata.RssSampler()`` — preferably in a fresh process for an honest peak
-    RSS — stop at ``wall_cap`` seconds, and return a RunResult whose track table
-    holds every confirmed track's (time, id, x, y) per scan.
-    """
-    raise NotImplementedError(
-        f"jointtrack-{tracker} on real data awaits the asynchronous-reporting tracker "
-        "(issue 24 item 2); see benchmarks/realdata.py run_jointtrack"
-    )
-
-
-def _jointtrack(tracker):
-    def runner(scene, *, wall_cap, workdir=None, progress=None):
-        return run_jointtrack(
-            scene, tracker=tracker, wall_cap=wall_cap, workdir=workdir, progress=progress
-        )
-
-    return runner
-
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__)
@@ -51,8 +22,6 @@ if __name__ == "__main__":
     parser.add_argument("--seed", type=int, default=realdata.SEED)
     parser.add_argument("--stamp", choices=realdata.STAMPS, help="Stone Soup's detection times")
     args = parser.parse_args()
-    for name in ("jipda", "pmbm"):
-        realdata.register_runner(f"jointtrack-{name}", _jointtrack(name))
     scenes = realdata.SCENE_NAMES if not args.scene or "all" in args.scene else args.scene
     realdata.run(
         quick=args.quick,

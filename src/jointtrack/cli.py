@@ -18,6 +18,8 @@ app = typer.Typer(
 )
 bench_app = typer.Typer(help="Benchmarks against the peer libraries, timed in the same run.")
 app.add_typer(bench_app, name="bench")
+data_app = typer.Typer(help="Public real data (AIS, ADS-B) for runs and benchmarks.")
+app.add_typer(data_app, name="data")
 
 
 def _version(value: bool) -> None:
@@ -78,6 +80,27 @@ def bench_quality(
     JPDA tracker on the same detections: time to confirm, targets held, false tracks, GOSPA
     and its parts per scan (PNG with --out)."""
     _run_bench("quality", quick, out)
+
+
+@data_app.command("fetch")
+def data_fetch(
+    cache: str = typer.Option(
+        None,
+        "--cache",
+        help="Folder for the data (default $JOINTTRACK_DATA or ~/.cache/jointtrack).",
+    ),
+) -> None:
+    """Download (pip download, ~50 MB) and check the public samples: Solent AIS and OpenSky
+    states from Stone Soup 1.9.1's source, quickstart and switzerland ADS-B from traffic 2.13;
+    prints each file's path (CACHE/extracted/…)."""
+    from jointtrack.bench.realdata_data import RealDataError, fetch_realdata
+
+    try:
+        paths = fetch_realdata(cache, progress=lambda line: typer.echo(line, err=True))
+    except RealDataError as exc:
+        _fail(exc, code=1)
+    for name, path in paths.items():
+        typer.echo(f"{name}: {path}")
 
 
 @bench_app.command("realdata")

@@ -558,6 +558,15 @@ RUNNERS: dict[str, Callable] = {
 }
 
 
+def _run_jointtrack(scene: Scene, *, wall_cap: float, workdir=None, progress=None):
+    from jointtrack.bench.jointtrack_realdata import run_jointtrack
+
+    return run_jointtrack(scene, wall_cap=wall_cap, workdir=workdir, progress=progress)
+
+
+RUNNERS["jointtrack-jipda"] = _run_jointtrack
+
+
 def register_runner(name: str, runner: Callable) -> None:
     """Add (or replace) a runner ``runner(scene, *, wall_cap, workdir=None, progress=None)``
     returning a :class:`RunResult`."""
