@@ -169,12 +169,14 @@ import logging
 import math
 import os
 import time
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from jointtrack.errors import CoincidentReturnsWarning
 from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     _METRIC_KEYS,
     _TABLES,
@@ -756,6 +758,11 @@ def _run(
         tracker_log.setLevel(logging.ERROR)
         loop0 = time.perf_counter()
         n_done = 0
+        # likewise a warning per scan with exactly repeated returns (real data repeats
+        # reports): counted in coincident_returns, one note after the run
+        repeats = warnings.catch_warnings()
+        repeats.__enter__()
+        warnings.simplefilter("ignore", CoincidentReturnsWarning)
         try:
             with progress_bar(console, unit="scans", enabled=progress, remaining=True) as bar:
                 task = bar.add_task("tracking", total=stop, completed=start)
@@ -826,10 +833,17 @@ def _run(
         finally:
             writer.close()
             tracker_log.setLevel(saved_level)
+            repeats.__exit__(None, None, None)
     except BaseException:
         if not checkpointed[0]:
             writer.discard_parts()
         raise
+
+    if coincident[0]:
+        notes.append(
+            f"{coincident[0]} return(s) repeated another return of their scan exactly "
+            "(identical measurement vectors) and were treated as one"
+        )
 
     # ------------------------------------------------------------ metrics
     tracks = writer.table()
