@@ -276,3 +276,18 @@ def test_start_tracks_with_a_time_sets_the_clock_so_the_next_scan_predicts():
     assert b.step(5.0, np.array([[50.0, 0.0]])).x[0, 0] < 45.0
     with pytest.raises(ValueError, match="differs from the tracker's clock"):
         a.start_tracks(x0, P0, time=1.0)
+
+
+def test_approximated_clusters_log_one_line_and_are_counted(caplog):
+    """Issue 24: a long run logs the first approximated cluster of a kind, then counts."""
+    trk = JPDATracker(TrackerConfig(clutter_density=1e-4, exact_max_tracks=2))
+    x0 = np.array([[0.0, 0, 1, 0], [5.0, 0, 1, 0], [10.0, 0, 1, 0]])
+    trk.start_tracks(x0, np.diag([100.0, 100, 1, 1]))
+    n = 6
+    with caplog.at_level(logging.WARNING, logger="jointtrack.tracker"):
+        for k in range(1, n + 1):
+            r = trk.step(float(k), np.array([[k, 0.0], [5.0 + k, 0], [10.0 + k, 0]]))
+            assert r.cluster_methods == ["lbp"]
+    lines = [rec for rec in caplog.records if "cluster of 3 confirmed tracks" in rec.message]
+    assert len(lines) == 1 and "fallback_counts" in lines[0].message
+    assert trk.fallback_counts == {"exact_max_tracks": n}

@@ -521,18 +521,34 @@ class ScanTracker:
             self._log_fallback(len(Lc), Lc.shape[1], loud, res.reason, res.method)
         return res.beta, res.method, res.reason, _time.perf_counter() - t0
 
-    @staticmethod
-    def _log_fallback(n, m, loud, reason, method):
-        (log.warning if loud else log.debug)(
+    def _log_fallback(self, n, m, loud, reason, method):
+        """Count a cluster the configured method did not solve; log the first of each kind.
+
+        One WARNING line per kind of reason and track (confirmed clusters; tentative
+        ones at DEBUG), then DEBUG only: a long run would otherwise log one line per
+        approximated cluster. :attr:`fallback_counts` holds the counts.
+        """
+        key = reason.split(":", 1)[0].split(";", 1)[0] + ("" if loud else ", tentative tracks")
+        counts = self.__dict__.setdefault("_fallbacks", {})
+        counts[key] = counts.get(key, 0) + 1
+        first = counts[key] == 1 and loud
+        (log.warning if first else log.debug)(
             "%s association of a cluster of %d %s tracks and %d measurements not used "
-            "(%s): used %s",
+            "(%s): used %s%s",
             "the configured" if reason.startswith("dense_budget") else "exact",
             n,
             "confirmed" if loud else "tentative",
             m,
             reason,
             method,
+            "; further such clusters are counted in fallback_counts, not logged" if first else "",
         )
+
+    @property
+    def fallback_counts(self) -> dict:
+        """Clusters solved by the approximation instead of the configured method since
+        this tracker was built, by reason (``", tentative tracks"`` marks tentative ones)."""
+        return dict(self.__dict__.get("_fallbacks", {}))
 
     # -------------------------------------------------------------- history
     def history(self) -> TrackHistory:
