@@ -109,7 +109,7 @@ def run_reports(
     labels : one of :data:`LABEL_MODES`.
     score_window, score_c : the scoring window (s; default ``window`` or 60)
         and GOSPA cut-off (m; default 500 for AIS, 2000 for ADS-B). The
-        tracks file holds the tracks at the last scan before each multiple of
+        tracks file holds the tracks at the last scan at or before each multiple of
         the scoring window (``output_interval`` in ``options`` to change it).
     options : as :func:`~jointtrack.experiments.run.run_detections`
         (``checkpoint``, ``resume``, ``max_scans``, ``console``, ``plots``, …).
