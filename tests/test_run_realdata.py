@@ -301,6 +301,9 @@ def test_ais_run_writes_lat_lon_tracks_scored_against_the_reports(data, full_ais
     assert s["tracks_per_identity"] == 1.0 and s["n_id_switches"] == 0
     assert all(v["tracks"] == 1 for v in s["per_identity"].values())
     assert s["n_false_tracks"] == 0 and m["tracks"]["n_tracks"] == len(SHIPS[1])
+    # counted at the scans whose tracks are written: the six ships are held throughout
+    assert m["tracks"]["max_confirmed_per_scan"] == len(SHIPS[1])
+    assert m["tracks"]["mean_confirmed_per_scan"] > 0.8 * len(SHIPS[1])
     # independently of the scoring: every track row is on one ship, one id per MMSI
     _one_track_per_identity(tracks, SHIPS[1], *SHIPS[0], tol=60.0, shift=rows[0][0])
     # one scan per report time; tracks written once per 60 s scoring window
@@ -394,6 +397,7 @@ def test_adsb_files_give_one_track_per_aircraft(data, name, movers, shift):
         (["--window", "-1"], ["--window", "-1"]),
         (["--window", "nan"], ["--window", "nan"]),
         (["--window", "inf"], ["--window", "inf"]),
+        (["--window", "1e-6"], ["window", "1e-06", "scans", "longer window"]),
         (["--labels", "foo"], ["--labels", "foo", "associate"]),
         (["--reference", "abc"], ["--reference", "abc"]),
         (["--reference", "95,0"], ["--reference", "95"]),

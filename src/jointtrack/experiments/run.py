@@ -840,6 +840,13 @@ def _run(
     # ------------------------------------------------------------ metrics
     tracks = writer.table()
     scan_times = src.times[:stop]
+    output_times = None  # the scans whose tracks are written, when not all of them
+    if output_interval is not None:
+        output_times = [
+            float(src.times[k])
+            for k in range(stop)
+            if _last_in_window(src.times, k, output_interval)
+        ]
     metrics, series, truth = _run_metrics(
         src,
         cfg,
@@ -852,6 +859,7 @@ def _run(
         elapsed_before + loop_seconds,
         metrics_opts,
         notes,
+        output_times=output_times,
     )
 
     if particle is not None:
