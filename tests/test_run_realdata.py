@@ -19,6 +19,7 @@ import signal
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 
+import matplotlib.image
 import numpy as np
 import pymap3d
 import pytest
@@ -140,14 +141,17 @@ def write_ais(path, seed=0, bad_latitude=None):
 
 
 def write_opensky(path, span=480.0):
-    """OpenSky state vectors every 10 s (Unix seconds), one state without a position."""
+    """OpenSky state vectors every 10 s (Unix seconds), one state without a position.
+    Returns the positions written ``(lat, lon)``."""
     (lat0, lon0), planes = PLANES_OPENSKY
     t0 = 1626098400
     lines = [OPENSKY_HEADER]
+    written = []
     for k in range(int(span // 10)):
         t = 10.0 * k
         for p in planes:
             lat, lon = p.geodetic([t], lat0, lon0)
+            written.append((float(lat[0]), float(lon[0])))
             lines.append(
                 f"{t0 + int(t)},{p.ident},{float(lat[0])!r},{float(lon[0])!r},{p.speed},"
                 f"{p.course},0.0,"
@@ -156,10 +160,12 @@ def write_opensky(path, span=480.0):
             )
     lines.append(f"{t0 + 20},3c4591,,,,,,BOX3c4  ,False,False,False,,,,,")  # no position
     path.write_text("\n".join(lines) + "\n")
+    return written
 
 
 def write_traffic(path, seed=3, span=420.0):
-    """traffic's records (gzip JSON list; ms timestamps, feet, knots), one without a position."""
+    """traffic's records (gzip JSON list; ms timestamps, feet, knots), one without a
+    position. Returns the positions written ``(lat, lon)``."""
     (lat0, lon0), planes = PLANES_TRAFFIC
     rng = np.random.default_rng(seed)
     t0_ms = 1633608773000
@@ -185,6 +191,7 @@ def write_traffic(path, seed=3, span=420.0):
     records.sort(key=lambda r: r["timestamp"])
     records.insert(5, {**records[4], "latitude": None, "longitude": None})
     path.write_bytes(gzip.compress(json.dumps(records).encode()))
+    return [(r["latitude"], r["longitude"]) for r in records if r["latitude"] is not None]
 
 
 def _run(*args):
@@ -208,16 +215,16 @@ def _comparable(metrics: dict) -> dict:
 def data(tmp_path_factory):
     base = tmp_path_factory.mktemp("reports")
     rows = write_ais(base / "ais.csv")
-    write_opensky(base / "states.csv")
-    write_traffic(base / "flights.json.gz")
+    geo = {"states.csv": write_opensky(base / "states.csv")}
+    geo["flights.json.gz"] = write_traffic(base / "flights.json.gz")
     (base / "det.csv").write_text("time,x,y\n0,1.0,2.0\n1,1.5,2.5\n")
-    return base, rows
+    return base, rows, geo
 
 
 @pytest.fixture(scope="module")
 def full_ais(data):
     """The uninterrupted AIS run (default reference, labels associate)."""
-    base, _ = data
+    base, _, _ = data
     r = _run("--detections", base / "ais.csv", "--out", base / "full")
     assert r.exit_code == 0, r.output
     return base / "full"
@@ -279,11 +286,13 @@ def _expected_centre(lat, lon):
 
 
 def test_ais_run_writes_lat_lon_tracks_scored_against_the_reports(data, full_ais):
-    base, rows = data
+    base, rows, _ = data
     out = full_ais
     for name in ("tracks.csv", "metrics.json", "map.png", "scene.png"):
         assert (out / name).is_file(), name
     assert (out / "map.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    image = matplotlib.image.imread(out / "map.png")
+    assert image.ndim == 3 and min(image.shape[:2]) > 200 and image.std() > 0
     m = json.loads((out / "metrics.json").read_text())
     lat = [float(r[2]) for r in rows]
     lon = [float(r[3]) for r in rows]
@@ -312,7 +321,7 @@ def test_ais_run_writes_lat_lon_tracks_scored_against_the_reports(data, full_ais
 
 
 def test_given_reference_and_labels_only_scored(data):
-    base, rows = data
+    base, rows, _ = data
     out = base / "score"
     ref = (50.71, -1.12, 5.0)
     r = _run(
@@ -335,7 +344,7 @@ def test_given_reference_and_labels_only_scored(data):
 
 
 def test_labels_ignored_and_a_window(data):
-    base, rows = data
+    base, rows, _ = data
     r = _run("--detections", base / "ais.csv", "--out", base / "ign", "--labels", "ignore")
     assert r.exit_code == 0, r.output
     m = json.loads((base / "ign" / "metrics.json").read_text())
@@ -362,7 +371,7 @@ def test_labels_ignored_and_a_window(data):
     [("states.csv", PLANES_OPENSKY, 0.0), ("flights.json.gz", PLANES_TRAFFIC, None)],
 )
 def test_adsb_files_give_one_track_per_aircraft(data, name, movers, shift):
-    base, _ = data
+    base, _, geo = data
     out = base / f"out-{name.split('.')[0]}"
     r = _run("--detections", base / name, "--out", out)
     assert r.exit_code == 0, r.output
@@ -371,7 +380,10 @@ def test_adsb_files_give_one_track_per_aircraft(data, name, movers, shift):
     tracks = _tracks(out / "tracks.csv")
     _check_geodetic_columns(tracks, (g["lat"], g["lon"], g["alt"]))
     (lat0, lon0), planes = movers
-    assert abs(g["lat"] - lat0) < 0.5 and abs(g["lon"] - lon0) < 0.5
+    lat, lon = np.array(geo[name]).T  # the rows without a position are left out
+    assert (g["lat"], g["lon"], g["alt"]) == pytest.approx(
+        (*_expected_centre(lat, lon), 0.0), abs=1e-12
+    )
     if shift is None:  # the tracks' t = 0 is the file's first record
         recs = json.loads(gzip.decompress((base / name).read_bytes()))
         shift = (min(r["timestamp"] for r in recs) - 1633608773000) / 1000.0
@@ -408,7 +420,7 @@ def test_adsb_files_give_one_track_per_aircraft(data, name, movers, shift):
     ],
 )
 def test_bad_flags_on_a_report_file_are_one_line(data, monkeypatch, extra, needles):
-    base, _ = data
+    base, _, _ = data
     monkeypatch.chdir(base)
     r = _run("--detections", "ais.csv", "--out", "bad", *extra)
     one_line_error(r, *needles)
@@ -417,7 +429,7 @@ def test_bad_flags_on_a_report_file_are_one_line(data, monkeypatch, extra, needl
 
 @pytest.mark.parametrize("flag, value", [("--window", "60"), ("--labels", "score")])
 def test_report_flags_on_a_plain_detections_file_are_refused(data, flag, value):
-    base, _ = data
+    base, _, _ = data
     r = _run("--detections", base / "det.csv", "--out", base / "plain", flag, value)
     one_line_error(r, flag, "det.csv", "report files")
 
@@ -441,7 +453,7 @@ def test_a_missing_file_is_named(tmp_path):
 def test_killed_at_random_instants_the_resumed_run_equals_the_uninterrupted_one(
     data, full_ais, tmp_path
 ):
-    base, rows = data
+    base, rows, _ = data
     n_scans = len({r[0] for r in rows})
     every = 25
     # three kills in one run, each at a random scan and stage (seeded): after the
@@ -483,7 +495,7 @@ def test_killed_at_random_instants_the_resumed_run_equals_the_uninterrupted_one(
     ],
 )
 def test_resume_refuses_other_report_settings(data, tmp_path, extra, flag):
-    base, _ = data
+    base, _, _ = data
     r = _run(
         "--detections", base / "ais.csv", "--out", tmp_path / "o", "--window", "60",
         "--checkpoint", tmp_path / "ck.npz", "--max-scans", "5",
