@@ -364,6 +364,10 @@ def test_labels_ignored_and_a_window(data):
     g = m["geo_reference"]
     _check_geodetic_columns(tracks, (g["lat"], g["lon"], g["alt"]))
     assert set(np.round(tracks["time"], 6)) <= {60.0 * k for k in range(int(SPAN // 60) + 2)}
+    # a later run of a detections file into that directory leaves no stale map
+    r = _run("--detections", base / "det.csv", "--out", base / "win")
+    assert r.exit_code == 0, r.output
+    assert not (base / "win" / "map.png").exists()
 
 
 @pytest.mark.parametrize(
