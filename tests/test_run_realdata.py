@@ -27,7 +27,7 @@ from typer.testing import CliRunner
 
 from cli_checks import one_line_error
 from jointtrack.cli import app
-from test_run_durable import _cli
+from test_run_durable import _cli, _rows
 
 runner = CliRunner()
 
@@ -471,21 +471,42 @@ def test_killed_at_random_instants_the_resumed_run_equals_the_uninterrupted_one(
         # between two of them, so the kills come in scan order and each one is reached
         k = int(cut) - 1 if stage != "scan" else int(cut) + int(rng.integers(0, every - 1))
         faults.append(f"{stage}:{k}")
-    args = ["run", "--no-progress", "--detections", base / "ais.csv", "--out", "part"]
-    args += ["--checkpoint", "ck.npz", "--checkpoint-every", every]
+    args = ["--detections", base / "ais.csv", "--checkpoint-every", every]
+    _kill_resume_and_compare(tmp_path, args, faults, full_ais, "csv")
+
+
+def test_a_killed_windowed_parquet_run_resumes_with_its_own_settings(data, tmp_path):
+    # a bare --resume takes the window, frame and label use from the checkpoint
+    base, _, _ = data
+    args = ["--detections", base / "ais.csv", "--window", "30", "--labels", "score"]
+    args += ["--reference", "50.72,-1.08", "--format", "parquet"]
+    full = _run(*args, "--out", tmp_path / "full")
+    assert full.exit_code == 0, full.output
+    k = int(np.random.default_rng(5).integers(6, 36))
+    _kill_resume_and_compare(
+        tmp_path, [*args, "--checkpoint-every", 4], [f"scan:{k}"], tmp_path / "full", "parquet"
+    )
+
+
+def _kill_resume_and_compare(cwd, args, faults, full, fmt):
+    """Run ``jointtrack run ARGS --out part --checkpoint ck.npz`` in subprocesses killed
+    by each fault in turn (each a ``--resume ck.npz`` once the checkpoint exists), then
+    resume with ``--resume ck.npz`` alone: the tracks and metrics (but the timing) are
+    those of the uninterrupted run in ``full``."""
+    first = ["run", "--no-progress", *args, "--out", "part", "--checkpoint", "ck.npz"]
     for fault in faults:
-        ck = tmp_path / "ck.npz"
-        killed = _cli(["run", "--resume", "ck.npz"] if ck.exists() else args, tmp_path, fault)
+        again = ["run", "--resume", "ck.npz"] if (cwd / "ck.npz").exists() else first
+        killed = _cli(again, cwd, fault)
         assert killed.returncode == -signal.SIGKILL, (fault, killed.stderr)
-    resumed = _run("--resume", tmp_path / "ck.npz")  # no other flag
+    resumed = _run("--resume", cwd / "ck.npz")  # no other flag
     assert resumed.exit_code == 0, resumed.output
-    part = tmp_path / "part"
-    assert (part / "tracks.csv").read_bytes() == (full_ais / "tracks.csv").read_bytes()
+    part = cwd / "part"
+    assert _rows(part, fmt) == _rows(full, fmt)
     got = _comparable(json.loads((part / "metrics.json").read_text()))
-    want = _comparable(json.loads((full_ais / "metrics.json").read_text()))
+    want = _comparable(json.loads((full / "metrics.json").read_text()))
     for key in ("files", "tracks_file"):  # the two runs' output directories
         got[key] = json.loads(json.dumps(got[key]).replace(str(part), "OUT"))
-        want[key] = json.loads(json.dumps(want[key]).replace(str(full_ais), "OUT"))
+        want[key] = json.loads(json.dumps(want[key]).replace(str(full), "OUT"))
     assert got == want
     assert (part / "map.png").read_bytes()[:4] == b"\x89PNG"
 
