@@ -464,6 +464,11 @@ def run_command(
             from jointtrack.io.reports import report_format
 
             rfmt = report_format(detections)
+            if rfmt is not None and truth is not None:
+                raise runmod.RunConfigError(
+                    f"--truth: {detections} is a report file, scored against the targets' "
+                    "own reports (self_reports in metrics.json); a truth file is not used"
+                )
             if rfmt is not None:
                 metrics = _run_report_file(
                     detections, rfmt, kind, jpda_table, resume, window, reference, labels, common
@@ -597,6 +602,7 @@ def _reference(text):
     if text is None:
         return None
     from jointtrack.experiments.run import RunConfigError
+    from jointtrack.io.geodetic import LocalFrame
 
     try:
         values = tuple(float(v) for v in text.split(","))
@@ -604,6 +610,12 @@ def _reference(text):
         values = ()
     if len(values) not in (2, 3):
         raise RunConfigError(f"--reference must be LAT,LON[,ALT] in degrees, got {text!r}")
+    try:
+        # the frame checks the ranges (latitude within ±90°, finite values); checked
+        # here so the error names the flag, not the frame's lat0/lon0 arguments
+        LocalFrame(*values)
+    except ValueError as exc:
+        raise RunConfigError(f"--reference {text}: {exc}") from None
     return values
 
 
@@ -613,7 +625,9 @@ def _run_report_file(path, rfmt, kind, table, resume, window, reference, labels,
     On ``--resume`` the window, frame and label use come from the checkpoint
     (the run's identity); flags that differ are an error.
     """
-    from jointtrack.experiments.realdata import run_reports
+    import math
+
+    from jointtrack.experiments.realdata import LABEL_MODES, run_reports
     from jointtrack.experiments.run import RunConfigError, read_run
 
     if kind not in (None, "jipda"):
@@ -621,17 +635,24 @@ def _run_report_file(path, rfmt, kind, table, resume, window, reference, labels,
             f"report files run the JIPDA tracker with the asynchronous reporting model; "
             f"--tracker {kind} is not available for them"
         )
+    # checked here, not only by run_reports, so that the message names the flag
+    if window is not None and not (math.isfinite(window) and window > 0):
+        raise RunConfigError(f"--window must be a positive number of seconds, got {window:g}")
+    if labels is not None and labels not in LABEL_MODES:
+        raise RunConfigError(f"--labels must be one of {', '.join(LABEL_MODES)}, got {labels!r}")
     ref = _reference(reference)
     if resume is not None:
         saved = ((read_run(resume) or {}).get("inputs") or {}).get("reports") or {}
-        for flag, given, key in (
-            ("--window", window, "window"),
-            ("--labels", labels, "labels"),
-            ("--reference", list(ref) if ref else None, "reference"),
+        # the checkpoint records the frame's origin with its altitude (0 when not given)
+        given_ref = None if ref is None else [*ref, 0.0][:3]
+        for flag, given, key, text in (
+            ("--window", window, "window", window),
+            ("--labels", labels, "labels", labels),
+            ("--reference", given_ref, "reference", reference),
         ):
-            if given is not None and key != "reference" and given != saved.get(key):
+            if given is not None and given != saved.get(key):
                 raise RunConfigError(
-                    f"{flag} {given} differs from the checkpoint's ({saved.get(key)}); omit it"
+                    f"{flag} {text} differs from the checkpoint's ({saved.get(key)}); omit it"
                 )
         window, labels, ref = saved.get("window"), saved.get("labels"), saved.get("reference")
     return run_reports(

@@ -35,7 +35,7 @@ import numpy as np
 
 from jointtrack.experiments.config import RunConfigError, make_tracker_config
 
-__all__ = ["LABEL_MODES", "REALDATA_TRACKER", "run_reports"]
+__all__ = ["LABEL_MODES", "MAX_WINDOWS", "REALDATA_TRACKER", "run_reports"]
 
 #: What the reports' identities are used for (see the module docstring).
 LABEL_MODES = ("associate", "score", "ignore")
@@ -73,6 +73,8 @@ REALDATA_TRACKER = {
         "r_delete": 0.0005,
     },
 }
+#: the most scan windows a run makes (``window`` against the reports' time span)
+MAX_WINDOWS = 1_000_000
 #: report format → settings family
 _FAMILY = {"ais": "ais", "opensky": "adsb", "traffic": "adsb"}
 #: GOSPA cut-off (m) of the self-report scoring, per family
@@ -110,7 +112,7 @@ def run_reports(
     labels : one of :data:`LABEL_MODES`.
     score_window, score_c : the scoring window (s; default ``window`` or 60)
         and GOSPA cut-off (m; default 500 for AIS, 2000 for ADS-B). The
-        tracks file holds the tracks at the last scan before each multiple of
+        tracks file holds the tracks at the last scan at or before each multiple of
         the scoring window (``output_interval`` in ``options`` to change it).
     options : as :func:`~jointtrack.experiments.run.run_detections`
         (``checkpoint``, ``resume``, ``max_scans``, ``console``, ``plots``, …).
@@ -137,6 +139,18 @@ def run_reports(
         rep = read_reports(reports, format=fmt_name or "auto")
     if not len(rep):
         raise RunConfigError(f"{rep.source or 'the reports'}: no reports to track")
+    if window is not None:
+        # Stone Soup's windows keep the empty ones: a window far below the reports'
+        # spacing (a typo, ms for s) would make a scan list of billions (MemoryError)
+        span = float(rep.times[-1] - rep.times[0])
+        n_windows = math.floor(span / float(window)) + 2
+        if n_windows > MAX_WINDOWS:
+            raise RunConfigError(
+                f"window = {window:g} s over the reports' {span:g} s makes {n_windows:,} "
+                f"scans, most of them empty (at most {MAX_WINDOWS:,}; there are "
+                f"{len(rep):,} reports): use a longer window, or none for one scan per "
+                "report time"
+            )
     family = _FAMILY.get(fmt_name, "ais")
     frame = rep.frame(reference)
     dets = rep.detections(

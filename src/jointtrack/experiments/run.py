@@ -401,11 +401,18 @@ def _step_scan(trk, t: float, src, k: int) -> list:
     return [trk.step(t, z[ids == sid], sensor=sid) for sid in np.unique(ids).tolist()]
 
 
-def _last_before_boundary(times, k: int, interval: float) -> bool:
-    """Whether scan k is the last one before a multiple of ``interval`` seconds is passed."""
+def _last_in_window(times, k: int, interval: float) -> bool:
+    """Whether scan k is the last one of its window ((j − 1)·interval, j·interval].
+
+    The windows end *at* the multiples, as the self-report scoring's (which takes
+    each track's latest estimate in (t − window, t] at t = j·window): a scan exactly
+    on a multiple belongs to the window ending there. Windows [.., j·interval)
+    would write, for reports on whole multiples (OpenSky states every 10 s), the
+    tracks one scan before each scoring instant — 2.3 km behind an airliner.
+    """
     if k + 1 >= len(times):
         return True
-    return math.floor(times[k + 1] / interval) > math.floor(times[k] / interval)
+    return math.ceil(times[k + 1] / interval) > math.ceil(times[k] / interval)
 
 
 def _report_fields(trk, src, det, k: int, sid) -> dict:
@@ -595,8 +602,9 @@ def _run(
 ) -> dict:
     """The run loop (see the module docstring); ``post(metrics, tracks, out_dir,
     files)``: called before ``metrics.json`` is written, to add outputs;
-    ``output_interval`` (seconds): write the tracks only at the last scan before
-    each multiple of it (one scan per report makes thousands of scans a minute); ``particle``: a
+    ``output_interval`` (seconds): write the tracks only at the last scan at or
+    before each multiple of it (one scan per report makes thousands of scans a
+    minute); ``particle``: a
     :class:`~jointtrack.trackers.particle.ParticleConfig` to run the particle
     tracker instead of the Kalman JPDA tracker ``cfg``. ``kind``: ``"pmb"`` or
     ``"pmbm"`` with a :class:`PMBMConfig` ``cfg``; for a :class:`TrackerConfig`
@@ -805,9 +813,7 @@ def _run(
                                 tier = method + ("" if conf else ", tentative tracks")
                                 tiers[tier] = tiers.get(tier, 0) + 1
                         coincident[0] += res.n_coincident
-                    if output_interval is None or _last_before_boundary(
-                        src.times, k, output_interval
-                    ):
+                    if output_interval is None or _last_in_window(src.times, k, output_interval):
                         writer.write_scan(t, res)  # the tracks after the time's last sensor
                     fault("scan", k)
                     n_done += 1
@@ -848,6 +854,13 @@ def _run(
     # ------------------------------------------------------------ metrics
     tracks = writer.table()
     scan_times = src.times[:stop]
+    output_times = None  # the scans whose tracks are written, when not all of them
+    if output_interval is not None:
+        output_times = [
+            float(src.times[k])
+            for k in range(stop)
+            if _last_in_window(src.times, k, output_interval)
+        ]
     metrics, series, truth = _run_metrics(
         src,
         cfg,
@@ -860,6 +873,7 @@ def _run(
         elapsed_before + loop_seconds,
         metrics_opts,
         notes,
+        output_times=output_times,
     )
 
     if particle is not None:

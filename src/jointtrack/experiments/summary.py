@@ -86,6 +86,7 @@ def _run_metrics(
     total_loop: float,
     metrics_opts: Mapping | None,
     notes: list,
+    output_times=None,
 ) -> tuple[dict, object, tuple | None]:
     """The metrics dict of a run (without ``files`` and ``timing.total_seconds``).
 
@@ -94,8 +95,10 @@ def _run_metrics(
     from the start, ``n_done`` of them in this run; ``clusters``: ``[n_tracks,
     n_measurements, seconds]`` per multi-track cluster; ``total_loop``: the
     tracking loop's time including earlier runs; ``notes``: the run's warnings
-    (the truth-start note is put first). Returns ``(metrics, GOSPA series or
-    None, truth up to the last scan or None)``.
+    (the truth-start note is put first); ``output_times``: the scan times whose
+    tracks the file holds, when not every scan's (a run with an output interval:
+    the confirmed tracks per scan are counted at those scans only). Returns
+    ``(metrics, GOSPA series or None, truth up to the last scan or None)``.
     """
     t_last = float(src.times[stop - 1]) if stop else -math.inf
     scan_times = src.times[:stop]
@@ -161,12 +164,17 @@ def _run_metrics(
         metrics["tracks"] = stats.as_dict()
     else:
         ids = tracks[1]
-        per_scan = [int(np.sum(tracks[0] == t)) for t in scan_times]
+        # scans whose tracks were not written hold no rows: counting them as scans
+        # without tracks would report 5 ships held all along as 0.24 per scan
+        counted = scan_times if output_times is None else np.asarray(output_times, float)
+        per_scan = [int(np.sum(tracks[0] == t)) for t in counted]
         metrics["tracks"] = {
             "n_tracks": int(np.unique(ids).size),
             "mean_confirmed_per_scan": float(np.mean(per_scan)) if per_scan else 0.0,
             "max_confirmed_per_scan": int(max(per_scan, default=0)),
         }
+        if output_times is not None:
+            metrics["tracks"]["scans_counted"] = len(per_scan)
     metrics["timing"] = {
         "clusters": _cluster_timing(clusters),
         "association_seconds": float(sum(c_[2] for c_ in clusters)),

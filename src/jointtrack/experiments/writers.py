@@ -49,7 +49,14 @@ FORMATS = ("csv", "parquet")
 PARQUET_ROW_GROUP_SCANS = 50
 PARTS_DIR = ".tracks-parts"
 #: Files of earlier runs that a fresh run into the same directory replaces.
-OUTPUT_NAMES = ("tracks.csv", "tracks.parquet", "metrics.json", "scene.png", "gospa.png")
+OUTPUT_NAMES = (
+    "tracks.csv",
+    "tracks.parquet",
+    "metrics.json",
+    "scene.png",
+    "gospa.png",
+    "map.png",  # report runs' (jointtrack.experiments.realdata)
+)
 
 
 def _track_columns(dim: int) -> list[str]:
