@@ -58,6 +58,9 @@ REALDATA_TRACKER = {
         "max_speed": 15.0,
         "max_coast": 600.0,  # Stone Soup's demo deletes after 10 min without update
         "r_delete": 0.0005,
+        # a scan per report holds 1-3 returns: exact association of a cluster of N
+        # tracks costs O(N·2^M), milliseconds even for 60 moored ships in one cluster
+        "exact_max_tracks": 64,
     },
     "adsb": {
         "reporting": "async",
@@ -71,6 +74,7 @@ REALDATA_TRACKER = {
         "max_speed": 350.0,
         "max_coast": 120.0,
         "r_delete": 0.0005,
+        "exact_max_tracks": 64,
     },
 }
 #: the most scan windows a run makes (``window`` against the reports' time span)
