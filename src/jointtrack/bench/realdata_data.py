@@ -20,7 +20,6 @@ benchmarked). Neither the package nor its tests depend on this data.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 import subprocess
@@ -94,11 +93,10 @@ def default_cache_dir() -> Path:
 
 
 def sha256_of(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
+    """SHA-256 (hex) of a file (:func:`jointtrack.io._files.file_sha256`)."""
+    from jointtrack.io._files import file_sha256
+
+    return file_sha256(path)
 
 
 def _by_hand(cache: Path) -> str:

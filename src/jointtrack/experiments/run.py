@@ -236,6 +236,7 @@ from jointtrack.experiments.writers import (  # noqa: F401 - re-exported
     fault,
 )
 from jointtrack.io import Detections, to_jsonable, write_metrics
+from jointtrack.io._files import file_sha256
 from jointtrack.scenarios import run_name
 from jointtrack.trackers import JPDATracker, TrackerConfig
 from jointtrack.trackers.pmbm_config import PMBMConfig
@@ -314,16 +315,6 @@ def _cartesian(scans, sensor_position) -> list:
         z = np.asarray(z, dtype=float).reshape(-1, 2)
         out.append(s + np.column_stack([z[:, 0] * np.cos(z[:, 1]), z[:, 0] * np.sin(z[:, 1])]))
     return out
-
-
-def _file_sha256(path: Path) -> str:
-    import hashlib
-
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _register_sensors(trk, src, tables: dict, warn) -> None:
@@ -1152,7 +1143,7 @@ def _load_truth(truth, detections: Detections) -> tuple[tuple, dict, str]:
         table = read_truth(truth, time_origin=detections.time_origin)
         path = Path(truth).resolve()
         # the file's content, so that a resume notices a changed file
-        return table, {"truth": str(path), "truth_sha256": _file_sha256(path)}, str(truth)
+        return table, {"truth": str(path), "truth_sha256": file_sha256(path)}, str(truth)
     try:
         tt, ti, tp = truth
     except (TypeError, ValueError):
@@ -1418,7 +1409,7 @@ def run_detections(
     if detections.source:
         path = Path(detections.source).resolve()
         # the file's content, so that a resume notices a changed file
-        identity = {"detections": str(path), "sha256": _file_sha256(path)}
+        identity = {"detections": str(path), "sha256": file_sha256(path)}
     identity.update(run_identity or {})
     table, truth_ids, notes, scoring = None, None, [], None
     if truth is not None:

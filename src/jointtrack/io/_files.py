@@ -409,3 +409,31 @@ def write_columns(
             fh.write(data)
     else:
         path.write_text(data, encoding="utf-8", newline="")
+
+
+def string_array(value, name: str, error=TypeError) -> np.ndarray:
+    """``value`` as a numpy string (``U``) array; ``error`` naming ``name`` for
+    anything but strings (an object array of str is converted; empty is fine)."""
+    a = np.asarray(value)
+    if a.size == 0:
+        return np.zeros(a.shape, dtype=str)
+    if a.dtype.kind == "O":
+        vals = a.reshape(-1).tolist()
+        bad = next((v for v in vals if not isinstance(v, str)), None)
+        if bad is not None:
+            raise error(f"{name} must hold strings, got {bad!r}")
+        a = np.array(vals, dtype=str).reshape(a.shape)
+    if a.dtype.kind != "U":
+        raise error(f"{name} must hold strings, got dtype {a.dtype}")
+    return a
+
+
+def file_sha256(path) -> str:
+    """SHA-256 (hex) of a file's bytes, read in 1 MiB blocks."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()

@@ -23,6 +23,7 @@ from jointtrack.io._files import (
     parquet_is_string,
     parquet_nulls,
     row_error,
+    string_array,
     strings_to_floats,
     strings_to_floats_nullable,
     write_columns,
@@ -519,17 +520,7 @@ def _check_labels(labels, scans) -> tuple | None:
         raise ValueError(f"{len(scans)} scans but {len(labels)} labels arrays")
     out = []
     for k, (a, z) in enumerate(zip(labels, scans, strict=True)):
-        arr = np.asarray(a) if not isinstance(a, np.ndarray) else a
-        if arr.size == 0:
-            arr = np.zeros(0, dtype=str)
-        if arr.dtype.kind == "O":
-            vals = arr.reshape(-1).tolist()
-            bad = next((v for v in vals if not isinstance(v, str)), None)
-            if bad is not None:
-                raise ValueError(f"labels[{k}] holds {bad!r}; labels are strings")
-            arr = np.array(vals, dtype=str).reshape(arr.shape)
-        if arr.dtype.kind != "U":
-            raise ValueError(f"labels[{k}] must hold strings, got dtype {arr.dtype}")
+        arr = string_array(a, f"labels[{k}]", ValueError)
         if arr.shape != (z.shape[0],):
             raise ValueError(f"labels[{k}] must have shape ({z.shape[0]},), got {arr.shape}")
         out.append(arr)

@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jointtrack.io._files import load_columns, row_error
+from jointtrack.io._files import load_columns, row_error, string_array
 from jointtrack.io.detections import Detections
 from jointtrack.io.errors import DetectionFileError
 from jointtrack.io.geodetic import FOOT, KNOT, LocalFrame, velocity_en
@@ -130,7 +130,7 @@ class Reports:
         course = column(
             self.course, "course", np.nan, lambda v, m: _real_array(v, m, allow_nan=True)
         )
-        identity = column(self.identity, "identity", "", _strings)
+        identity = column(self.identity, "identity", "", string_array)
         clutter = column(self.is_clutter, "is_clutter", False, _booleans)
         skipped = self.skipped
         if isinstance(skipped, bool) or not isinstance(skipped, numbers.Integral) or skipped < 0:
@@ -398,21 +398,6 @@ class Reports:
 
 
 # ----------------------------------------------------------------------------- checks
-
-
-def _strings(value, name: str) -> np.ndarray:
-    a = np.asarray(value)
-    if a.size == 0:
-        return np.zeros(a.shape, dtype=str)
-    if a.dtype.kind == "O":
-        vals = a.reshape(-1).tolist()
-        bad = next((v for v in vals if not isinstance(v, str)), None)
-        if bad is not None:
-            raise TypeError(f"{name} must hold strings, got {bad!r}")
-        a = np.array(vals, dtype=str).reshape(a.shape)
-    if a.dtype.kind != "U":
-        raise TypeError(f"{name} must hold strings, got dtype {a.dtype}")
-    return a
 
 
 def _booleans(value, name: str) -> np.ndarray:
