@@ -138,15 +138,19 @@ class TrackerConfig(ModelSettings):
     reporting : ``"scan"`` (default: a scanning sensor that sees every target
         with probability ``p_d`` per scan) or ``"async"``: targets that report
         themselves one at a time at irregular intervals (AIS, ADS-B), each as a
-        Poisson process of its own rate λ_i. A scan that follows the previous
-        one by Δt then detects track i with probability
-        P_D,i = p_d·(1 − exp(−λ_i Δt)), so a vessel not heard for 30 s is not
-        "missed" once per other vessel's report; λ_i is the track's own
-        estimate (Gamma–Poisson: (1 + reports) / (report_interval + seconds
-        tracked), prior mean 1/report_interval). ``clutter_density`` is then
-        false reports per unit area **per second** (it is required), and the
-        likelihood ratio of a pair is p_d·(1 − e^(−λ_i Δt))/Δt · g / λ_c, finite
-        as Δt → 0 — so one scan per report time is exact. Needs JIPDA
+        Poisson process of its own rate λ_i, each report received with
+        probability p_d. λ_i is the track's own estimate (Gamma–Poisson:
+        λ_i(s) = (1 + reports) / (report_interval + seconds tracked at s),
+        prior mean 1/report_interval). A scan that follows the previous one by
+        Δt detects track i with probability P_D,i = 1 − exp(−p_d ∫λ_i(s) ds)
+        = 1 − (β₀/β₁)^(p_d(1 + reports)), β = report_interval + seconds
+        tracked at the interval's start and end — so a silence costs the same
+        existence however many other targets' reports cut it into scans: a
+        vessel not heard for 30 s is not "missed" once per other vessel's
+        report. ``clutter_density`` is then false reports per unit area **per
+        second** (it is required), and the likelihood ratio of a pair is
+        P_D,i/Δt · g / λ_c (→ p_d·λ_i·g/λ_c as Δt → 0), finite as Δt → 0 — so
+        one scan per report time is exact. Needs JIPDA
         (``existence``) and ``p_survive_per = "second"``.
     report_interval : prior mean interval between one target's reports, s
         (``reporting = "async"``).

@@ -283,9 +283,15 @@ class JPDATracker(ScanTracker):
         if labels is not None:
             if isinstance(labels, str | bytes):
                 raise TypeError("labels must be a sequence of strings, one per report")
-            arr = np.asarray(labels, dtype=object).reshape(-1) if np.ndim(labels) else None
-            if arr is None or len(arr) != M:
-                raise ValueError(f"labels must have one entry per report ({M})")
+            try:
+                arr = np.asarray(labels, dtype=object)
+            except (TypeError, ValueError) as exc:  # ragged nesting
+                raise TypeError(f"labels must be a sequence of strings: {exc}") from None
+            if arr.ndim != 1 or len(arr) != M:
+                # (M, 1) nesting was flattened silently before: one string per report
+                raise ValueError(
+                    f"labels must have one entry per report ({M},), got shape {arr.shape}"
+                )
             if not all(isinstance(v, str) for v in arr):
                 bad = next(v for v in arr if not isinstance(v, str))
                 raise TypeError(f"labels must be strings ('' for none), got {bad!r}")
@@ -313,23 +319,39 @@ class JPDATracker(ScanTracker):
         return labels, (repeated if labels is not None else None), velocities, n_coincident
 
     def _scan_detection(self, t, dt):
-        """Per-track P_D of this scan (``_scan_pd``) and its pair factor ``_scan_pd_ratio``.
+        """Per-track P_D of this scan (``_scan_pd``), the P_D·P_G of its miss weight
+        (``_scan_pdg``) and its pair factor ``_scan_pd_ratio``.
 
         Scanning sensor: P_D = p_d for every track. Reporting targets
-        (``reporting = "async"``): P_D,i = p_d·(1 − e^(−λ_i Δt)) with the
-        track's rate λ_i = (1 + reports) / (report_interval + seconds tracked),
-        and the pairs' likelihood ratios use p_d·(1 − e^(−λ_i Δt))/Δt (→ p_d·λ_i
-        as Δt → 0) against a clutter density per second.
+        (``reporting = "async"``): the track's rate estimate at time s is
+        λ_i(s) = (1 + reports) / (report_interval + (s − born)); its reports
+        are received with probability p_d (and fall in the gate with P_G, for
+        ``miss_model = "1-pd*pg"``), so nothing is received in (t − Δt, t]
+        with probability exp(−p_d ∫λ_i) = (β₀/β₁)^(p_d(1 + reports)), β₀, β₁
+        = report_interval + seconds tracked at the interval's ends, and
+        P_D,i = 1 − (β₀/β₁)^(p_d(1 + reports)). The product of these miss
+        probabilities telescopes: a silence costs the same whether it is cut
+        into one scan or a hundred (with P_D,i = p_d(1 − e^(−λΔt)) it did
+        not: 30 s of silence cut at every other vessel's report cost far more
+        than one 30 s scan). For p_d = 1 it is the Gamma–Poisson predictive
+        (negative binomial) of the track's own rate. The pairs' likelihood
+        ratios use P_D,i/Δt (→ p_d·λ_i as Δt → 0) against a clutter density
+        per second.
         """
         c = self.config
         if c.reporting == "scan":
             self._scan_pd = np.full(len(self.ids), self._p_d)
+            self._scan_pdg = c.detection_in_gate(self._scan_pd)
             self._scan_pd_ratio = self._scan_pd
             return
-        rate = (1.0 + self.report_count) / (c.report_interval + np.maximum(t - self.born, 0.0))
-        h = rate * dt
-        self._scan_pd = self._p_d * -np.expm1(-h)
-        self._scan_pd_ratio = self._p_d * (rate if dt == 0 else -np.expm1(-h) / dt)
+        alpha = 1.0 + self.report_count
+        beta0 = c.report_interval + np.maximum(t - dt - self.born, 0.0)
+        elapsed = np.maximum(t - self.born, 0.0) - np.maximum(t - dt - self.born, 0.0)
+        hazard = alpha * np.log1p(elapsed / beta0)  # ∫ λ_i(s) ds over the interval
+        self._scan_pd = -np.expm1(-self._p_d * hazard)
+        gate = c.p_g if c.miss_model == "1-pd*pg" else 1.0
+        self._scan_pdg = -np.expm1(-self._p_d * gate * hazard)
+        self._scan_pd_ratio = self._p_d * alpha / beta0 if dt == 0 else self._scan_pd / dt
 
     def _match_labels(self, labels, repeated):
         """``(track rows, report columns)`` of the labelled reports whose target has a
@@ -398,7 +420,7 @@ class JPDATracker(ScanTracker):
         L_pairs, _ = likelihood_ratio_pairs(g, pd_r / scale, lam / scale)
         if available is not None:  # a return taken by an earlier pass is less likely ours
             L_pairs = L_pairs * available[g.cols]
-        pdg = c.detection_in_gate(self._scan_pd[tracks])
+        pdg = self._scan_pdg[tracks]
         miss = 1.0 - r * pdg
         rows, cols = g.rows, g.cols
         beta0, weights, groups, info = self._pair_marginals(

@@ -289,6 +289,10 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
     for name in ("history", "age", "misses", "report_count"):
         if (arrays[name] < 0).any():
             raise bad(f"field {name!r} has negative values")
+    named = arrays["labels"][arrays["labels"] != ""]
+    if len(np.unique(named)) != len(named):
+        # the label → track lookup of JPDATracker needs one track per label
+        raise bad("field 'labels' names one target on two tracks")
     validate_counters(path, arrays["ids"], scalars)
     names, numbers = arrays["label_names"], arrays["label_ids"]
     if names.shape != numbers.shape or (len(names) and not (names[1:] > names[:-1]).all()):
