@@ -145,7 +145,8 @@ class TrackerConfig(ModelSettings):
         Δt detects track i with probability P_D,i = 1 − exp(−p_d ∫λ_i(s) ds)
         = 1 − (β₀/β₁)^(p_d(1 + reports)), β = report_interval + seconds
         tracked at the interval's start and end — so a silence costs the same
-        existence however many other targets' reports cut it into scans: a
+        existence however many other targets' reports cut it into scans
+        (exactly, without deaths; see ``JPDATracker._scan_detection``): a
         vessel not heard for 30 s is not "missed" once per other vessel's
         report. ``clutter_density`` is then false reports per unit area **per
         second** (it is required), and the likelihood ratio of a pair is

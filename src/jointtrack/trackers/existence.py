@@ -88,6 +88,12 @@ def existence_update(r, beta0, weights, rows, pdg):
     detected = 1.0 - beta0
     total = exists_missed + detected
     r_post = np.clip(total, 1e-12, 1.0)
+    # r = 0 (survival per second over a long gap underflows) and no return taken:
+    # total = 0; given existence, such a track took nothing (β₀ = 1), never 0/0 = NaN
+    none = total <= 0.0
+    if none.any():
+        safe = np.where(none, 1.0, total)
+        return r_post, np.where(none, 1.0, exists_missed / safe), weights / safe[rows]
     return r_post, exists_missed / total, weights / total[rows]
 
 

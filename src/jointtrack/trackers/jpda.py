@@ -333,7 +333,9 @@ class JPDATracker(ScanTracker):
         probabilities telescopes: a silence costs the same whether it is cut
         into one scan or a hundred (with P_D,i = p_d(1 − e^(−λΔt)) it did
         not: 30 s of silence cut at every other vessel's report cost far more
-        than one 30 s scan). For p_d = 1 it is the Gamma–Poisson predictive
+        than one 30 s scan; with p_survive < 1 the deaths applied before each
+        scan make finer cuts slightly kinder, towards the continuous-time
+        answer). For p_d = 1 it is the Gamma–Poisson predictive
         (negative binomial) of the track's own rate. The pairs' likelihood
         ratios use P_D,i/Δt (→ p_d·λ_i as Δt → 0) against a clutter density
         per second.
@@ -345,8 +347,11 @@ class JPDATracker(ScanTracker):
             self._scan_pd_ratio = self._scan_pd
             return
         alpha = 1.0 + self.report_count
-        beta0 = c.report_interval + np.maximum(t - dt - self.born, 0.0)
-        elapsed = np.maximum(t - self.born, 0.0) - np.maximum(t - dt - self.born, 0.0)
+        t_prev = t - dt if self.time is None else self.time
+        beta0 = c.report_interval + np.maximum(t_prev - self.born, 0.0)
+        # seconds tracked within the interval: Δt itself (no cancellation for tiny Δt)
+        # unless the track was born inside it
+        elapsed = np.minimum(dt, np.maximum(t - self.born, 0.0))
         hazard = alpha * np.log1p(elapsed / beta0)  # ∫ λ_i(s) ds over the interval
         self._scan_pd = -np.expm1(-self._p_d * hazard)
         gate = c.p_g if c.miss_model == "1-pd*pg" else 1.0
@@ -417,7 +422,11 @@ class JPDATracker(ScanTracker):
         # may exceed 1, so numerator and λ are divided by a common scale
         pd_r = self._scan_pd_ratio[tracks] * r
         scale = max(1.0, float(pd_r.max())) if len(pd_r) else 1.0
-        L_pairs, _ = likelihood_ratio_pairs(g, pd_r / scale, lam / scale)
+        # floored at the smallest normal float: survival per second over a long gap
+        # (0.99**1e6) or an underflowing P_D,i/Δt gives exactly 0, which the pair
+        # likelihoods refuse as a P_D; such a track explains nothing either way
+        pd_r = np.maximum(pd_r / scale, np.finfo(float).tiny)
+        L_pairs, _ = likelihood_ratio_pairs(g, pd_r, lam / scale)
         if available is not None:  # a return taken by an earlier pass is less likely ours
             L_pairs = L_pairs * available[g.cols]
         pdg = self._scan_pdg[tracks]
