@@ -388,6 +388,24 @@ def test_labelled_jump_restarts_the_track_keeping_id_and_label():
     assert trk.existence[0] == cfg.r_labelled
 
 
+def test_jumps_found_among_many_labelled_reports():
+    """Every labelled report is gated against its own track only (more than one chunk)."""
+    K = 700
+    rng = np.random.default_rng(2)
+    z0 = rng.uniform(0.0, 1e6, (K, 2))
+    labels = [f"v{i}" for i in range(K)]
+    trk = JPDATracker(_labelled_config(), keep_history=False)
+    trk.step(0.0, z0, labels=labels)
+    jump = np.zeros(K, bool)
+    jump[[0, 255, 256, 257, 511, 512, 699]] = True
+    z1 = z0 + np.where(jump[:, None], 5000.0, 1.0)
+    order = rng.permutation(K)  # reports in another order than the tracks
+    trk.step(1.0, z1[order], labels=[labels[i] for i in order])
+    assert trk.ids.tolist() == list(range(1, K + 1))
+    restarted = (trk.x[:, :2] == z1).all(axis=1) & (trk.x[:, 2:] == 0.0).all(axis=1)
+    np.testing.assert_array_equal(restarted, jump)
+
+
 def test_repeated_labels_keep_the_first_report():
     trk = JPDATracker(_labelled_config())
     res = trk.step(0.0, np.array([[0.0, 0.0], [900.0, 0.0], [0.0, 900.0]]), labels=["A", "A", "B"])
@@ -518,7 +536,7 @@ def test_report_fields_with_exactly_repeated_returns_are_refused(field):
     before = trk.state_dict()
     z = np.array([[20.0, 0.0], [20.0, 0.0]])
     value = ["A", "B"] if field == "labels" else np.zeros((2, 2))
-    with pytest.raises(ValueError, match="labels or velocities"):
+    with pytest.raises(ValueError, match="labels or velocities"), pytest.warns(UserWarning):
         trk.step(2.0, z, **{field: value})
     _state_arrays_equal(before, trk.state_dict())
 
