@@ -573,6 +573,7 @@ def test_async_config_errors_name_the_field(kwargs, name):
         (dict(velocity_std=1j), "velocity_std"),
         (dict(r_labelled=1.0), "r_labelled"),
         (dict(r_labelled=False), "r_labelled"),
+        (dict(r_labelled=0.01, r_delete=0.01, r_init=0.02), "r_labelled"),
     ],
 )
 def test_new_config_fields_are_checked(kwargs, name):

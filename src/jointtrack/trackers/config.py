@@ -236,6 +236,13 @@ class TrackerConfig(ModelSettings):
             f"r_init = {self.r_init} > r_confirm = {self.r_confirm}",
         )
 
+        need(
+            self.r_labelled > self.r_delete,
+            f"r_labelled must be > r_delete, got r_labelled = {self.r_labelled} ≤ "
+            f"r_delete = {self.r_delete} (every labelled track would be deleted at its "
+            "next scan and restarted under a new id)",
+        )
+
         if self.reporting == "async":
             need(self.existence, "reporting = 'async' needs existence = true (JIPDA)")
             need(
