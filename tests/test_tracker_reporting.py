@@ -530,14 +530,22 @@ def test_bad_report_fields_are_refused_and_change_nothing(kwargs, error, name):
     trk.step(2.0, Z2, labels=["A", ""])  # and it still works
 
 
-@pytest.mark.parametrize("field", ["labels", "velocities"])
-def test_report_fields_with_exactly_repeated_returns_are_refused(field):
+def test_exactly_repeated_returns_drop_their_labels_and_velocities_with_them():
+    """Merged exact repeats keep the first row: its label and velocity, nobody else's."""
     trk = _warm_labelled()
+    z = np.array([[3000.0, 0.0], [3000.0, 0.0], [0.0, 4000.0]])
+    v = np.array([[1.0, 2.0], [9.0, 9.0], [-3.0, 4.0]])
+    with pytest.warns(UserWarning, match="repeat"):
+        res = trk.step(2.0, z, labels=["C", "D", "E"], velocities=v)
+    assert res.n_coincident == 1
+    assert "D" not in trk.labels.tolist()
+    for lab, row in (("C", 0), ("E", 2)):
+        k = int(np.flatnonzero(trk.labels == lab)[0])
+        np.testing.assert_array_equal(trk.x[k], np.concatenate([z[row], v[row]]))
+    # the lengths are checked against the rows as passed, before the merge
     before = trk.state_dict()
-    z = np.array([[20.0, 0.0], [20.0, 0.0]])
-    value = ["A", "B"] if field == "labels" else np.zeros((2, 2))
-    with pytest.raises(ValueError, match="labels or velocities"), pytest.warns(UserWarning):
-        trk.step(2.0, z, **{field: value})
+    with pytest.raises(ValueError, match="labels"), pytest.warns(UserWarning):
+        trk.step(3.0, z, labels=["C", "E"])
     _state_arrays_equal(before, trk.state_dict())
 
 
