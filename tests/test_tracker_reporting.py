@@ -451,9 +451,10 @@ def test_max_coast_deletes_after_the_stated_seconds():
     assert trk.last_hit.tolist() == [2.0]
     trk.step(12.000001, np.zeros((0, 2)))  # > 10 s: deleted
     assert trk.ids.tolist() == []
-    # the label is free again: its next report starts a new id
+    # its next report starts a track again, under the id the label had
     trk.step(13.0, np.array([[0.0, 0.0]]), labels=["A"])
-    assert trk.ids.tolist() == [2]
+    assert trk.ids.tolist() == [1]
+    np.testing.assert_array_equal(trk.x[0], [0.0, 0.0, 0.0, 0.0])  # a new start
 
 
 @SETTINGS
