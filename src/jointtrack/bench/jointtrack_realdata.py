@@ -33,7 +33,7 @@ ADSB_TRACKER = {
 def run_jointtrack(scene, *, tracker: str = "jipda", wall_cap: float, workdir=None, progress=None):
     """jointtrack on ``scene`` → :class:`~jointtrack.bench.realdata.RunResult`."""
     from jointtrack.bench.realdata import RssSampler, RunResult
-    from jointtrack.experiments.realdata import REALDATA_TRACKER
+    from jointtrack.experiments.realdata import realdata_settings
     from jointtrack.trackers.config import TrackerConfig
     from jointtrack.trackers.jpda import JPDATracker
 
@@ -50,11 +50,12 @@ def run_jointtrack(scene, *, tracker: str = "jipda", wall_cap: float, workdir=No
         order = np.argsort(scene.scan_index, kind="stable")
         step_index, step_times = scene.scan_index[order], scene.scan_times
     else:
-        cfg = TrackerConfig(**REALDATA_TRACKER["ais"])
+        cfg = TrackerConfig(**realdata_settings("ais", labelled=scene.labels is not None))
         order = np.argsort(scene.times, kind="stable")
         step_times, step_index = np.unique(scene.times[order], return_inverse=True)
     positions = scene.positions[order]
     labels = scene.labels[order] if scene.labels is not None else None
+    velocities = scene.velocities[order] if scene.velocities is not None else None
     bounds = np.searchsorted(step_index, np.arange(len(step_times) + 1))
     trk = JPDATracker(cfg, keep_history=False)
     rows_t, rows_id, rows_xy = [], [], []
@@ -68,6 +69,8 @@ def run_jointtrack(scene, *, tracker: str = "jipda", wall_cap: float, workdir=No
                 break
             a, b = bounds[k], bounds[k + 1]
             kw = {} if labels is None else {"labels": labels[a:b]}
+            if velocities is not None:
+                kw["velocities"] = velocities[a:b]
             res = trk.step(t, positions[a:b], **kw)
             rows_t.append(np.full(len(res.ids), t))
             rows_id.append(res.ids)

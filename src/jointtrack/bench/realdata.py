@@ -137,6 +137,9 @@ class Scene:
     #: Solent demo's TimeSyncFeeder leaves them) or "scan" (the scan's time, what a
     #: scanning sensor reports and what jointtrack's Detections hold)
     stamp: str = "report"
+    #: (R, 2) east/north velocities the reports carry (AIS speed and course), NaN
+    #: where unknown, or None; runners may use them (Stone Soup's demo does not)
+    velocities: np.ndarray | None = None
 
     def stamps(self, stamp: str | None = None) -> np.ndarray:
         """Per-report times for Stone Soup under ``stamp`` (default the scene's)."""
@@ -304,6 +307,15 @@ def solent_scenes(path, *, quick: bool = False) -> list[Scene]:
         scan_times = scan_times[:QUICK_SOLENT_SCANS]
     frame = _local_frame_about(lat, lon)
     positions = np.asarray(frame.to_local(lat, lon), dtype=np.float64)[:, :2]
+    from jointtrack.io.geodetic import KNOT, velocity_en
+
+    speed, course = d["speed_knots"], d["course_deg"]
+    if quick:
+        speed, course = speed[keep], course[keep]
+    # AIS "not available": speed 102.3 kn, course 360 (a speed of 0 needs no course)
+    speed = np.where(speed >= 102.3, np.nan, speed) * KNOT
+    course = np.where(course >= 360.0, np.nan, course)
+    velocities = velocity_en(speed, np.where(speed == 0, 0.0, course))
     last = float(scan_times[-1])
 
     def truth():
@@ -332,6 +344,7 @@ def solent_scenes(path, *, quick: bool = False) -> list[Scene]:
         window=SOLENT_WINDOW,
         truth=truth,
         info=info,
+        velocities=velocities,
     )
     return [
         Scene(

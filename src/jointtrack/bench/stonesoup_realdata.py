@@ -312,7 +312,14 @@ def demo_pipeline_reports(csv_path, window: float = 60.0) -> dict:
     for k, (stamp, detections) in enumerate(feeder):
         scan_stamps.append(stamp)
         rows.extend(
-            (k, d.timestamp, str(d.metadata.get(LABEL_KEY, "")), *np.ravel(d.state_vector))
+            (
+                k,
+                d.timestamp,
+                str(d.metadata.get(LABEL_KEY, "")),
+                *np.ravel(d.state_vector),
+                _number(d.metadata.get("SOG_knots")),
+                _number(d.metadata.get("COG_degrees")),
+            )
             for d in detections
         )
     if not scan_stamps:
@@ -331,10 +338,22 @@ def demo_pipeline_reports(csv_path, window: float = 60.0) -> dict:
         "lon": np.array([float(r[3]) for r in rows], dtype=np.float64),
         "lat": np.array([float(r[4]) for r in rows], dtype=np.float64),
         "labels": np.array([r[2] for r in rows], dtype=str),
+        # the reports' own speed (knots) and course (degrees), NaN where not given;
+        # Stone Soup's demo ignores them
+        "speed_knots": np.array([r[5] for r in rows], dtype=np.float64),
+        "course_deg": np.array([r[6] for r in rows], dtype=np.float64),
         "scan_index": np.array([r[0] for r in rows], dtype=np.int64),
         "scan_times": np.array([seconds(s) for s in scan_stamps], dtype=np.float64),
         "n_raw": n_raw,
     }
+
+
+def _number(text) -> float:
+    """A metadata cell as a float, NaN when missing or not a number."""
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return float("nan")
 
 
 class StopTracking(BaseException):

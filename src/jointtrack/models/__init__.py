@@ -6,7 +6,12 @@ first — ``[x, y(, z), vx, vy(, vz)(, ax, ay(, az))]`` — so a position is
 (see :mod:`jointtrack.models.motion`).
 """
 
-from jointtrack.models.measurement import LinearPosition, RangeBearing, wrap_angle
+from jointtrack.models.measurement import (
+    LinearPosition,
+    LinearPositionVelocity,
+    RangeBearing,
+    wrap_angle,
+)
 from jointtrack.models.motion import (
     ConstantAcceleration,
     ConstantVelocity,
@@ -20,6 +25,7 @@ __all__ = [
     "ConstantAcceleration",
     "ConstantVelocity",
     "LinearPosition",
+    "LinearPositionVelocity",
     "RangeBearing",
     "ca_noise",
     "ca_transition",

@@ -25,11 +25,12 @@ definite) and stored read-only.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["LinearPosition", "RangeBearing", "wrap_angle"]
+__all__ = ["LinearPosition", "LinearPositionVelocity", "RangeBearing", "wrap_angle"]
 
 
 def wrap_angle(a):
@@ -166,6 +167,54 @@ class LinearPosition:
         """Positions (k, dim) of measurements ``z`` (k, dim) and their covariances R."""
         z = np.asarray(z, dtype=np.float64).reshape(-1, self.dim)
         return z.copy(), np.broadcast_to(self.R, (len(z), self.dim, self.dim)).copy()
+
+
+class LinearPositionVelocity:
+    """Linear position-and-velocity measurement ``z = [p, v] = H x + w``.
+
+    For targets that report their own velocity (AIS speed and course, ADS-B
+    ground speed and track): ``H = [I_2d 0]`` picks the position and velocity
+    blocks (positions first, then velocities, in every jointtrack state) and
+    ``R = diag(R_position, velocity_variance·I)``. ``position_and_covariance``
+    gives the position part, for track initiation.
+
+    Parameters
+    ----------
+    position : :class:`LinearPosition` — the position part (its ``dim``, ``R``
+        and ``state_dim``).
+    velocity_variance : σ_v² of each reported velocity component, (m/s)², > 0.
+    """
+
+    def __init__(self, position: LinearPosition, velocity_variance: float):
+        if not isinstance(position, LinearPosition):
+            raise TypeError(f"position must be a LinearPosition, got {type(position).__name__}")
+        ok = isinstance(velocity_variance, numbers.Real) and not isinstance(velocity_variance, bool)
+        var = float(velocity_variance) if ok else -1.0
+        if not (np.isfinite(var) and var > 0):
+            raise ValueError(
+                f"velocity_variance must be positive and finite, got {velocity_variance!r}"
+            )
+        d, n = position.dim, position.state_dim
+        self.dim, self.state_dim = d, n
+        self.R = np.zeros((2 * d, 2 * d))
+        self.R[:d, :d] = position.R
+        self.R[d:, d:] = var * np.eye(d)
+        self.H = np.eye(2 * d, n)
+        self._position = position
+
+    @property
+    def measurement_dim(self) -> int:
+        """m = 2·``dim``."""
+        return 2 * self.dim
+
+    def residual(self, z, z_pred) -> np.ndarray:
+        """Innovation ``z − z_pred``."""
+        return np.asarray(z, dtype=np.float64) - np.asarray(z_pred, dtype=np.float64)
+
+    def position_and_covariance(self, z) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (k, dim) of measurements ``z`` (k, 2·dim) and their covariances."""
+        z = np.asarray(z, dtype=np.float64).reshape(-1, 2 * self.dim)
+        return self._position.position_and_covariance(z[:, : self.dim])
 
 
 @dataclass(frozen=True, eq=False)

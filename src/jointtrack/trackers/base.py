@@ -292,6 +292,7 @@ class ScanTracker:
                 f"unknown sensor {sensor_id!r}; this tracker's sensors: {known}"
             ) from None
         c = self.config
+        self._active_sensor = sensor_id
         self._sensor = spec.model
         self._linear, self._mdim = spec.linear, spec.measurement_dim
         self._p_d = c.p_d if spec.p_d is None else float(spec.p_d)

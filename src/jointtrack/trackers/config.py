@@ -163,6 +163,13 @@ class TrackerConfig(ModelSettings):
         given ``velocities`` (e.g. AIS speed and course): a track started on
         such a report takes it as its initial velocity with this spread,
         instead of zero mean and σ = max_speed/2.
+    measure_velocity : with ``step(…, velocities=)``, measure the reported
+        velocity as well as the position (z = [p, v], σ = velocity_std per
+        component; :class:`~jointtrack.models.LinearPositionVelocity`) in scans
+        whose every report has one; ``clutter_density`` is then per unit area
+        per unit of velocity area ((m/s)²) for those scans. A moored vessel
+        reporting speed 0 keeps its velocity pinned, so its position
+        uncertainty does not grow between its reports (position sensor only).
     r_labelled : existence of a track started on a labelled report
         (``step(…, labels=)``: the report names its target, so it is real);
         < 1 so that a target that stops reporting still fades out.
@@ -194,6 +201,7 @@ class TrackerConfig(ModelSettings):
     p_survive_per: str = "scan"
     max_coast: float = math.inf
     velocity_std: float = 1.0
+    measure_velocity: bool = False
     r_labelled: float = 0.999
 
     def __post_init__(self):
@@ -243,6 +251,10 @@ class TrackerConfig(ModelSettings):
             "next scan and restarted under a new id)",
         )
 
+        need(
+            not self.measure_velocity or self.sensor == "position",
+            "measure_velocity needs the position sensor (sensor = 'position')",
+        )
         if self.reporting == "async":
             need(self.existence, "reporting = 'async' needs existence = true (JIPDA)")
             need(
@@ -509,6 +521,7 @@ _CHECKS = {
     "p_survive_per": _choice(("scan", "second")),
     "max_coast": _positive_or_inf,
     "velocity_std": _positive,
+    "measure_velocity": _bool,
     "r_labelled": _open_probability,
 }
 

@@ -82,6 +82,14 @@ class JPDATracker(ScanTracker):
         )
         c = self.config
         n = self.state_dim
+        # the sensor of scans whose reports all carry a velocity (measure_velocity)
+        self._position_velocity = None
+        if c.measure_velocity:
+            from jointtrack.models import LinearPosition, LinearPositionVelocity
+
+            self._position_velocity = LinearPositionVelocity(
+                LinearPosition(c.dim, c.measurement_covariance(), state_dim=n), c.velocity_std**2
+            )
         self.x = np.zeros((0, n))
         self.P = np.zeros((0, n, n))
         self.ids = np.zeros(0, np.int64)
@@ -111,6 +119,17 @@ class JPDATracker(ScanTracker):
         labels, repeated, velocities, n_coincident = self._check_report_fields(
             t, z, labels, velocities, n_coincident
         )
+        if (
+            c.measure_velocity
+            and velocities is not None
+            and self._active_sensor is None
+            and len(z)
+            and np.isfinite(velocities).all()
+        ):
+            # every report has a velocity: measure it too (z = [p, v]); _activate
+            # puts the position sensor back at the next step
+            z = np.hstack([z, velocities])
+            self._sensor, self._mdim = self._position_velocity, 2 * c.dim
 
         if dt is not None and dt > 0 and len(self.ids):
             self.x, self.P = predict(

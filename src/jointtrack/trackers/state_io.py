@@ -193,8 +193,8 @@ def _upgrade(header: dict, arrays: dict) -> None:
 
     Version 4 added the settings and track arrays of reporting targets
     (``reporting``, ``report_interval``, ``p_survive_per``, ``max_coast``,
-    ``velocity_std``, ``r_labelled``; ``last_hit``, ``born``, ``report_count``,
-    ``labels``). A version-3 run used none of them, so they are filled with the
+    ``velocity_std``, ``measure_velocity``, ``r_labelled``; ``last_hit``, ``born``,
+    ``report_count``, ``labels``). A version-3 run used none of them, so they are filled with the
     values under which version 4 behaves exactly as version 3 did (a scanning
     sensor, survival per scan, no time-based deletion, no labels) — not
     guessed defaults: the continued run is identical.
@@ -208,6 +208,7 @@ def _upgrade(header: dict, arrays: dict) -> None:
         ("p_survive_per", "scan"),
         ("max_coast", math.inf),
         ("velocity_std", 1.0),
+        ("measure_velocity", False),
         ("r_labelled", 0.999),
     ):
         config.setdefault(key, value)
