@@ -419,23 +419,17 @@ class ScanTracker:
         z, n_coincident, self._kept_rows = merge_coincident(z, t, return_index=True)
         return t, z, dt, n_coincident
 
-    def _gate(self, x, P, z):
-        """Chi-square gates of the states ``(x, P)`` on ``z`` (:func:`gate_pairs`, P_G = p_g)."""
+    def _gate(self, x, P, z, dense: bool = False):
+        """Chi-square gates of the states ``(x, P)`` on ``z`` (P_G = p_g): the gated
+        pairs (:func:`gate_pairs`), or with ``dense`` the (N, M)
+        :class:`~jointtrack.association.gating.Gating` (:func:`gate_measurements`)."""
         c = self.config
+        gate = gate_measurements if dense else gate_pairs
         if self._linear:
             z_pred, S = predict_measurement(x, P, self._sensor.H, self._sensor.R)
-            return gate_pairs(z_pred, S, z, P_G=c.p_g)
+            return gate(z_pred, S, z, P_G=c.p_g)
         z_pred, S = ekf_predict_measurement(x, P, self._sensor)
-        return gate_pairs(z_pred, S, z, P_G=c.p_g, residual=self._sensor.residual)
-
-    def _gate_dense(self, x, P, z):
-        """:meth:`_gate` as a dense (N, M) :class:`~jointtrack.association.gating.Gating`."""
-        c = self.config
-        if self._linear:
-            z_pred, S = predict_measurement(x, P, self._sensor.H, self._sensor.R)
-            return gate_measurements(z_pred, S, z, P_G=c.p_g)
-        z_pred, S = ekf_predict_measurement(x, P, self._sensor)
-        return gate_measurements(z_pred, S, z, P_G=c.p_g, residual=self._sensor.residual)
+        return gate(z_pred, S, z, P_G=c.p_g, residual=self._sensor.residual)
 
     def _measurement_model(self) -> dict:
         """The keyword arguments of the filters' update for the active sensor."""

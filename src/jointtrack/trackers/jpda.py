@@ -405,7 +405,7 @@ class JPDATracker(ScanTracker):
         inside = np.zeros(len(rows), bool)
         for a in range(0, len(rows), chunk):
             r = rows[a : a + chunk]
-            mask = self._gate_dense(self.x[r], self.P[r], z_pairs[a : a + chunk]).mask
+            mask = self._gate(self.x[r], self.P[r], z_pairs[a : a + chunk], dense=True).mask
             inside[a : a + chunk] = np.diagonal(mask)
         return inside
 
