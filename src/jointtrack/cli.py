@@ -943,8 +943,9 @@ def sweep_command(
     spec: Annotated[
         Path,
         typer.Argument(
-            help="Sweep spec (TOML): [sweep] axes and seeds over the [tracker], [scenario], "
-            "[metrics] (and [filter]) base tables; see jointtrack.sweep.spec."
+            # rich markup would take [sweep] etc. for style tags and drop them: escaped
+            help="Sweep spec (TOML): \\[sweep] axes and seeds over the \\[tracker], "
+            "\\[scenario], \\[metrics] (and \\[filter]) base tables; see jointtrack.sweep.spec."
         ),
     ],
     workers: Annotated[
