@@ -759,78 +759,80 @@ def _run(
         n_done = 0
         # likewise a warning per scan with exactly repeated returns (real data repeats
         # reports): counted in coincident_returns, one note after the run
-        repeats = warnings.catch_warnings()
-        repeats.__enter__()
-        warnings.simplefilter("ignore", CoincidentReturnsWarning)
-        try:
-            with progress_bar(console, unit="scans", enabled=progress, remaining=True) as bar:
-                task = bar.add_task("tracking", total=stop, completed=start)
-                for k in range(start, stop):
-                    t = float(src.times[k])
-                    for res in _step_scan(trk, t, src, k):
-                        if particle is not None:
-                            scan_weights.append(
-                                [
-                                    res.coefficient_seconds,
-                                    res.derivative_seconds,
-                                    float(res.ess.mean()),
-                                    float(res.ess.min()),
-                                    max((c[1] for c in res.components), default=0),
-                                ]
-                            )
-                            continue
-                        for (n_tr, n_me), sec, conf in zip(
-                            res.cluster_sizes,
-                            res.cluster_seconds,
-                            res.cluster_confirmed,
-                            strict=True,
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", CoincidentReturnsWarning)
+            try:
+                with progress_bar(console, unit="scans", enabled=progress, remaining=True) as bar:
+                    task = bar.add_task("tracking", total=stop, completed=start)
+                    for k in range(start, stop):
+                        t = float(src.times[k])
+                        for res in _step_scan(trk, t, src, k):
+                            if particle is not None:
+                                scan_weights.append(
+                                    [
+                                        res.coefficient_seconds,
+                                        res.derivative_seconds,
+                                        float(res.ess.mean()),
+                                        float(res.ess.min()),
+                                        max((c[1] for c in res.components), default=0),
+                                    ]
+                                )
+                                continue
+                            for (n_tr, n_me), sec, conf in zip(
+                                res.cluster_sizes,
+                                res.cluster_seconds,
+                                res.cluster_confirmed,
+                                strict=True,
+                            ):
+                                if conf:
+                                    clusters.append([int(n_tr), int(n_me), float(sec)])
+                            for reason, method, conf in zip(
+                                res.cluster_fallbacks,
+                                res.cluster_methods,
+                                res.cluster_confirmed,
+                                strict=True,
+                            ):
+                                if reason:
+                                    # the reason's kind (exact_max_tracks, refused, dense_budget)
+                                    # and the tier that solved the cluster
+                                    key = reason.split(":", 1)[0].split(";", 1)[0]
+                                    # tentative-track clusters (clutter-born, in heavy clutter)
+                                    # apart from the confirmed ones the experiment is about
+                                    key += "" if conf else ", tentative tracks"
+                                    fallbacks[key] = fallbacks.get(key, 0) + 1
+                                    tier = method + ("" if conf else ", tentative tracks")
+                                    tiers[tier] = tiers.get(tier, 0) + 1
+                            coincident[0] += res.n_coincident
+                        if output_interval is None or _last_in_window(
+                            src.times, k, output_interval
                         ):
-                            if conf:
-                                clusters.append([int(n_tr), int(n_me), float(sec)])
-                        for reason, method, conf in zip(
-                            res.cluster_fallbacks,
-                            res.cluster_methods,
-                            res.cluster_confirmed,
-                            strict=True,
-                        ):
-                            if reason:
-                                # the reason's kind (exact_max_tracks, refused, dense_budget)
-                                # and the tier that solved the cluster
-                                key = reason.split(":", 1)[0].split(";", 1)[0]
-                                # tentative-track clusters (clutter-born, in heavy clutter)
-                                # apart from the confirmed ones the experiment is about
-                                key += "" if conf else ", tentative tracks"
-                                fallbacks[key] = fallbacks.get(key, 0) + 1
-                                tier = method + ("" if conf else ", tentative tracks")
-                                tiers[tier] = tiers.get(tier, 0) + 1
-                        coincident[0] += res.n_coincident
-                    if output_interval is None or _last_in_window(src.times, k, output_interval):
-                        writer.write_scan(t, res)  # the tracks after the time's last sensor
-                    fault("scan", k)
-                    n_done += 1
-                    if checkpoint is not None and trk.n_scans % checkpoint_every == 0:
-                        # part first, then the checkpoint that counts it (see writers)
-                        n_parts = writer.commit()
-                        fault("part", k)
-                        seconds = elapsed_before + time.perf_counter() - loop0
-                        _save_checkpoint(trk, checkpoint, run_info(n_parts, seconds))
-                        checkpointed[0] = True
-                        fault("checkpoint", k)
-                    bar.update(task, advance=1)
-            loop_seconds = time.perf_counter() - loop0
-            if checkpoint is not None and (n_done or resume is not None):
-                n_parts = writer.commit() if writer._pending else writer.n_parts
-                _save_checkpoint(trk, checkpoint, run_info(n_parts, elapsed_before + loop_seconds))
-                checkpointed[0] = True
-            # the parts are kept only while a resume can extend the run (--max-scans)
-            writer.finish(keep_parts=checkpoint is not None and stop < K)
-        except KeyboardInterrupt:
-            writer.snapshot()
-            raise
-        finally:
-            writer.close()
-            tracker_log.setLevel(saved_level)
-            repeats.__exit__(None, None, None)
+                            writer.write_scan(t, res)  # the tracks after the time's last sensor
+                        fault("scan", k)
+                        n_done += 1
+                        if checkpoint is not None and trk.n_scans % checkpoint_every == 0:
+                            # part first, then the checkpoint that counts it (see writers)
+                            n_parts = writer.commit()
+                            fault("part", k)
+                            seconds = elapsed_before + time.perf_counter() - loop0
+                            _save_checkpoint(trk, checkpoint, run_info(n_parts, seconds))
+                            checkpointed[0] = True
+                            fault("checkpoint", k)
+                        bar.update(task, advance=1)
+                loop_seconds = time.perf_counter() - loop0
+                if checkpoint is not None and (n_done or resume is not None):
+                    n_parts = writer.commit() if writer._pending else writer.n_parts
+                    _save_checkpoint(
+                        trk, checkpoint, run_info(n_parts, elapsed_before + loop_seconds)
+                    )
+                    checkpointed[0] = True
+                # the parts are kept only while a resume can extend the run (--max-scans)
+                writer.finish(keep_parts=checkpoint is not None and stop < K)
+            except KeyboardInterrupt:
+                writer.snapshot()
+                raise
+            finally:
+                writer.close()
+                tracker_log.setLevel(saved_level)
     except BaseException:
         if not checkpointed[0]:
             writer.discard_parts()

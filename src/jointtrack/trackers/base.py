@@ -231,6 +231,8 @@ class ScanTracker:
         # (time, ids, x, P, existence) per successful scan; outside the saved and
         # restored state: appended only after a step succeeded
         self._history_rows: list[tuple] = []
+        # clusters the approximation solved, by reason (fallback_counts; not state)
+        self._fallbacks: dict = {}
         c = self.config
         self._motion = motion = motion_model(c, motion)
         n = int(motion.state_dim)
@@ -524,9 +526,8 @@ class ScanTracker:
         approximated cluster. :attr:`fallback_counts` holds the counts.
         """
         key = reason.split(":", 1)[0].split(";", 1)[0] + ("" if loud else ", tentative tracks")
-        counts = self.__dict__.setdefault("_fallbacks", {})
-        counts[key] = counts.get(key, 0) + 1
-        first = counts[key] == 1 and loud
+        self._fallbacks[key] = self._fallbacks.get(key, 0) + 1
+        first = self._fallbacks[key] == 1 and loud
         (log.warning if first else log.debug)(
             "%s association of a cluster of %d %s tracks and %d measurements not used "
             "(%s): used %s%s",
@@ -543,7 +544,7 @@ class ScanTracker:
     def fallback_counts(self) -> dict:
         """Clusters solved by the approximation instead of the configured method since
         this tracker was built, by reason (``", tentative tracks"`` marks tentative ones)."""
-        return dict(self.__dict__.get("_fallbacks", {}))
+        return dict(self._fallbacks)
 
     # -------------------------------------------------------------- history
     def history(self) -> TrackHistory:
