@@ -1,0 +1,254 @@
+"""The run and sweep plots read without the code: what the figure objects hold.
+
+Axis labels carry units, legends explain every mark and sit outside the axes,
+tracks have a start dot and an arrow at their end, long runs say what they
+leave out, categorical sweep axes are bars, and extreme coordinates draw with
+no warning (issue 25, item 2).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import warnings
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
+from matplotlib.collections import PathCollection  # noqa: E402
+from matplotlib.container import BarContainer  # noqa: E402
+from matplotlib.quiver import Quiver  # noqa: E402
+
+from jointtrack.experiments.plots import PLOT_LIMIT, gospa_figure, scene_figure  # noqa: E402
+from jointtrack.metrics.ospa import gospa_series  # noqa: E402
+from jointtrack.sweep.report import metric_figure, metric_label  # noqa: E402
+
+
+def _tracks(paths: dict) -> tuple:
+    """Flat (times, ids, positions) from {id: (K, 2) positions at times 0..K-1}."""
+    t, i, p = [], [], []
+    for k, pos in paths.items():
+        pos = np.asarray(pos, dtype=float)
+        t.append(np.arange(len(pos), dtype=float))
+        i.append(np.full(len(pos), k))
+        p.append(pos)
+    return np.concatenate(t), np.concatenate(i), np.concatenate(p)
+
+
+def _legend_outside(fig, ax, legend) -> bool:
+    # a bare Figure (the sweep's, no pyplot) has no renderer of its own
+    canvas = fig.canvas if hasattr(fig.canvas, "get_renderer") else FigureCanvasAgg(fig)
+    canvas.draw()  # lays the figure out
+    r = canvas.get_renderer()
+    return legend.get_window_extent(r).x0 >= ax.get_window_extent(r).x1 - 1.0
+
+
+def _scene(rng, n_scans=12):
+    a = np.column_stack([np.linspace(0, 110, n_scans), np.linspace(0, 30, n_scans)])
+    b = np.column_stack([np.linspace(100, -10, n_scans), np.full(n_scans, 50.0)])
+    truth = _tracks({0: a, 1: b})
+    tracks = _tracks({7: a + rng.normal(0, 1, a.shape), 9: b[2:] + rng.normal(0, 1, b[2:].shape)})
+    scans, origins = [], []
+    for k in range(n_scans):
+        clutter = rng.uniform(-20, 120, (3, 2))
+        scans.append(np.vstack([a[k], b[k], clutter]))
+        origins.append(np.array([0, 1, -1, -1, -1]))
+    return dict(
+        times=np.arange(n_scans, dtype=float),
+        scans=scans,
+        origins=origins,
+        truth=truth,
+        tracks=tracks,
+        region=np.array([[-20.0, 120.0], [-10.0, 60.0]]),
+        title="test scene",
+    )
+
+
+def test_scene_units_marks_and_legend_outside():
+    kw = _scene(np.random.default_rng(3))
+    fig = scene_figure(**kw)
+    try:
+        ax = fig.axes[0]
+        assert ax.get_xlabel() == "x (m)" and ax.get_ylabel() == "y (m)"
+        assert ax.get_title() == "test scene — 12 scans, 2 confirmed tracks"
+        leg = ax.get_legend()
+        labels = [t.get_text() for t in leg.get_texts()]
+        for word in ("clutter", "target detections", "truth", "confirmed tracks", "start"):
+            assert any(word in lab for lab in labels), (word, labels)
+        assert any("direction" in lab for lab in labels)
+        assert _legend_outside(fig, ax, leg)
+        # a start dot at the first position of every track and truth line
+        _, ids, pos = kw["tracks"]
+        starts = {tuple(np.round(pos[ids == k][0], 9)) for k in (7, 9)}
+        starts |= {tuple(np.round(p, 9)) for p in ((0.0, 0.0), (100.0, 50.0))}
+        dots = {
+            tuple(np.round(o, 9))
+            for c in ax.collections
+            if isinstance(c, PathCollection) and c.get_zorder() >= 4
+            for o in c.get_offsets()
+        }
+        assert starts <= dots
+        # an arrow at the end of every line, pointing along its last move
+        quivers = [c for c in ax.collections if isinstance(c, Quiver)]
+        ends = {}
+        for q in quivers:
+            for xy, u, v in zip(q.get_offsets(), q.U, q.V, strict=True):
+                ends[tuple(np.round(xy, 9))] = (u, v)
+        p7 = pos[ids == 7]
+        d = p7[-1] - p7[-2]
+        u, v = ends[tuple(np.round(p7[-1], 9))]
+        assert np.allclose((u, v), d / np.hypot(*d))
+        assert len(ends) == 4  # two tracks, two truth lines
+    finally:
+        plt.close(fig)
+
+
+def test_long_run_draws_only_tracks_of_five_scans_or_more_and_says_so():
+    rng = np.random.default_rng(0)
+    lengths = rng.integers(1, 12, 150)  # 150 tracks: a long run
+    paths = {k: np.cumsum(rng.normal(0, 5, (n, 2)), axis=0) for k, n in enumerate(lengths)}
+    shown = int((lengths >= 5).sum())
+    assert 0 < shown < 150
+    fig = scene_figure(times=np.arange(12.0), scans=[], tracks=_tracks(paths))
+    try:
+        ax = fig.axes[0]
+        assert f"150 confirmed tracks, {shown} shown (those of ≥ 5 scans)" in ax.get_title()
+        assert "ids not shown" in ax.get_title()
+        track_lines = [ln for ln in ax.get_lines() if ln.get_zorder() == 4]
+        assert len(track_lines) == shown
+        assert all(ln.get_linewidth() < 1.0 for ln in track_lines)
+    finally:
+        plt.close(fig)
+
+
+def test_short_run_draws_every_track():
+    paths = {k: np.array([[0.0, k], [1.0, k]]) for k in range(3)}  # 2-scan tracks
+    fig = scene_figure(times=np.arange(2.0), scans=[], tracks=_tracks(paths))
+    try:
+        ax = fig.axes[0]
+        assert ax.get_title() == "2 scans, 3 confirmed tracks"
+        assert len([ln for ln in ax.get_lines() if ln.get_zorder() == 4]) == 3
+    finally:
+        plt.close(fig)
+
+
+@pytest.mark.parametrize("big", [1e300, 1.7e308, np.inf, np.nan])
+def test_extreme_coordinates_draw_without_warnings(big):
+    kw = _scene(np.random.default_rng(1), n_scans=6)
+    tt, ti, tp = kw["truth"]
+    tp = tp.copy()
+    tp[2] = (big, -big)  # a truth file may hold what the tracker would refuse
+    kw["truth"] = (tt, ti, tp)
+    kw["scans"][3] = np.vstack([kw["scans"][3], [[big, 1.0]]])
+    kw["origins"][3] = np.append(kw["origins"][3], -1)
+    kw["region"] = np.array([[-big, big], [-1.0, 1.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fig = scene_figure(**kw)
+        try:
+            fig.savefig(io.BytesIO(), format="png")
+            ax = fig.axes[0]
+            if abs(big) <= PLOT_LIMIT:  # never: every case here is beyond the limit
+                pytest.fail("the case must lie beyond PLOT_LIMIT")
+            assert f"2 points not finite or beyond ±{PLOT_LIMIT:.0e} m not drawn" in (
+                ax.get_title()
+            )
+            lo, hi = ax.get_xlim()
+            assert np.isfinite([lo, hi]).all() and hi - lo < 1e3
+        finally:
+            plt.close(fig)
+
+
+def test_gospa_figure_units_and_typeset_square():
+    rng = np.random.default_rng(2)
+    t = np.repeat(np.arange(10.0), 2)
+    ids = np.tile([0, 1], 10)
+    truth = rng.uniform(0, 100, (20, 2))
+    series = gospa_series(t, ids, truth, t[2:], ids[2:], truth[2:] + 1.0, c=20.0, p=2)
+    fig = gospa_figure(series, title="g")
+    try:
+        top, bottom = fig.axes
+        assert top.get_ylabel() == "GOSPA (m)"
+        assert bottom.get_ylabel() == "GOSPA$^{2}$ parts (m$^{2}$)"
+        assert bottom.get_xlabel() == "time (s)"
+        assert "c = 20 m" in top.get_title() and f"{series.mean:.3g} m" in top.get_title()
+        labels = [x.get_text() for x in bottom.get_legend().get_texts()]
+        assert labels[0].startswith("localisation") and "missed" in labels[1]
+        assert "false" in labels[2]
+        for ax in (top, bottom):
+            assert _legend_outside(fig, ax, ax.get_legend())
+    finally:
+        plt.close(fig)
+
+
+def _rows(cells: dict, seeds=(0, 1, 2)) -> list[dict]:
+    """Sweep rows: cells maps (method, params) → a metric value per seed (its function)."""
+    rows = []
+    for (method, params), value in cells.items():
+        for s in seeds:
+            rows.append(
+                {
+                    "status": "ok",
+                    "method": method,
+                    "seed": s,
+                    "params": json.dumps(dict(params), sort_keys=True),
+                    "metric.gospa": value(s),
+                }
+            )
+    return rows
+
+
+def test_sweep_method_axis_is_bars_with_scenario_and_seeds_in_title():
+    axes = {"tracker.association": ["exact", "lbp"]}
+    means = {"exact": 3.0, "lbp": 5.0}
+    cells = {
+        (f"jpda/{a}", (("scenario.name", "crossing"), ("tracker.association", a))): (
+            lambda s, a=a: means[a] + s - 1
+        )
+        for a in axes["tracker.association"]
+    }
+    fig = metric_figure(_rows(cells), axes, "tracker.association", "gospa")
+    ax = fig.axes[0]
+    bars = [c for c in ax.containers if isinstance(c, BarContainer)]
+    assert [b.patches[0].get_height() for b in bars] == [3.0, 5.0]  # means over seeds 0..2
+    assert not [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 1]
+    assert ax.get_title().startswith("crossing: gospa vs tracker.association")
+    assert "3 seeds per cell" in ax.get_title()
+    assert ax.get_ylabel().startswith("mean GOSPA per scan (m)")
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["exact", "lbp"]
+    assert _legend_outside(fig, ax, ax.get_legend())
+
+
+def test_sweep_numeric_axis_is_lines_pooled_over_the_other_axis():
+    axes = {"scenario.clutter_per_scan": [5.0, 20.0, 50.0], "tracker.association": ["exact", "lbp"]}
+    cells = {}
+    for a in axes["tracker.association"]:
+        for c in axes["scenario.clutter_per_scan"]:
+            key = (("scenario.clutter_per_scan", c), ("scenario.name", "bojilov"))
+            key += (("tracker.association", a),)
+            cells[(f"jpda/{a}", key)] = lambda s, c=c, a=a: c / 10 + (a == "lbp")
+    fig = metric_figure(_rows(cells, seeds=(0, 1)), axes, "scenario.clutter_per_scan", "gospa")
+    ax = fig.axes[0]
+    assert not [c for c in ax.containers if isinstance(c, BarContainer)]
+    lines = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-"]  # not the CI caps
+    assert len(lines) == 2
+    assert np.allclose(lines[0].get_ydata(), [0.5, 2.0, 5.0])
+    assert "2 seeds per cell; pooled over tracker.association" in ax.get_title()
+    assert ax.get_xlabel() == "scenario.clutter_per_scan"
+    # along the association axis every method has one value: bars
+    fig2 = metric_figure(_rows(cells, seeds=(0, 1)), axes, "tracker.association", "gospa")
+    assert [c for c in fig2.axes[0].containers if isinstance(c, BarContainer)]
+
+
+def test_metric_labels_carry_units():
+    assert metric_label("gospa") == "mean GOSPA per scan (m)"
+    assert metric_label("gospa_localisation", p=1) == (
+        "GOSPA$^{1}$ part: localisation, mean per scan (m$^{1}$)"
+    )
+    assert metric_label("seconds_per_scan").endswith("(s)")
+    assert metric_label("scans_per_second").endswith("(scans/s)")
