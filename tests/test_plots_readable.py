@@ -252,3 +252,38 @@ def test_metric_labels_carry_units():
     )
     assert metric_label("seconds_per_scan").endswith("(s)")
     assert metric_label("scans_per_second").endswith("(scans/s)")
+
+
+def test_run_of_more_than_500_scans_draws_a_density_and_the_last_100_scans():
+    n = 600
+    k = np.arange(n, dtype=float)
+    paths = {j: np.column_stack([k, np.full(n, 10.0 * j)]) for j in range(3)}
+    tracks = _tracks(paths)
+    scans = [np.array([[x, 0.0], [x, 10.0], [x, 20.0]]) for x in k]
+    origins = [np.array([0, 1, 2])] * n
+    fig = scene_figure(
+        times=k,
+        scans=scans,
+        origins=origins,
+        tracks=tracks,
+        truth=tracks,
+        region=np.array([[0.0, 600.0], [-5.0, 25.0]]),
+        title="long",
+    )
+    try:
+        ax_all, ax_end = fig.axes[:2]
+        assert fig.get_suptitle() == "long — 600 scans, 3 confirmed tracks"
+        # the density counts every track estimate once
+        (mesh,) = [c for c in ax_all.collections if hasattr(c, "get_array")]
+        assert mesh.get_array().sum() == 3 * n
+        assert "per cell" in fig.axes[2].get_ylabel() and " m × " in fig.axes[2].get_ylabel()
+        assert ax_all.get_xlabel() == "x (m)" and ax_end.get_ylabel() == "y (m)"
+        assert ax_end.get_title().startswith("the last 100 scans (t ≥ 500 s): 3 tracks")
+        track_lines = [ln for ln in ax_end.get_lines() if ln.get_zorder() == 4]
+        assert sorted(len(ln.get_xdata()) for ln in track_lines) == [100, 100, 100]
+        assert min(min(ln.get_xdata()) for ln in track_lines) == 500.0
+        labels = [t.get_text() for t in ax_end.get_legend().get_texts()]
+        assert "start (first position in these scans)" in labels
+        assert _legend_outside(fig, ax_end, ax_end.get_legend())
+    finally:
+        plt.close(fig)

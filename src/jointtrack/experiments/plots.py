@@ -124,37 +124,18 @@ def _paths(t, i, p):
     return out
 
 
-def scene_figure(
-    *,
-    times,
-    scans,
-    tracks,
-    origins=None,
-    truth=None,
-    region=None,
-    title: str = "",
-    sensor=None,
-):
-    """The figure of :func:`plot_scene` (open; the caller saves or closes it).
+def _draw_scene(ax, *, scans, origins, truth, tracks, box, sensor, crowded, first_label):
+    """Detections, truth and tracks into ``ax``; returns the title's account of the tracks.
 
-    Positions are in metres. Every track and truth line has a start dot and an
-    arrow head at its last position (the direction of motion). A long run
-    (more than 100 tracks or 500 scans) is drawn with thin lines and only the
-    tracks that lasted at least 5 scans; the title says how many are shown.
-    Points that are not finite or lie beyond ±``PLOT_LIMIT`` m are left out
-    and counted in the title.
+    ``crowded``: thin lines and only tracks of at least ``_LONG_RUN_MIN_SCANS``
+    rows; ``first_label``: the legend's words for the start dot.
     """
     from matplotlib.lines import Line2D
 
-    box = _region_box(region)
-    fig, ax = plt.subplots(figsize=_figsize(box), layout="constrained")
-    et, ei, ep = (np.asarray(a) for a in tracks)
-    ep = np.asarray(ep, dtype=float).reshape(len(et), -1) if len(et) else np.zeros((0, 2))
-    n_scans = len(np.unique(times)) if len(times) else 0
+    et, ei, ep = tracks
     n_tracks = len(np.unique(ei))
-    long_run = n_tracks > _LONG_RUN_TRACKS or n_scans > _LONG_RUN_SCANS
-    min_scans = _LONG_RUN_MIN_SCANS if long_run else 1
-    lw, lw_truth, ms_start, arrow_in = (0.7, 0.6, 2.5, 0.09) if long_run else (1.6, 1.2, 5, 0.16)
+    min_scans = _LONG_RUN_MIN_SCANS if crowded else 1
+    lw, lw_truth, ms_start, arrow_in = (0.7, 0.6, 3, 0.1) if crowded else (1.6, 1.2, 5, 0.16)
     dropped = 0
     handles: list = []
 
@@ -191,9 +172,9 @@ def scene_figure(
             ax.scatter(S[:, 0], S[:, 1], s=ms_start**2, c=cols, lw=0, zorder=z + 1)
             _arrows(ax, np.asarray(ends), np.asarray(befores), cols, arrow_in, z + 1)
 
-    if truth is not None and len(truth[0]):
-        tt, ti, tp = (np.asarray(a) for a in truth)
-        tp = np.asarray(tp, dtype=float)
+    has_truth = truth is not None and len(truth[0])
+    if has_truth:
+        tt, ti, tp = truth
         keep = _drawable(tp)
         dropped += int((~keep).sum())
         paths = _paths(tt[keep], ti[keep], tp[keep])
@@ -224,10 +205,8 @@ def scene_figure(
         track_label = "confirmed tracks (one colour each"
         track_label += ", id at the end)" if label_ids else ")"
         handles.append(Line2D([], [], c=colors[0], lw=1.6, label=track_label))
-    if shown or (truth is not None and len(truth[0])):
-        handles.append(
-            Line2D([], [], ls="none", marker="o", ms=5, c="0.3", label="start (first position)")
-        )
+    if shown or has_truth:
+        handles.append(Line2D([], [], ls="none", marker="o", ms=5, c="0.3", label=first_label))
         handles.append(
             Line2D(
                 [], [], ls="none", marker=">", ms=7, c="0.3", label="arrow: direction at the end"
@@ -238,24 +217,14 @@ def scene_figure(
         ax.plot([sx], [sy], "^", ms=9, c="k", mec="w", zorder=6)
         handles.append(Line2D([], [], ls="none", marker="^", ms=8, c="k", label="sensor"))
 
-    if box is not None:
-        box = box.copy()
-        if keep.any():  # tracks that wander off the region stay in view
-            box[:, 0] = np.minimum(box[:, 0], ep[keep, :2].min(axis=0))
-            box[:, 1] = np.maximum(box[:, 1], ep[keep, :2].max(axis=0))
-        pad = 0.03 * (box[:, 1] - box[:, 0])
-        ax.set_xlim(box[0, 0] - pad[0], box[0, 1] + pad[0])
-        ax.set_ylim(box[1, 0] - pad[1], box[1, 1] + pad[1])
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    head = f"{n_scans:,} scans, {n_tracks:,} confirmed tracks"
+    _set_view(ax, box, ep[keep])
+    head = f"{n_tracks:,} confirmed tracks"
     if len(shown) < n_tracks:
         head += f", {len(shown):,} shown (those of ≥ {min_scans} scans)"
     if not label_ids:
         head += ", ids not shown"
     if dropped:
         head += f"; {dropped:,} points not finite or beyond ±{PLOT_LIMIT:.0e} m not drawn"
-    ax.set_title(f"{title} — {head}".strip(" —"), fontsize=10)
     if handles:
         ax.legend(
             handles=handles,
@@ -265,7 +234,150 @@ def scene_figure(
             fontsize=8,
             framealpha=0.9,
         )
+    return head
+
+
+def _set_view(ax, box, points) -> None:
+    """Axis limits: the region, widened to ``points`` (tracks that wander off stay in view)."""
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
     ax.grid(alpha=0.2)
+    if box is None:
+        return
+    box = box.copy()
+    if len(points):
+        box[:, 0] = np.minimum(box[:, 0], points[:, :2].min(axis=0))
+        box[:, 1] = np.maximum(box[:, 1], points[:, :2].max(axis=0))
+    pad = 0.03 * (box[:, 1] - box[:, 0])
+    ax.set_xlim(box[0, 0] - pad[0], box[0, 1] + pad[0])
+    ax.set_ylim(box[1, 0] - pad[1], box[1, 1] + pad[1])
+
+
+def _draw_density(fig, ax, positions, box) -> int:
+    """Where the tracks were: estimates per cell of a 100 × 100 grid (log colour scale).
+
+    Returns the number of positions left out as not drawable.
+    """
+    from matplotlib.colors import LogNorm
+
+    keep = _drawable(positions)
+    xy = positions[keep, :2]
+    if box is None and len(xy):
+        box = np.column_stack([xy.min(axis=0), xy.max(axis=0)])
+    if box is not None and len(xy):
+        box = box.copy()
+        box[:, 0] = np.minimum(box[:, 0], xy.min(axis=0))
+        box[:, 1] = np.maximum(box[:, 1], xy.max(axis=0))
+        flat = box[:, 1] <= box[:, 0]
+        box[flat, 1] = box[flat, 0] + 1.0  # a single point still gets a cell
+        counts, xe, ye = np.histogram2d(xy[:, 0], xy[:, 1], bins=100, range=box)
+        mesh = ax.pcolormesh(
+            xe,
+            ye,
+            np.ma.masked_equal(counts.T, 0),
+            norm=LogNorm(vmin=1, vmax=max(counts.max(), 2)),
+            cmap="viridis",
+            rasterized=True,
+        )
+        cb = fig.colorbar(mesh, ax=ax, shrink=0.9, pad=0.01)
+        cb.set_label(f"track estimates per cell ({xe[1] - xe[0]:.3g} m × {ye[1] - ye[0]:.3g} m)")
+    _set_view(ax, box, np.zeros((0, 2)))
+    return int((~keep).sum())
+
+
+#: Scans drawn in full detail at the end of a run longer than ``_LONG_RUN_SCANS``.
+_WINDOW_SCANS = 100
+
+
+def scene_figure(
+    *,
+    times,
+    scans,
+    tracks,
+    origins=None,
+    truth=None,
+    region=None,
+    title: str = "",
+    sensor=None,
+):
+    """The figure of :func:`plot_scene` (open; the caller saves or closes it).
+
+    Positions are in metres. Every track and truth line has a start dot and an
+    arrow head at its last position (the direction of motion), and the legend,
+    right of the axes, names every mark. A crowded run (more than 100 tracks)
+    is drawn with thin lines and only the tracks that lasted at least 5 scans;
+    the title says how many are shown. A run of more than 500 scans is drawn
+    in two panels: where all tracks were (a density of their estimates) and
+    the last 100 scans in detail. Points that are not finite or lie beyond
+    ±``PLOT_LIMIT`` m are left out and counted in the title.
+    """
+    box = _region_box(region)
+    times = np.asarray(times, dtype=float)
+    et, ei, ep = (np.asarray(a) for a in tracks)
+    et = et.astype(float)
+    ep = np.asarray(ep, dtype=float).reshape(len(et), -1) if len(et) else np.zeros((0, 2))
+    if truth is not None:
+        truth = tuple(np.asarray(a) for a in truth)
+        truth = (truth[0].astype(float), truth[1], truth[2].astype(float))
+    scan_times = np.unique(times) if len(times) else times
+    n_scans = len(scan_times)
+    n_tracks = len(np.unique(ei))
+    crowded = n_tracks > _LONG_RUN_TRACKS or n_scans > _LONG_RUN_SCANS
+    if n_scans <= _LONG_RUN_SCANS:
+        fig, ax = plt.subplots(figsize=_figsize(box), layout="constrained")
+        head = _draw_scene(
+            ax,
+            scans=scans,
+            origins=origins,
+            truth=truth,
+            tracks=(et, ei, ep),
+            box=box,
+            sensor=sensor,
+            crowded=crowded,
+            first_label="start (first position)",
+        )
+        ax.set_title(f"{title} — {n_scans:,} scans, {head}".strip(" —"), fontsize=10)
+        return fig
+
+    fig, (ax_all, ax_end) = plt.subplots(1, 2, figsize=(17, 7.4), layout="constrained")
+    dropped = _draw_density(fig, ax_all, ep, box)
+    note = f"; {dropped:,} not drawable" if dropped else ""
+    ax_all.set_title(
+        f"where the tracks were: all {n_tracks:,} tracks, all {n_scans:,} scans{note}",
+        fontsize=10,
+    )
+    t0 = scan_times[-_WINDOW_SCANS]
+    in_window = times >= t0
+    aligned = len(scans) == len(times)
+    w_scans = [z for z, w in zip(scans, in_window, strict=True) if w] if aligned else []
+    w_origins = None
+    if origins is not None and aligned:
+        w_origins = [o for o, w in zip(origins, in_window, strict=True) if w]
+    w_truth = None
+    if truth is not None:
+        m = truth[0] >= t0
+        w_truth = (truth[0][m], truth[1][m], truth[2][m])
+    m = et >= t0
+    head = _draw_scene(
+        ax_end,
+        scans=w_scans,
+        origins=w_origins,
+        truth=w_truth,
+        tracks=(et[m], ei[m], ep[m]),
+        box=box,
+        sensor=sensor,
+        crowded=True,
+        first_label="start (first position in these scans)",
+    )
+    ax_end.set_title(
+        f"the last {_WINDOW_SCANS} scans (t ≥ {t0:g} s): {head}".replace(
+            "confirmed tracks", "tracks"
+        ),
+        fontsize=10,
+    )
+    fig.suptitle(
+        f"{title} — {n_scans:,} scans, {n_tracks:,} confirmed tracks".strip(" —"), fontsize=11
+    )
     return fig
 
 
