@@ -238,7 +238,12 @@ def test_sweep_numeric_axis_is_lines_pooled_over_the_other_axis():
     lines = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-"]  # not the CI caps
     assert len(lines) == 2
     assert np.allclose(lines[0].get_ydata(), [0.5, 2.0, 5.0])
-    assert "2 seeds per cell; pooled over tracker.association" in ax.get_title()
+    assert np.allclose(lines[1].get_ydata(), [1.5, 3.0, 6.0])
+    # shifted apart by 1.2 % of the span each side, no more
+    assert np.allclose(lines[1].get_xdata() - lines[0].get_xdata(), 0.012 * 45.0)
+    assert np.allclose((lines[0].get_xdata() + lines[1].get_xdata()) / 2, [5.0, 20.0, 50.0])
+    # tracker.association is the method itself here: nothing is pooled
+    assert ax.get_title().endswith("\n2 seeds per cell")
     assert ax.get_xlabel() == "scenario.clutter_per_scan"
     # along the association axis every method has one value: bars
     fig2 = metric_figure(_rows(cells, seeds=(0, 1)), axes, "tracker.association", "gospa")
@@ -287,3 +292,19 @@ def test_run_of_more_than_500_scans_draws_a_density_and_the_last_100_scans():
         assert _legend_outside(fig, ax_end, ax_end.get_legend())
     finally:
         plt.close(fig)
+
+
+def test_sweep_title_names_an_axis_pooled_within_a_method():
+    axes = {"scenario.clutter_per_scan": [5.0, 20.0], "scenario.p_d": [0.8, 0.9]}
+    cells = {}
+    for c in axes["scenario.clutter_per_scan"]:
+        for pd in axes["scenario.p_d"]:
+            key = (("scenario.clutter_per_scan", c), ("scenario.name", "crossing"))
+            cells[("jpda/exact", key + (("scenario.p_d", pd),))] = lambda s, c=c, pd=pd: c * pd
+    fig = metric_figure(_rows(cells, seeds=(0,)), axes, "scenario.clutter_per_scan", "gospa")
+    ax = fig.axes[0]
+    assert ax.get_title() == (
+        "crossing: gospa vs scenario.clutter_per_scan\n1 seed per cell; pooled over scenario.p_d"
+    )
+    (line,) = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-"]
+    assert np.allclose(line.get_ydata(), [5.0 * 0.85, 20.0 * 0.85])  # mean over p_d

@@ -179,8 +179,10 @@ def metric_figure(rows: list[dict], axes: dict, axis: str, name: str):
     lines with 95 % CI bars, one line per method. A categorical axis (a
     method, a tracker kind …) or one along which every method has a single
     value (the axis is the method itself) is drawn as grouped bars with CI
-    bars and the mean written on each. The title names the scenario(s) and the
-    number of seeds. Returns a :class:`matplotlib.figure.Figure` (no pyplot:
+    bars and the mean written on each. Along a numeric axis the methods' lines
+    are shifted by ±1.2 % of the axis' span so that equal means stay visible.
+    The title names the scenario(s), the number of seeds and the axes pooled
+    (those that vary within a method). Returns a :class:`matplotlib.figure.Figure` (no pyplot:
     no GUI backend is ever chosen).
     """
     from matplotlib.figure import Figure
@@ -242,9 +244,14 @@ def metric_figure(rows: list[dict], axes: dict, axis: str, name: str):
         ax.set_xticks(range(len(groups)), [str(v) for v in groups])
         ax.margins(y=0.12)
     else:
-        for method, pts in stats.items():
+        # methods with equal means would hide each other: each is shifted by a small
+        # fraction of the axis' span (the ticks stay at the values)
+        span = (max(values) - min(values)) or 1.0
+        step = 0.012 * span if len(stats) > 1 else 0.0
+        for k, (method, pts) in enumerate(stats.items()):
+            shift = (k - (len(stats) - 1) / 2) * step
             ax.errorbar(
-                [pt[0] for pt in pts],
+                [pt[0] + shift for pt in pts],
                 [pt[1] for pt in pts],
                 yerr=[pt[2] for pt in pts],
                 marker="o",
@@ -266,7 +273,18 @@ def metric_figure(rows: list[dict], axes: dict, axis: str, name: str):
     )
     ax.set_xlabel(axis)
     ax.set_ylabel(f"{metric_label(name, p)}\nmean ± 95 % CI", fontsize=9)
-    others = [a for a in axes if a != axis]
+    # the other axes that vary within a method are pooled (an axis that is the
+    # method, e.g. tracker.kind, is not)
+    others = [
+        a
+        for a in axes
+        if a != axis
+        and any(
+            len({_value_key(q.get(a)) for r, q in zip(ok, params, strict=True) if r["method"] == m})
+            > 1
+            for m in methods
+        )
+    ]
     pooled = f"; pooled over {', '.join(others)}" if others else ""
     ax.set_title(
         f"{', '.join(scenarios)}: {name} vs {axis}\n"
