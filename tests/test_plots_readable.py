@@ -45,7 +45,9 @@ def _legend_outside(fig, ax, legend) -> bool:
     canvas = fig.canvas if hasattr(fig.canvas, "get_renderer") else FigureCanvasAgg(fig)
     canvas.draw()  # lays the figure out
     r = canvas.get_renderer()
-    return legend.get_window_extent(r).x0 >= ax.get_window_extent(r).x1 - 1.0
+    box = legend.get_window_extent(r)
+    # right of the axes, and not cut off by the figure's edge
+    return box.x0 >= ax.get_window_extent(r).x1 - 1.0 and box.x1 <= fig.bbox.x1 + 1.0
 
 
 def _scene(rng, n_scans=12):
@@ -308,3 +310,39 @@ def test_sweep_title_names_an_axis_pooled_within_a_method():
     )
     (line,) = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-"]
     assert np.allclose(line.get_ydata(), [5.0 * 0.85, 20.0 * 0.85])  # mean over p_d
+
+
+def test_acoustic_figure_explains_estimate_colours_and_start_dots():
+    from jointtrack.experiments.acoustic_run import acoustic_figure
+    from jointtrack.scenarios.acoustic import acoustic
+
+    sc = acoustic(seed=0, n_scans=10)  # the first 4 scans are drawn
+    rows = [
+        [float(sc.times[k]), j, 10.0 + k + 5 * j, 20.0 - k, 1.0, -1.0]
+        for k in range(4)
+        for j in (3, 8)
+    ]
+    fig = acoustic_figure(sc, rows, np.array([1.0, 2.0, 0.5, 0.2]), "sps-cphd", "gaussian", 4)
+    try:
+        ax, ax2 = fig.axes
+        assert (ax.get_xlabel(), ax.get_ylabel()) == ("x (m)", "y (m)")
+        assert ax2.get_xlabel() == "time (s)" and ax2.get_ylabel().startswith("OSPA (m)")
+        assert "4 scans, 2 estimate tracks" in ax.get_title()
+        labels = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert labels[0] == "sensors" and "truth start" in labels
+        assert any(lab.startswith("estimates: one colour per track") for lab in labels)
+        assert "first estimate of a track" in labels
+        assert "arrow: direction at the end" in labels
+        assert _legend_outside(fig, ax, ax.get_legend())
+        # a ringed dot at each track's first estimate, an arrow at its last
+        rings = {
+            (float(ln.get_xdata()[0]), float(ln.get_ydata()[0]))
+            for ln in ax.get_lines()
+            if ln.get_marker() == "o" and ln.get_markeredgecolor() == "k" and ln.get_zorder() == 5
+        }
+        assert rings == {(25.0, 20.0), (50.0, 20.0)}  # x = 10 + k + 5·id at k = 0
+        quivers = [c for c in ax.collections if isinstance(c, Quiver)]
+        tips = {tuple(np.round(xy, 9)) for q in quivers for xy in q.get_offsets()}
+        assert {(28.0, 17.0), (53.0, 17.0)} <= tips  # k = 3
+    finally:
+        plt.close(fig)
