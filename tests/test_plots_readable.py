@@ -182,8 +182,8 @@ def test_gospa_figure_units_and_typeset_square():
         labels = [x.get_text() for x in bottom.get_legend().get_texts()]
         assert labels[0].startswith("localisation") and "missed" in labels[1]
         assert "false" in labels[2]
-        for ax in (top, bottom):
-            assert _legend_outside(fig, ax, ax.get_legend())
+        assert _legend_outside(fig, bottom, bottom.get_legend())
+        assert np.allclose(top.get_lines()[0].get_ydata(), series.gospa)
     finally:
         plt.close(fig)
 

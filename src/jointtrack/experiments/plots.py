@@ -409,14 +409,14 @@ def gospa_figure(series, title: str = ""):
     pw = f"{p:g}"
     t = np.asarray(series.times, dtype=float)
     g = np.asarray(series.gospa, dtype=float)
-    ax1.plot(t, g, c="k", lw=1.4, label="GOSPA per scan")
-    ax1.axhline(series.c, c="0.5", ls=":", lw=1, label=f"cut-off c = {series.c:g} m")
+    # no line at c: unnormalised GOSPA grows with the number of targets (a missed
+    # target adds c^p/2 to GOSPA^p), so c is no ceiling; the title states it
+    ax1.plot(t, g, c="k", lw=1.4)
     ax1.set_ylabel("GOSPA (m)")
     head = f"GOSPA (c = {series.c:g} m, p = {pw}, α = 2), mean over scans {series.mean:.3g} m"
     ax1.set_title(f"{title} — {head}".strip(" —"), fontsize=10)
     ax1.set_ylim(bottom=0)
     ax1.grid(alpha=0.3)
-    ax1.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     ax2.stackplot(
         t,
         series.localisation,
