@@ -77,7 +77,7 @@ def _figsize(box) -> tuple[float, float]:
         return (11.5, 7.5)
     w, h = float(box[0, 1] - box[0, 0]), float(box[1, 1] - box[1, 0])
     aspect = min(max(h / w, 0.35), 1.0) if w > 0 else 1.0
-    return (14.5, max(4.8, 11.0 * aspect * 0.95))
+    return (14.0, max(4.8, 10.0 * aspect * 0.9))
 
 
 def _directions(ends: np.ndarray, befores: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
