@@ -52,6 +52,11 @@ def save_figure(fig, path, dpi: int = 120) -> Path:
     return path
 
 
+def _count(n: int, noun: str) -> str:
+    """``1 track``, ``1,583 tracks``."""
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
+
+
 def _drawable(points) -> np.ndarray:
     """Rows of ``points`` whose first two coordinates are finite and within ±PLOT_LIMIT."""
     xy = np.asarray(points, dtype=float)
@@ -218,13 +223,13 @@ def _draw_scene(ax, *, scans, origins, truth, tracks, box, sensor, crowded, firs
         handles.append(Line2D([], [], ls="none", marker="^", ms=8, c="k", label="sensor"))
 
     _set_view(ax, box, ep[keep])
-    head = f"{n_tracks:,} confirmed tracks"
+    head = _count(n_tracks, "confirmed track")
     if len(shown) < n_tracks:
         head += f", {len(shown):,} shown (those of ≥ {min_scans} scans)"
     if not label_ids:
         head += ", ids not shown"
     if dropped:
-        head += f"; {dropped:,} points not finite or beyond ±{PLOT_LIMIT:.0e} m not drawn"
+        head += f"; {_count(dropped, 'point')} not finite or beyond ±{PLOT_LIMIT:.0e} m not drawn"
     if handles:
         ax.legend(
             handles=handles,
@@ -336,14 +341,15 @@ def scene_figure(
             crowded=crowded,
             first_label="start (first position)",
         )
-        ax.set_title(f"{title} — {n_scans:,} scans, {head}".strip(" —"), fontsize=10)
+        ax.set_title(f"{title} — {_count(n_scans, 'scan')}, {head}".strip(" —"), fontsize=10)
         return fig
 
     fig, (ax_all, ax_end) = plt.subplots(1, 2, figsize=(17, 7.4), layout="constrained")
     dropped = _draw_density(fig, ax_all, ep, box)
     note = f"; {dropped:,} not drawable" if dropped else ""
     ax_all.set_title(
-        f"where the tracks were: all {n_tracks:,} tracks, all {n_scans:,} scans{note}",
+        f"where the tracks were: all {_count(n_tracks, 'track')}, all {_count(n_scans, 'scan')}"
+        f"{note}",
         fontsize=10,
     )
     t0 = scan_times[-_WINDOW_SCANS]
@@ -371,12 +377,13 @@ def scene_figure(
     )
     ax_end.set_title(
         f"the last {_WINDOW_SCANS} scans (t ≥ {t0:g} s): {head}".replace(
-            "confirmed tracks", "tracks"
+            "confirmed track", "track"
         ),
         fontsize=10,
     )
     fig.suptitle(
-        f"{title} — {n_scans:,} scans, {n_tracks:,} confirmed tracks".strip(" —"), fontsize=11
+        f"{title} — {_count(n_scans, 'scan')}, {_count(n_tracks, 'confirmed track')}".strip(" —"),
+        fontsize=11,
     )
     return fig
 
