@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import warnings
 
 import matplotlib
@@ -19,6 +20,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
 from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 from matplotlib.collections import PathCollection  # noqa: E402
 from matplotlib.container import BarContainer  # noqa: E402
@@ -346,3 +349,55 @@ def test_acoustic_figure_explains_estimate_colours_and_start_dots():
         assert {(28.0, 17.0), (53.0, 17.0)} <= tips  # k = 3
     finally:
         plt.close(fig)
+
+
+@given(
+    st.lists(
+        st.floats(min_value=-1.7e308, max_value=1.7e308, allow_nan=False, allow_infinity=False),
+        min_size=1,
+        max_size=6,
+    )
+)
+@settings(max_examples=60, deadline=None)
+def test_mean_ci_near_the_float_limit_matches_exact_rationals(xs):
+    from fractions import Fraction
+
+    from scipy.stats import t
+
+    from jointtrack.sweep.report import mean_ci
+
+    m, h, n = mean_ci(xs)
+    exact = sum(Fraction(x) for x in xs) / len(xs)
+    assert n == len(xs)
+    assert abs(Fraction(m) - exact) <= Fraction(1e-12) * max(abs(Fraction(x)) for x in xs)
+    if len(xs) == 1:
+        assert h is None
+        return
+    big = max(abs(Fraction(x)) for x in xs) or Fraction(1)
+    # the exact variance in units of the largest |x|², so that float() cannot overflow
+    var = sum(((Fraction(x) - exact) / big) ** 2 for x in xs) / (len(xs) - 1)
+    want = float(t.ppf(0.975, len(xs) - 1)) * math.sqrt(float(var)) / math.sqrt(len(xs))
+    want *= float(big)  # inf beyond the float range
+    if math.isinf(want):
+        assert h == math.inf
+    else:
+        assert h == pytest.approx(want, rel=1e-9, abs=1e-300)
+
+
+def test_sweep_figure_with_means_near_the_float_limit_draws_without_warnings():
+    axes = {"tracker.association": ["exact", "lbp"]}
+    huge = {"exact": (1e300, 1.7e308), "lbp": (1.0, 2.0)}
+    cells = {
+        (f"jpda/{a}", (("scenario.name", "crossing"), ("tracker.association", a))): (
+            lambda s, a=a: huge[a][s]
+        )
+        for a in axes["tracker.association"]
+    }
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fig = metric_figure(_rows(cells, seeds=(0, 1)), axes, "tracker.association", "gospa")
+        fig.savefig(io.BytesIO(), format="png")
+    ax = fig.axes[0]
+    assert "1 mean(s) beyond ±1e+150 not drawn" in ax.get_title()
+    bars = [c for c in ax.containers if isinstance(c, BarContainer)]
+    assert [b.patches[0].get_height() for b in bars] == [1.5]

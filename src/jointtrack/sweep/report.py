@@ -21,12 +21,17 @@ from pathlib import Path
 __all__ = ["mean_ci", "metric_figure", "metric_label", "print_summary", "summarise", "write_report"]
 
 _MAIN = ("gospa", "ospa", "rmse", "n_false_tracks", "ospa_after_burn_in")
+#: Means beyond this are not drawn (matplotlib's autoscaling overflows near the float
+#: limit); the value of jointtrack.experiments.plots.PLOT_LIMIT, not imported from
+#: there because that module selects pyplot's Agg backend on import.
+_PLOT_LIMIT = 1e150
 
 
 def mean_ci(values) -> tuple[float | None, float | None, int]:
     """Mean, 95 % CI half-width (Student t) and count of the finite values.
 
-    ``(None, None, 0)`` without values; the half-width is None for one value.
+    ``(None, None, 0)`` without values; the half-width is None for one value,
+    ``inf`` when it lies beyond the float range (values near ±1.8e308).
 
     >>> m, h, n = mean_ci([1.0, 2.0, 3.0])
     >>> round(m, 3), round(h, 3), n
@@ -36,13 +41,19 @@ def mean_ci(values) -> tuple[float | None, float | None, int]:
     n = len(xs)
     if n == 0:
         return None, None, 0
-    mean = math.fsum(xs) / n
+    # in units of the largest |value|: sums and squares of values near the float
+    # limit (1e300) would overflow
+    scale = max(abs(x) for x in xs) or 1.0
+    ys = [x / scale for x in xs]
+    mean_y = math.fsum(ys) / n
     if n == 1:
-        return mean, None, 1
+        return mean_y * scale, None, 1
     from scipy.stats import t
 
-    sd = math.sqrt(math.fsum((x - mean) ** 2 for x in xs) / (n - 1))
-    return mean, float(t.ppf(0.975, n - 1)) * sd / math.sqrt(n), n
+    sd_y = math.sqrt(math.fsum((y - mean_y) ** 2 for y in ys) / (n - 1))
+    half = float(t.ppf(0.975, n - 1)) * sd_y / math.sqrt(n)
+    # a half-width beyond the float range is reported as infinite, not as an error
+    return mean_y * scale, half * scale if half < math.inf / scale else math.inf, n
 
 
 def _metric_names(rows) -> list[str]:
@@ -195,6 +206,7 @@ def metric_figure(rows: list[dict], axes: dict, axis: str, name: str):
     methods = sorted({r["method"] for r in ok})
     params = [json.loads(r["params"]) for r in ok]
     stats: dict[str, list] = {}  # method -> [(axis value, mean, half-width, n)]
+    skipped = 0  # means too large to draw
     for method in methods:
         for v in values:
             key = _value_key(v)
@@ -203,9 +215,12 @@ def metric_figure(rows: list[dict], axes: dict, axis: str, name: str):
                 for r, q in zip(ok, params, strict=True)
                 if r["method"] == method and _value_key(q.get(axis)) == key
             )
-            if m is not None:
-                stats.setdefault(method, []).append((v, m, 0.0 if h is None else h, n))
-    if not stats:
+            if m is not None and abs(m) > _PLOT_LIMIT:
+                skipped += 1  # matplotlib's autoscaling overflows near the float limit
+            elif m is not None:
+                h = 0.0 if h is None or not math.isfinite(h) else min(h, _PLOT_LIMIT)
+                stats.setdefault(method, []).append((v, m, h, n))
+    if not stats and not skipped:
         return None
     gospa_p = {q.get("metrics.p", 2) for q in params}
     p = gospa_p.pop() if len(gospa_p) == 1 else 2
@@ -262,15 +277,16 @@ def metric_figure(rows: list[dict], axes: dict, axis: str, name: str):
     # one legend entry per method (bars repeat the label once per group)
     handles, labels = ax.get_legend_handles_labels()
     seen = dict(zip(labels, handles, strict=True))
-    ax.legend(
-        seen.values(),
-        seen.keys(),
-        title="method",
-        fontsize="small",
-        loc="upper left",
-        bbox_to_anchor=(1.01, 1.0),
-        borderaxespad=0.0,
-    )
+    if seen:
+        ax.legend(
+            seen.values(),
+            seen.keys(),
+            title="method",
+            fontsize="small",
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            borderaxespad=0.0,
+        )
     ax.set_xlabel(axis)
     ax.set_ylabel(f"{metric_label(name, p)}\nmean ± 95 % CI", fontsize=9)
     # the other axes that vary within a method are pooled (an axis that is the
@@ -286,9 +302,10 @@ def metric_figure(rows: list[dict], axes: dict, axis: str, name: str):
         )
     ]
     pooled = f"; pooled over {', '.join(others)}" if others else ""
+    note = f"; {skipped} mean(s) beyond ±{_PLOT_LIMIT:.0e} not drawn" if skipped else ""
     ax.set_title(
         f"{', '.join(scenarios)}: {name} vs {axis}\n"
-        f"{n_seeds} seed{'s' if n_seeds != 1 else ''} per cell{pooled}",
+        f"{n_seeds} seed{'s' if n_seeds != 1 else ''} per cell{pooled}{note}",
         fontsize=10,
     )
     ax.grid(alpha=0.3, axis="y" if bars else "both")
