@@ -57,7 +57,7 @@ def plot_quality(results: dict, path, default: str, stonesoup: str) -> Path:
             color = "C3" if tracker == stonesoup else f"C{i if i < 3 else i + 1}"
             bottom.plot(k, s["gospa"], color=color, label=tracker)
         bottom.set_xlabel("scan")
-        bottom.set_ylabel(f"GOSPA (c = {res['gate']:g}, p = 2)")
+        bottom.set_ylabel(f"GOSPA (m), c = {res['gate']:g} m, p = 2")
         bottom.set_yscale("log")
         bottom.grid(True, which="both", alpha=0.3)
         if j == 0:
@@ -100,11 +100,11 @@ def plot_gospa_parts(results: dict, path, stonesoup: str) -> Path:
             ax.set_yscale("symlog", linthresh=1.0)
             ax.grid(True, alpha=0.3)
             if i == 0:
-                ax.set_title(f"{name} (c = {res['gate']:g})")
+                ax.set_title(f"{name} (c = {res['gate']:g} m)")
             if i == len(PARTS) - 1:
                 ax.set_xlabel("scan")
             if j == 0:
-                ax.set_ylabel(f"GOSPA² part: {label} (m²)")
+                ax.set_ylabel(f"GOSPA$^2$ part: {label} (m$^2$)")
             if i == 0 and j == 0:
                 ax.legend(fontsize=7)
     fig.suptitle(

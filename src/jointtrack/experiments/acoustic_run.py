@@ -13,7 +13,8 @@ Runs SPS-CPHD (default), SPS-PHD or SPS-MB
   α = 2) with its localisation / missed / false parts, true and estimated
   numbers of targets, seconds; their means (also after ``burn_in`` scans); the
   filter, its likelihood method and settings; the scenario's births and deaths.
-* ``acoustic.png`` — sensors, true trajectories and estimates, and OSPA per scan.
+* ``acoustic.png`` — sensors, true trajectories and estimates (start dots, end
+  arrows, one colour per estimate track), and OSPA per scan (:func:`acoustic_figure`).
 
 The filter settings used by the run (``FILTER_DEFAULTS``) are stated in
 ``metrics.json``.
@@ -29,7 +30,7 @@ import numpy as np
 
 from jointtrack.assignment._checks import as_int
 
-__all__ = ["FILTER_DEFAULTS", "OSPA_C", "run_acoustic"]
+__all__ = ["FILTER_DEFAULTS", "OSPA_C", "acoustic_figure", "run_acoustic"]
 
 #: OSPA / GOSPA cut-off (m): a quarter of the region's side.
 OSPA_C = 10.0
@@ -270,47 +271,113 @@ def _diagnostics(filt) -> dict:
     return out
 
 
-def _plot(path, sc, rows, ospa_per_scan, filter_name, likelihood, stop) -> Path:
-    """Sensors, truth lines and estimate dots coloured by track; OSPA per scan below."""
-    from jointtrack.experiments.plots import plt, save_figure
+def acoustic_figure(sc, rows, ospa_per_scan, filter_name, likelihood, stop):
+    """The figure of ``acoustic.png`` (open; the caller saves or closes it).
 
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7.5, 9.5), gridspec_kw={"height_ratios": [3, 1]})
-    ax.plot(sc.sensors[:, 0], sc.sensors[:, 1], "^", c="0.55", ms=7, label="sensors")
+    Top: sensors, truth lines (a dot at the start, an arrow head at the end)
+    and the estimates, one colour per estimate track (a ringed dot at its
+    first estimate, an arrow head at its last); the legend, right of the axes,
+    names every mark. Bottom: OSPA per scan.
+    """
+    from matplotlib.lines import Line2D
+
+    from jointtrack.experiments.plots import _arrows, plt
+
+    fig, (ax, ax2) = plt.subplots(
+        2, 1, figsize=(11.0, 9.5), gridspec_kw={"height_ratios": [3, 1]}, layout="constrained"
+    )
+    ax.plot(sc.sensors[:, 0], sc.sensors[:, 1], "^", c="0.55", ms=7, zorder=1)
     tt, ti, tp = sc.truth_table()
     keep = tt < sc.times[stop - 1] + 0.5 * sc.dt
-    for n, i in enumerate(np.unique(ti[keep])):
+    truth_ends, truth_befores = [], []
+    for i in np.unique(ti[keep]):
         m = keep & (ti == i)
-        ax.plot(tp[m, 0], tp[m, 1], "-", c="k", lw=1.4, label="truth" if n == 0 else None)
-        ax.plot(tp[m][:1, 0], tp[m][:1, 1], "o", c="k", ms=4)
+        ax.plot(tp[m, 0], tp[m, 1], "-", c="k", lw=1.4, zorder=2)
+        ax.plot(tp[m][:1, 0], tp[m][:1, 1], "o", c="k", ms=5, zorder=3)
+        if m.sum() > 1:
+            truth_ends.append(tp[m][-1, :2])
+            truth_befores.append(tp[m][-2, :2])
+    if truth_ends:
+        _arrows(
+            ax, np.asarray(truth_ends), np.asarray(truth_befores), ["k"] * len(truth_ends), 0.16, 3
+        )
+    n_tracks = 0
     if rows:
-        arr = np.asarray(rows)
+        arr = np.asarray(rows, dtype=float)
         ids = arr[:, 1].astype(int)
         cmap = plt.get_cmap("tab10")
+        ends, befores, cols = [], [], []
         for n, i in enumerate(np.unique(ids)):
             m = ids == i
-            ax.plot(
-                arr[m, 2],
-                arr[m, 3],
-                ".",
-                ms=4,
-                c=cmap(n % 10),
-                label="estimates" if n == 0 else None,
-            )
+            col = cmap(n % 10)
+            ax.plot(arr[m, 2], arr[m, 3], ".", ms=4, c=col, zorder=4)
+            ax.plot(arr[m][:1, 2], arr[m][:1, 3], "o", ms=5, c=col, mec="k", mew=0.6, zorder=5)
+            if m.sum() > 1:
+                ends.append(arr[m][-1, 2:4])
+                befores.append(arr[m][-2, 2:4])
+                cols.append(col)
+        n_tracks = len(np.unique(ids))
+        if ends:
+            _arrows(ax, np.asarray(ends), np.asarray(befores), cols, 0.12, 5)
+    linked = "SPS-MB labels" if filter_name == "sps-mb" else "linked scan to scan"
+    handles = [
+        Line2D([], [], ls="none", marker="^", c="0.55", ms=7, label="sensors"),
+        Line2D([], [], c="k", lw=1.4, label="truth"),
+        Line2D([], [], ls="none", marker="o", c="k", ms=5, label="truth start"),
+        Line2D(
+            [],
+            [],
+            ls="none",
+            marker=".",
+            c="C0",
+            ms=8,
+            label=f"estimates: one colour per track\n({linked};\ncolours repeat after 10)",
+        ),
+        Line2D(
+            [],
+            [],
+            ls="none",
+            marker="o",
+            c="C0",
+            mec="k",
+            mew=0.8,
+            ms=6,
+            label="first estimate of a track",
+        ),
+        Line2D([], [], ls="none", marker=">", c="0.3", ms=7, label="arrow: direction at the end"),
+    ]
+    ax.legend(
+        handles=handles,
+        loc="upper left",
+        bbox_to_anchor=(1.02, 1.0),
+        borderaxespad=0.0,
+        fontsize=8,
+    )
     ax.set_xlim(sc.region[0, 0] - 2, sc.region[0, 1] + 2)
     ax.set_ylim(sc.region[1, 0] - 2, sc.region[1, 1] + 2)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"acoustic, seed {sc.seed}: {filter_name} ({likelihood} likelihood)")
-    ax.legend(loc="upper left", fontsize=8, framealpha=0.85)
+    ax.set_title(
+        f"acoustic, seed {sc.seed}: {filter_name} ({likelihood} likelihood) — "
+        f"{stop} scans, {n_tracks} estimate tracks",
+        fontsize=10,
+    )
     ax.grid(alpha=0.2)
     ax2.plot(sc.times[:stop], ospa_per_scan, c="k", lw=1.3)
     ax2.set_xlabel("time (s)")
-    ax2.set_ylabel(f"OSPA (c = {OSPA_C:g} m, p = 1)")
+    ax2.set_ylabel(f"OSPA (m)\nc = {OSPA_C:g} m, p = 1")
     ax2.set_ylim(0, OSPA_C * 1.05)
     ax2.grid(alpha=0.2)
-    fig.tight_layout()
-    return save_figure(fig, path)
+    return fig
+
+
+def _plot(path, sc, rows, ospa_per_scan, filter_name, likelihood, stop) -> Path:
+    """Write :func:`acoustic_figure` to ``path``."""
+    from jointtrack.experiments.plots import save_figure
+
+    fig = acoustic_figure(sc, rows, ospa_per_scan, filter_name, likelihood, stop)
+    return save_figure(fig, path, dpi=100)
 
 
 def print_acoustic_summary(metrics: dict, console) -> None:
