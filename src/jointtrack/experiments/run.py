@@ -1016,9 +1016,9 @@ def run_scenario(
         )
     if cfg.dim != scenario.dim:
         raise RunConfigError(
-            f"[tracker] dim = {cfg.dim} but scenario {scenario.name} is {scenario.dim}-D"
+            f"[tracker] dim = {cfg.dim} but scenario {identity['scenario']} is {scenario.dim}-D"
         )
-    check_sensor(cfg, "position", f"scenario {scenario.name}")
+    check_sensor(cfg, "position", f"scenario {identity['scenario']}")
     if particle is not None:
         particle = _particle_config(particle, cfg)
     # the identity keeps the boolean spelling so that older checkpoints still resume
