@@ -427,6 +427,8 @@ def run_command(
             truth = _truth_from_checkpoint(resume, truth)
         else:
             restored = None
+            if checkpoint is not None:
+                _existing_checkpoint(checkpoint, console)
         out = Path("jointtrack-out") if out is None else out
         fmt = "csv" if fmt is None else fmt
         every_given = checkpoint_every
@@ -808,6 +810,43 @@ def _from_checkpoint(
         info["format"],
         checkpoint_every if checkpoint_every is not None else info.get("checkpoint_every"),
         restored,
+    )
+
+
+def _existing_checkpoint(checkpoint, console) -> None:
+    """Refuse a new run whose ``--checkpoint`` file would overwrite one that can still
+    continue a run (a killed or ``--max-scans`` run: say how to resume it) or a file
+    that is not a checkpoint at all; a completed run's checkpoint is replaced with a
+    notice (nothing is lost: its tracks are complete)."""
+    from jointtrack.experiments import run as runmod
+    from jointtrack.experiments.writers import PARTS_DIR
+    from jointtrack.trackers.state_io import read_run
+
+    path = Path(checkpoint)
+    if not path.is_file():
+        return  # a new file (a directory is refused with the other output checks)
+    try:
+        info = read_run(path)
+    except Exception:  # noqa: BLE001 - any unreadable file is "not a checkpoint" here
+        info = None
+    if not isinstance(info, dict) or "inputs" not in info or "out_dir" not in info:
+        raise runmod.RunConfigError(
+            f"--checkpoint {path} exists and is not the checkpoint of a jointtrack run; "
+            "the run would overwrite it: give another file name, or delete the file"
+        )
+    what = runmod._describe(runmod._run_inputs(info["inputs"]))
+    if (Path(info["out_dir"]) / PARTS_DIR).is_dir():
+        raise runmod.RunConfigError(
+            f"--checkpoint {path} holds an unfinished run ({what} into {info['out_dir']}, "
+            f"{info.get('n_scans', '?')} scans done); continue it with `jointtrack run "
+            f"--resume {path}`, or delete {path} to start over"
+        )
+    console.print(
+        f"note: --checkpoint {path} held the checkpoint of a completed run ({what}); "
+        "this run replaces it",
+        markup=False,
+        highlight=False,
+        soft_wrap=True,
     )
 
 
