@@ -45,7 +45,9 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
 )
-bench_app = typer.Typer(cls=_Group, help="Benchmarks against the peer libraries, timed in the same run.")
+bench_app = typer.Typer(
+    cls=_Group, help="Benchmarks against the peer libraries, timed in the same run."
+)
 app.add_typer(bench_app, name="bench")
 data_app = typer.Typer(cls=_Group, help="Public real data (AIS, ADS-B) for runs and benchmarks.")
 app.add_typer(data_app, name="data")
@@ -192,7 +194,8 @@ def bench_realdata(
 
 reproduce_app = typer.Typer(
     cls=_Group,
-    help="Reproduce a paper's tables beside the paper's own numbers.", no_args_is_help=True
+    help="Reproduce a paper's tables beside the paper's own numbers.",
+    no_args_is_help=True,
 )
 app.add_typer(reproduce_app, name="reproduce")
 
