@@ -84,9 +84,7 @@ def bench_permanent(
 
 @bench_app.command("tracker", cls=_Command)
 def bench_tracker(
-    quick: bool = typer.Option(
-        False, "--quick", help="Fewer scans and seeds; finishes in about 20 s."
-    ),
+    quick: bool = typer.Option(False, "--quick", help="Fewer scans and seeds, for a quick check."),
     out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
 ) -> None:
     """JPDA tracker end to end: many-target scan rate, Bojilov cluster cost vs his Table 3."""
