@@ -156,6 +156,16 @@ checkpoint); a run that has processed every scan, and a run without a
 checkpoint that fails, removes them (resuming a completed run is then an error
 saying so).
 
+Hints where the settings are surely wrong (a warning on the console and a note in
+``metrics.json``): a clutter density that expects more than
+:data:`CLUTTER_HINT_FACTOR` times as many false returns per scan, over the
+detections' bounding box, as the scans hold returns (:func:`clutter_hint`; not
+for an estimated density, nor per-sensor or per-second densities), and sensors
+of the detections without a ``[sensors.ID]`` table (they take the ``[tracker]``
+sensor; the warning says which settings). ``jointtrack run --checkpoint FILE``
+without ``--resume`` refuses a FILE that can still continue a run (saying how to
+resume it) or that is not a checkpoint.
+
 The pieces: :mod:`~jointtrack.experiments.config` (config file, scenarios,
 tracker settings), :mod:`~jointtrack.experiments.writers` (tracks file,
 checkpoint bookkeeping), :mod:`~jointtrack.experiments.summary` (metrics dict,
