@@ -264,7 +264,12 @@ def run_command(
     ] = None,
     checkpoint: Annotated[
         Path | None,
-        typer.Option("--checkpoint", help="Save the tracker state to this file as the run goes."),
+        typer.Option(
+            "--checkpoint",
+            help="Save the tracker state to this file as the run goes. A file that can "
+            "still continue a run (or is not a checkpoint) is not overwritten: continue "
+            "with --resume FILE, or delete it to start over.",
+        ),
     ] = None,
     checkpoint_every: Annotated[
         int | None, typer.Option("--checkpoint-every", help="Scans between checkpoints (10).")
