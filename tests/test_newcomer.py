@@ -102,6 +102,9 @@ def test_seed_errors_name_the_seed_once():
         make_scenario("crossing", -3)
     assert str(err.value).startswith("scenario crossing: seed must be a non-negative integer")
     with pytest.raises(RunConfigError) as err:
+        make_scenario("crossing", -3, source="run.toml")
+    assert str(err.value).startswith('run.toml: [scenario] name = "crossing": seed must be')
+    with pytest.raises(RunConfigError) as err:
         make_scenario("crossing", 0, {"bogus": 1.0}, source="run.toml")
     assert str(err.value).startswith("run.toml: [scenario] unknown key 'bogus'")
 

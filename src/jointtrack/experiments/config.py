@@ -764,7 +764,8 @@ def make_scenario(
     try:
         return fn(seed=seed, **kwargs)
     except (ValueError, TypeError) as exc:
-        raise RunConfigError(f"{where}scenario {name}: {_one_line(exc)}") from None
+        which = f'name = "{name}"' if source else f"scenario {name}"
+        raise RunConfigError(f"{where}{which}: {_one_line(exc)}") from None
 
 
 def default_start(scenario_name: str) -> str:
