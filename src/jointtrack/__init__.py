@@ -22,7 +22,15 @@ Map of the package:
 * :mod:`jointtrack.metrics` — GOSPA/OSPA, track statistics, self-report scores;
 * :mod:`jointtrack.scenarios`, :mod:`jointtrack.experiments`, :mod:`jointtrack.sweep`,
   :mod:`jointtrack.bench` — scenes, the papers' reproductions, sweeps, benchmarks;
-* :mod:`jointtrack.interop` — drop-in associators for Stone Soup.
+* :mod:`jointtrack.interop` — drop-in associators for Stone Soup;
+* :mod:`jointtrack.errors` — the shared exceptions: ``InfeasibleAssignmentError``
+  (no assignment has positive weight, e.g. a P_D = 1 track that gates nothing),
+  ``ExactLimitError`` (an exact solve would exceed ``max_bits``/``max_memory``;
+  the tracker falls back to its approximation) and ``CoincidentReturnsWarning``.
+  Bad arguments raise ``ValueError``/``TypeError`` naming the argument.
+
+Command line: ``jointtrack run`` (detections in, tracks out), ``jointtrack
+reproduce``, ``jointtrack sweep``, ``jointtrack bench``; each has ``--help``.
 """
 
 from importlib.metadata import PackageNotFoundError, version

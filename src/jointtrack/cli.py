@@ -7,18 +7,49 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from typer.core import TyperCommand, TyperGroup
 
 from jointtrack import __version__
 
+
+def _plain_flags(params: list) -> list:
+    """``params`` with their flags shown bare in --help (``--quick``, not ``--quick <bool>``).
+
+    Newer typer prints a flag's type as if the flag took a value, yet ``--quick true``
+    is refused; an empty metavar leaves the type column of a flag blank.
+    """
+    for param in params:
+        if getattr(param, "is_flag", False) and param.metavar is None:
+            param.metavar = ""
+    return params
+
+
+class _Command(TyperCommand):
+    """A command whose --help shows its flags as flags (:func:`_plain_flags`)."""
+
+    def get_params(self, ctx):
+        return _plain_flags(super().get_params(ctx))
+
+
+class _Group(TyperGroup):
+    """A command group whose --help shows its flags as flags (:func:`_plain_flags`)."""
+
+    def get_params(self, ctx):
+        return _plain_flags(super().get_params(ctx))
+
+
 app = typer.Typer(
     name="jointtrack",
+    cls=_Group,
     help="Exact, fast and honest multi-target association.",
     no_args_is_help=True,
     add_completion=False,
 )
-bench_app = typer.Typer(help="Benchmarks against the peer libraries, timed in the same run.")
+bench_app = typer.Typer(
+    cls=_Group, help="Benchmarks against the peer libraries, timed in the same run."
+)
 app.add_typer(bench_app, name="bench")
-data_app = typer.Typer(help="Public real data (AIS, ADS-B) for runs and benchmarks.")
+data_app = typer.Typer(cls=_Group, help="Public real data (AIS, ADS-B) for runs and benchmarks.")
 app.add_typer(data_app, name="data")
 
 
@@ -42,7 +73,7 @@ def _run_bench(name: str, quick: bool, out) -> None:
     module.run(quick=quick, out=out)
 
 
-@bench_app.command("permanent")
+@bench_app.command("permanent", cls=_Command)
 def bench_permanent(
     quick: bool = typer.Option(False, "--quick", help="Smaller sizes; finishes in seconds."),
     out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
@@ -51,18 +82,16 @@ def bench_permanent(
     _run_bench("permanent", quick, out)
 
 
-@bench_app.command("tracker")
+@bench_app.command("tracker", cls=_Command)
 def bench_tracker(
-    quick: bool = typer.Option(
-        False, "--quick", help="Fewer scans and seeds; finishes in about 20 s."
-    ),
+    quick: bool = typer.Option(False, "--quick", help="Fewer scans and seeds, for a quick check."),
     out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
 ) -> None:
     """JPDA tracker end to end: many-target scan rate, Bojilov cluster cost vs his Table 3."""
     _run_bench("tracker", quick, out)
 
 
-@bench_app.command("association")
+@bench_app.command("association", cls=_Command)
 def bench_association(
     quick: bool = typer.Option(False, "--quick", help="Smaller sizes; finishes in seconds."),
     out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
@@ -71,7 +100,7 @@ def bench_association(
     _run_bench("association", quick, out)
 
 
-@bench_app.command("quality")
+@bench_app.command("quality", cls=_Command)
 def bench_quality(
     quick: bool = typer.Option(False, "--quick", help="Fewer seeds and scans; about a minute."),
     out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
@@ -82,7 +111,7 @@ def bench_quality(
     _run_bench("quality", quick, out)
 
 
-@data_app.command("fetch")
+@data_app.command("fetch", cls=_Command)
 def data_fetch(
     cache: str = typer.Option(
         None,
@@ -103,7 +132,7 @@ def data_fetch(
         typer.echo(f"{name}: {path}")
 
 
-@bench_app.command("realdata")
+@bench_app.command("realdata", cls=_Command)
 def bench_realdata(
     quick: bool = typer.Option(
         False, "--quick", help="Solent's first 30 scans; ADS-B quickstart instead of switzerland."
@@ -162,7 +191,9 @@ def bench_realdata(
 
 
 reproduce_app = typer.Typer(
-    help="Reproduce a paper's tables beside the paper's own numbers.", no_args_is_help=True
+    cls=_Group,
+    help="Reproduce a paper's tables beside the paper's own numbers.",
+    no_args_is_help=True,
 )
 app.add_typer(reproduce_app, name="reproduce")
 
@@ -178,6 +209,12 @@ def _fail(message, code: int = 2):
     raise typer.Exit(code)
 
 
+#: ``jointtrack run --scenario`` names: the detection scenarios (the keys of
+#: jointtrack.scenarios.GENERATORS, in its order) and the superpositional ``acoustic``
+#: (run by its own filter). Spelled out so that --help does not import the scenarios
+#: (seconds); test_newcomer checks that the two lists agree.
+RUN_SCENARIOS = ("bojilov", "crossing", "many", "abreast", "coalescence", "acoustic")
+
 #: options shared by the commands
 ReproduceOut = Annotated[Path, typer.Option("--out", help="Output directory.")]
 ProgressFlag = Annotated[
@@ -186,7 +223,7 @@ ProgressFlag = Annotated[
 ]
 
 
-@app.command("run")
+@app.command("run", cls=_Command)
 def run_command(
     detections: Annotated[
         Path | None,
@@ -213,8 +250,9 @@ def run_command(
         str | None,
         typer.Option(
             "--scenario",
-            help="Built-in scenario: bojilov (default) | crossing | many | abreast | coalescence "
-            "| acoustic (superpositional sensors, see --filter).",
+            metavar=f"[{'|'.join(RUN_SCENARIOS)}]",
+            help=f"Built-in scenario: {', '.join(RUN_SCENARIOS[:-1])} or {RUN_SCENARIOS[-1]} "
+            "(superpositional sensors, see --filter); default bojilov.",
         ),
     ] = None,
     out: Annotated[
@@ -226,7 +264,12 @@ def run_command(
     ] = None,
     checkpoint: Annotated[
         Path | None,
-        typer.Option("--checkpoint", help="Save the tracker state to this file as the run goes."),
+        typer.Option(
+            "--checkpoint",
+            help="Save the tracker state to this file as the run goes. A file that can "
+            "still continue a run (or is not a checkpoint) is not overwritten: continue "
+            "with --resume FILE, or delete it to start over.",
+        ),
     ] = None,
     checkpoint_every: Annotated[
         int | None, typer.Option("--checkpoint-every", help="Scans between checkpoints (10).")
@@ -336,6 +379,8 @@ def run_command(
 
     console = make_console()
     show = console.is_terminal if progress is None else progress
+    if seed is not None and seed < 0:
+        _fail(f"--seed must be a non-negative integer (the scenario's random seed), got {seed}")
     if scenario == "acoustic" or filter_name is not None or likelihood is not None:
         _run_acoustic(locals(), console, show)
         return
@@ -388,6 +433,8 @@ def run_command(
             truth = _truth_from_checkpoint(resume, truth)
         else:
             restored = None
+            if checkpoint is not None:
+                _existing_checkpoint(checkpoint, console)
         out = Path("jointtrack-out") if out is None else out
         fmt = "csv" if fmt is None else fmt
         every_given = checkpoint_every
@@ -395,9 +442,9 @@ def run_command(
             raise runmod.RunConfigError(f"--format must be csv or parquet, got {fmt!r}")
         checkpoint_every = 10 if checkpoint_every is None else checkpoint_every
         if scenario is not None and scenario not in runmod.SCENARIOS:
-            raise runmod.RunConfigError(
-                f"--scenario must be one of {', '.join(runmod.SCENARIOS)}, got {scenario!r}"
-            )
+            # acoustic runs on its own path (_run_acoustic), so is not among runmod's
+            names = ", ".join((*runmod.SCENARIOS, "acoustic"))
+            raise runmod.RunConfigError(f"--scenario must be one of {names}, got {scenario!r}")
         cfg = runmod.load_config(config) if config is not None else runmod.RunConfig()
         if restored is not None:
             cfg = restored
@@ -772,6 +819,43 @@ def _from_checkpoint(
     )
 
 
+def _existing_checkpoint(checkpoint, console) -> None:
+    """Refuse a new run whose ``--checkpoint`` file would overwrite one that can still
+    continue a run (a killed or ``--max-scans`` run: say how to resume it) or a file
+    that is not a checkpoint at all; a completed run's checkpoint is replaced with a
+    notice (nothing is lost: its tracks are complete)."""
+    from jointtrack.experiments import run as runmod
+    from jointtrack.experiments.writers import PARTS_DIR
+    from jointtrack.trackers.state_io import read_run
+
+    path = Path(checkpoint)
+    if not path.is_file():
+        return  # a new file (a directory is refused with the other output checks)
+    try:
+        info = read_run(path)
+    except Exception:  # noqa: BLE001 - any unreadable file is "not a checkpoint" here
+        info = None
+    if not isinstance(info, dict) or "inputs" not in info or "out_dir" not in info:
+        raise runmod.RunConfigError(
+            f"--checkpoint {path} exists and is not the checkpoint of a jointtrack run; "
+            "the run would overwrite it: give another file name, or delete the file"
+        )
+    what = runmod._describe(runmod._run_inputs(info["inputs"]))
+    if (Path(info["out_dir"]) / PARTS_DIR).is_dir():
+        raise runmod.RunConfigError(
+            f"--checkpoint {path} holds an unfinished run ({what} into {info['out_dir']}, "
+            f"{info.get('n_scans', '?')} scans done); continue it with `jointtrack run "
+            f"--resume {path}`, or delete {path} to start over"
+        )
+    console.print(
+        f"note: --checkpoint {path} held the checkpoint of a completed run ({what}); "
+        "this run replaces it",
+        markup=False,
+        highlight=False,
+        soft_wrap=True,
+    )
+
+
 def _checkpoint_tracker(resume):
     """``(kind, config)`` of the tracker a checkpoint holds (config None for JPDA kinds,
     whose settings are rebuilt from the checkpoint's table by :func:`_from_checkpoint`)."""
@@ -818,7 +902,7 @@ def _reproduce(progress, run):
         _fail(exc)
 
 
-@reproduce_app.command("bojilov")
+@reproduce_app.command("bojilov", cls=_Command)
 def reproduce_bojilov(
     runs: Annotated[
         int | None, typer.Option("--runs", help="Runs per clutter density (default 10).")
@@ -842,7 +926,7 @@ def reproduce_bojilov(
     boj.print_report(result, console)
 
 
-@reproduce_app.command("schaub")
+@reproduce_app.command("schaub", cls=_Command)
 def reproduce_schaub(
     quick: Annotated[
         bool,
@@ -902,7 +986,7 @@ def reproduce_schaub(
         raise typer.Exit(1)
 
 
-@reproduce_app.command("streit")
+@reproduce_app.command("streit", cls=_Command)
 def reproduce_streit(
     quick: Annotated[
         bool, typer.Option("--quick", help="100 trials per cell and a small cost grid.")
@@ -920,7 +1004,7 @@ def reproduce_streit(
     streit.print_report(result, console)
 
 
-@reproduce_app.command("nannuru")
+@reproduce_app.command("nannuru", cls=_Command)
 def reproduce_nannuru(
     quick: Annotated[
         bool, typer.Option("--quick", help="5 trials per row, 10 x 50 ratio states (< 60 s).")
@@ -938,7 +1022,7 @@ def reproduce_nannuru(
     nannuru.print_report(result, console)
 
 
-@app.command("sweep")
+@app.command("sweep", cls=_Command)
 def sweep_command(
     spec: Annotated[
         Path,

@@ -745,10 +745,12 @@ def make_scenario(
     unknown keywords and bad values raise :class:`RunConfigError` naming them.
     """
 
-    where = f"{source}: [scenario]" if source else "scenario"
+    # the file's table when the scenario comes from a config; the message then goes on
+    # "scenario NAME: …" (not "scenario scenario NAME", issue 25)
+    where = f"{source}: [scenario] " if source else ""
     if name not in SCENARIOS:
         raise RunConfigError(
-            f"{where}: unknown scenario {name!r}; choose one of {', '.join(SCENARIOS)}"
+            f"{where}unknown scenario {name!r}; choose one of {', '.join(SCENARIOS)}"
         )
     fn = GENERATORS[name]
     params = [p for p in inspect.signature(fn).parameters if p != "seed"]
@@ -756,13 +758,14 @@ def make_scenario(
     for key in kwargs:
         if key not in params:
             raise RunConfigError(
-                f"{where} unknown key '{key}' for scenario {name} (known: name, seed, "
+                f"{where}unknown key '{key}' for scenario {name} (known: name, seed, "
                 f"start_from, {', '.join(params)})"
             )
     try:
         return fn(seed=seed, **kwargs)
     except (ValueError, TypeError) as exc:
-        raise RunConfigError(f"{where} scenario {name}: {_one_line(exc)}") from None
+        which = f'name = "{name}"' if source else f"scenario {name}"
+        raise RunConfigError(f"{where}{which}: {_one_line(exc)}") from None
 
 
 def default_start(scenario_name: str) -> str:

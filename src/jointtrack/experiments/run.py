@@ -156,6 +156,16 @@ checkpoint); a run that has processed every scan, and a run without a
 checkpoint that fails, removes them (resuming a completed run is then an error
 saying so).
 
+Hints where the settings are surely wrong (a warning on the console and a note in
+``metrics.json``): a clutter density that expects more than
+:data:`CLUTTER_HINT_FACTOR` times as many false returns per scan, over the
+detections' bounding box, as the scans hold returns (:func:`clutter_hint`; not
+for an estimated density, nor per-sensor or per-second densities), and sensors
+of the detections without a ``[sensors.ID]`` table (they take the ``[tracker]``
+sensor; the warning says which settings). ``jointtrack run --checkpoint FILE``
+without ``--resume`` refuses a FILE that can still continue a run (saying how to
+resume it) or that is not a checkpoint.
+
 The pieces: :mod:`~jointtrack.experiments.config` (config file, scenarios,
 tracker settings), :mod:`~jointtrack.experiments.writers` (tracks file,
 checkpoint bookkeeping), :mod:`~jointtrack.experiments.summary` (metrics dict,
@@ -337,6 +347,9 @@ def _register_sensors(trk, src, tables: dict, warn) -> None:
     made = make_sensors(tables, trk.config, trk.state_dim)
     for sid in sorted(set(made) - set(present)):
         warn(f"[sensors] sensor {sid} does not occur in the detections")
+    untabled = [sid for sid in present if sid not in made]
+    if untabled:
+        warn(_untabled_sensors_note(untabled, bool(made), trk.config))
     kinds = det.sensor_kinds() if det is not None else {}
     for sid in present:
         sensor = made.get(sid, trk.default_sensor)
@@ -353,6 +366,90 @@ def _register_sensors(trk, src, tables: dict, warn) -> None:
             )
         trk.add_sensor(sid, sensor)
         src.tracker_sensors[sid] = sensor
+
+
+def _untabled_sensors_note(ids: list, any_tables: bool, cfg) -> str:
+    """The warning for sensors of the detections without a ``[sensors.ID]`` table:
+    which they are and the ``[tracker]`` sensor settings they take instead."""
+    names = ", ".join(str(i) for i in ids)
+    if cfg.sensor == "range-bearing":
+        model = (
+            f"range-bearing at {list(cfg.sensor_position)}, range_noise {cfg.range_noise:g}, "
+            f"bearing_noise {cfg.bearing_noise:g}"
+        )
+    else:
+        model = f"position, measurement_noise {cfg.measurement_noise}"
+    lam = "estimated" if cfg.clutter_density is None else f"{cfg.clutter_density:g}"
+    which = (
+        f"sensor(s) {names} of the detections have no [sensors.ID] table (the config has "
+        "tables for other sensors)"
+        if any_tables
+        else f"the detections name sensor(s) {names} but the config has no [sensors.ID] tables"
+    )
+    return (
+        f"{which}: they take the [tracker] sensor ({model}, p_d {cfg.p_d:g}, "
+        f"clutter_density {lam}); give a sensor that differs its own table, e.g. "
+        f"[sensors.{ids[0]}]"
+    )
+
+
+#: a configured clutter density that expects more than this many times the returns the
+#: scans hold per scan is surely in another unit (issue 25: 1000× off gave no track)
+CLUTTER_HINT_FACTOR = 10.0
+
+
+def clutter_hint(scans, kind: str, clutter_density) -> str | None:
+    """A warning when ``clutter_density`` expects far more false returns than there are
+    returns at all, else None.
+
+    The expected count per scan is λ times the volume of the detections' bounding
+    box in measurement coordinates (area for 2-D positions, range × bearing for
+    range–bearing rows); more than :data:`CLUTTER_HINT_FACTOR` times the mean
+    number of detections per scan cannot be right (every return would be taken for
+    clutter: no track confirms). A density well below the data's is not flagged:
+    clean data (few false returns) is legitimate. None for an estimated density.
+    """
+    if clutter_density is None or not len(scans):
+        return None
+    pts = [np.asarray(z, dtype=float) for z in scans if len(z)]
+    if not pts:
+        return None
+    allz = np.concatenate(pts)
+    allz = allz[np.all(np.isfinite(allz), axis=1)]
+    if not len(allz):
+        return None
+    extent = allz.max(axis=0) - allz.min(axis=0)
+    expected = float(clutter_density) * float(np.prod(extent))
+    per_scan = sum(len(z) for z in scans) / len(scans)
+    if not expected > CLUTTER_HINT_FACTOR * per_scan:
+        return None
+    if kind == "range-bearing":
+        unit = "unit range × radian"
+        box = f"range {extent[0]:,.4g} × bearing {extent[1]:.3g} rad"
+    else:
+        unit = "unit area" if len(extent) == 2 else "unit volume"
+        box = " × ".join(f"{axis} {e:,.4g}" for axis, e in zip("xyz", extent, strict=False))
+    return (
+        f"clutter_density {clutter_density:g} per {unit} expects {expected:,.0f} false "
+        f"returns per scan over the detections' extent ({box}), but the scans hold "
+        f"{per_scan:,.3g} detections on average: check its units (false returns per scan "
+        f"per {unit} of the detections' coordinates, e.g. per m² for positions in m, not "
+        "per km² or per scan); with so much clutter expected every return looks like "
+        "clutter: tracks are lost and new ones do not confirm"
+    )
+
+
+def _clutter_note(src, cfg, sensor_tables: dict) -> str | None:
+    """:func:`clutter_hint` for a run, where one density applies to every scan."""
+    det = getattr(src, "detections", None)
+    if (
+        getattr(cfg, "reporting", "scan") != "scan"  # per second, not per scan
+        or getattr(cfg, "measure_velocity", False)  # per unit area × velocity area
+        or (det is not None and det.kind == "mixed")  # no one measurement space
+        or any("clutter_density" in t for t in sensor_tables.values())  # per sensor
+    ):
+        return None
+    return clutter_hint(src.scans, src.kind, getattr(cfg, "clutter_density", None))
 
 
 _MOVING = ("moving sensor",)  # the tracker's key of an id-less moving sensor
@@ -717,6 +814,9 @@ def _run(
         sensor_tables = {k: dict(v) for k, v in (sensors or {}).items()}
         if particle is None:
             _register_sensors(trk, src, sensor_tables, warn)
+        hint = _clutter_note(src, trk.config if particle is None else cfg, sensor_tables)
+        if hint:
+            warn(hint)
         scan_weights: list = []  # particle tracker: per scan [coefficient s, derivative s, …]
         K = len(src.times)
         stop = K if max_scans is None else min(K, int(max_scans))
@@ -744,8 +844,10 @@ def _run(
 
         if console.is_terminal or progress:
             with console.status(
-                "loading the compiled kernels (the first run after install compiles them, "
-                "about 20 s)…"
+                # measured first runs (empty numba cache): 47 s (issue 25's busy machine),
+                # 342 s on 2 cores shared at load 10 (the same run compiled: 32 s)
+                "loading the compiled kernels (the first run after install compiles them: "
+                "a minute or more, several minutes on a busy machine)…"
             ):
                 _warm_up(cfg, particle)
         else:
@@ -1016,9 +1118,9 @@ def run_scenario(
         )
     if cfg.dim != scenario.dim:
         raise RunConfigError(
-            f"[tracker] dim = {cfg.dim} but scenario {scenario.name} is {scenario.dim}-D"
+            f"[tracker] dim = {cfg.dim} but scenario {identity['scenario']} is {scenario.dim}-D"
         )
-    check_sensor(cfg, "position", f"scenario {scenario.name}")
+    check_sensor(cfg, "position", f"scenario {identity['scenario']}")
     if particle is not None:
         particle = _particle_config(particle, cfg)
     # the identity keeps the boolean spelling so that older checkpoints still resume

@@ -340,31 +340,38 @@ def tracks_line(tr: Mapping) -> str:
 def summary_tables(metrics: Mapping) -> list:
     """Rich tables summarising a run's metrics dict."""
     from rich.table import Table
+    from rich.text import Text
 
     main = Table(title="jointtrack run", show_header=False, title_justify="left")
     main.add_column("what", style="bold")
     main.add_column("value")
+
+    def add(what: str, value: str) -> None:
+        # as text, not rich markup: "[parts² mean: …]" or "[sensors]" in a value would
+        # be read as a style tag and vanish
+        main.add_row(Text(what), Text(value))
+
     source = metrics.get("source")
     truth = source.get("truth") if isinstance(source, Mapping) else None
-    main.add_row("source", _describe(source) + (f"; truth {truth}" if truth else ""))
+    add("source", _describe(source) + (f"; truth {truth}" if truth else ""))
     if metrics.get("time_origin"):
-        main.add_row("times", f"seconds since {metrics['time_origin']}")
-    main.add_row("scans", f"{metrics['n_scans']} ({metrics['n_detections']} detections)")
-    main.add_row("tracker", tracker_description(metrics.get("tracker")))
-    main.add_row("start", start_description(metrics))
+        add("times", f"seconds since {metrics['time_origin']}")
+    add("scans", f"{metrics['n_scans']} ({metrics['n_detections']} detections)")
+    add("tracker", tracker_description(metrics.get("tracker")))
+    add("start", start_description(metrics))
     tr = metrics["tracks"]
     if "gospa" in metrics:
         g, o = metrics["gospa"], metrics["ospa"]
-        main.add_row("tracks", tracks_line(tr))
-        main.add_row("position RMSE", _fmt(tr["rmse"]))
-        main.add_row(
+        add("tracks", tracks_line(tr))
+        add("position RMSE", _fmt(tr["rmse"]))
+        add(
             f"GOSPA mean (c={g['c']:g}, p={g['p']:g})",
             f"{_fmt(g['mean'])}  [parts² mean: localisation {_fmt(g['mean_localisation'])}, "
             f"missed {_fmt(g['mean_missed'])}, false {_fmt(g['mean_false'])}]",
         )
-        main.add_row(f"OSPA mean (c={o['c']:g}, p={o['p']:g})", _fmt(o["mean"]))
+        add(f"OSPA mean (c={o['c']:g}, p={o['p']:g})", _fmt(o["mean"]))
     else:
-        main.add_row(
+        add(
             "tracks",
             f"{tr['n_tracks']} confirmed ids; {_fmt(tr['mean_confirmed_per_scan'])} per scan "
             f"(max {tr['max_confirmed_per_scan']}); no truth, so no GOSPA "
@@ -373,14 +380,14 @@ def summary_tables(metrics: Mapping) -> list:
     tm = metrics["timing"]
     pa = metrics.get("particle")
     if pa is not None:
-        main.add_row(
+        add(
             "particle tracker",
             f"{pa['particles']} particles per target, {pa['weights']} weights, "
             f"resampling {pa['resampling']}; ESS {_fmt(pa['mean_ess_fraction'])} of the "
             f"particles on average (min {_fmt(pa['min_ess'])})",
         )
         w = pa["weight_seconds_per_scan"]
-        main.add_row(
+        add(
             "time",
             f"{_fmt(tm['loop_seconds'])} s tracking, {_fmt(tm['scans_per_second'])} scans/s "
             f"({_fmt(tm['weight_seconds'])} s in particle weights: mean "
@@ -388,15 +395,15 @@ def summary_tables(metrics: Mapping) -> list:
             f"{_fmt(None if w['max'] is None else 1e3 * w['max'])} ms per scan)",
         )
     else:
-        main.add_row(
+        add(
             "time",
             f"{_fmt(tm['loop_seconds'])} s tracking, {_fmt(tm['scans_per_second'])} scans/s "
             f"({_fmt(tm['association_seconds'])} s in multi-track association)",
         )
-    main.add_row("outputs", ", ".join(Path(f).name for f in metrics.get("files", {}).values()))
+    add("outputs", ", ".join(Path(f).name for f in metrics.get("files", {}).values()))
     for note in metrics.get("notes", []):
         if note not in (TRUTH_START_NOTE, PARTICLE_START_NOTE):  # the start row says it
-            main.add_row("note", note)
+            add("note", note)
     if pa is not None:
         return [main]  # no association step, so no cluster table
     if (metrics.get("tracker") or {}).get("kind") == "pmbm":
