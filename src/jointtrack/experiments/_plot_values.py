@@ -43,9 +43,13 @@ def plottable(values, *, log: bool = False) -> tuple[np.ndarray, int]:
         Values present but off scale (non-finite, ``|v| > OFF_SCALE``, or
         too small for the log axis); missing ``None`` entries are not counted.
     """
-    raw = list(values) if not isinstance(values, np.ndarray) else values.ravel().tolist()
-    missing = np.array([v is None for v in raw], dtype=bool)
-    y = np.array([np.nan if v is None else v for v in raw], dtype=float)
+    if isinstance(values, np.ndarray) and values.dtype.kind in "iuf":
+        y = values.astype(float).ravel()  # a copy: the caller's array is not touched
+        missing = np.zeros(y.shape, dtype=bool)
+    else:
+        raw = list(values)
+        missing = np.array([v is None for v in raw], dtype=bool)
+        y = np.array([np.nan if v is None else v for v in raw], dtype=float)
     with np.errstate(invalid="ignore"):
         bad = ~np.isfinite(y) | (np.abs(y) > OFF_SCALE)
         if log:

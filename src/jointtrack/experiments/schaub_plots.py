@@ -86,7 +86,7 @@ def schaub_figure(res: dict, paper: dict):
         )
     ax.axhline(np.log(2), color="grey", lw=0.6, label="ln 2 nats: an unresolved pair of twins")
     ax.set_ylim(-0.03 * top, top * 1.05)  # room for a KL of 0 (max-weight right)
-    ax.set_xlabel("time step k (scan index)")
+    ax.set_xlabel("time step k = time (s): one scan per second")
     ax.set_ylabel("max KL over observed tracks (nats)")
     ax.set_title(
         f"Schaub example {ex} (seed {res['seed']}): max KL (58) of each method's identity "
