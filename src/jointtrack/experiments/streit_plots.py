@@ -175,7 +175,7 @@ def figure3(result: dict):
             ax.axvline(1.0, c="#55a868", ls="--", lw=1.2, label="ratio 1 (approximation exact)")
         # at most 5 ticks with just enough decimals: the labels of a narrow
         # histogram around 1 (saddle-corrected) otherwise run together
-        ax.xaxis.set_major_locator(MaxNLocator(nbins=5))
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=5, steps=[1, 2, 2.5, 5, 10]))
         ax.xaxis.set_major_formatter(_FewestDecimals())
         ax.set_xlabel("approximate / exact mixed derivative (dimensionless)")
         ax.set_ylabel("trials per bin (count)")
