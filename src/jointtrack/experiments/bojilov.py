@@ -382,7 +382,7 @@ def reproduce(
     if write:
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
-        from jointtrack.experiments.plots import plot_bojilov
+        from jointtrack.experiments.bojilov_plots import plot_bojilov
 
         png = plot_bojilov(out_dir / "reproduce-bojilov.png", result)
         result["files"] = {"json": str(out_dir / "reproduce-bojilov.json"), "png": str(png)}

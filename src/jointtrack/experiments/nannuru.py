@@ -636,13 +636,17 @@ def reproduce(
         for k, t in enumerate(TABLES, start=1):
             files[f"figure{k}"] = str(
                 nannuru_plots.plot_histograms(
-                    out_dir / f"nannuru-figure{k}.png", hists[t], TABLES[t][0]
+                    out_dir / f"nannuru-figure{k}.png",
+                    hists[t],
+                    f"Nannuru & Coates Figure {k} ({TABLES[t][0]})",
                 )
             )
         files["figure4"] = (
             str(
                 nannuru_plots.plot_bins(
-                    out_dir / "nannuru-figure4.png", bins[FIGURE4_ROW], FIGURE4_ROW
+                    out_dir / "nannuru-figure4.png",
+                    bins[FIGURE4_ROW],
+                    "Nannuru & Coates Figure 4: R vs R₁, Example 1, $r_i \\sim U[0.5, 1]$",
                 )
             )
             if FIGURE4_ROW in bins
@@ -651,7 +655,9 @@ def reproduce(
         files["figure5"] = (
             str(
                 nannuru_plots.plot_bins(
-                    out_dir / "nannuru-figure5.png", bins[FIGURE5_ROW], FIGURE5_ROW
+                    out_dir / "nannuru-figure5.png",
+                    bins[FIGURE5_ROW],
+                    "Nannuru & Coates Figure 5: R vs R₁, Table IV, $r_i = 0.95$",
                 )
             )
             if FIGURE5_ROW in bins

@@ -747,7 +747,7 @@ def reproduce(
         "seconds": time.perf_counter() - wall0,
     }
     if write:
-        from jointtrack.experiments.plots import plot_schaub
+        from jointtrack.experiments.schaub_plots import plot_schaub
 
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
