@@ -4,10 +4,9 @@
   :func:`scene_figure` returns the open figure.
 * :func:`plot_gospa` — GOSPA over time and its decomposition (``gospa.png``);
   :func:`gospa_figure` returns the open figure.
-* :func:`plot_bojilov` — association cost per cluster size vs Bojilov's
-  Tables 2–3 (``reproduce-bojilov.png``).
-* :func:`plot_schaub` — max KL divergence vs time step per method, one of
-  Schaub's Figures 5–7 (``schaub-example{1,2,3}.png``).
+
+The reproductions' figures live beside their experiments (``bojilov_plots``,
+``schaub_plots``, ``streit_plots``, ``nannuru_plots``).
 """
 
 from __future__ import annotations
@@ -24,10 +23,8 @@ import numpy as np  # noqa: E402
 __all__ = [
     "PLOT_LIMIT",
     "gospa_figure",
-    "plot_bojilov",
     "plot_gospa",
     "plot_scene",
-    "plot_schaub",
     "save_figure",
     "scene_figure",
 ]
@@ -455,175 +452,3 @@ def gospa_figure(series, title: str = ""):
 def plot_gospa(path, series, title: str = "") -> Path:
     """GOSPA per scan in m (top) and its p-th-power parts stacked, in m^p (bottom)."""
     return save_figure(gospa_figure(series, title), path, dpi=100)
-
-
-_METHOD_STYLE = {
-    "naive": ("#c44e52", "naive enumeration"),
-    "optimised": ("#4c72b0", "optimised enumeration"),
-    "exact": ("#55a868", "jointtrack exact"),
-}
-
-
-def _ours_vs_paper(ax, n, rows, keys, paper_rows, off, ours_note="", paper_note=""):
-    """Our means (lines, ``keys``: (method, result key)) and the paper's values (hollow).
-
-    ``paper_rows``: the paper's table rows by cluster size; ``off``: its column
-    offset for this β (naive at ``off``, optimised at ``off + 1``).
-    """
-    for m, key in keys:
-        c, lab = _METHOD_STYLE[m]
-        ax.plot(n, [r[key] for r in rows], "o-", c=c, label=f"ours: {lab}{ours_note}")
-    for m, j in (("naive", 0), ("optimised", 1)):
-        c, lab = _METHOD_STYLE[m]
-        xs = sorted(paper_rows)
-        ax.plot(
-            xs,
-            [paper_rows[x][off + j] for x in xs],
-            "s--",
-            mfc="none",
-            c=c,
-            ms=8,
-            label=f"paper: {lab}{paper_note}",
-        )
-
-
-def _log_panel(ax, title: str, ylabel: str) -> None:
-    """Log y axis, title, labels, ticks at 2–5 targets, grid and legend of a Bojilov panel."""
-    ax.set_yscale("log")
-    ax.set_title(title)
-    ax.set_ylabel(ylabel)
-    ax.set_xticks([2, 3, 4, 5])
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7, loc="upper left")
-
-
-def plot_bojilov(path, result: dict) -> Path:
-    """Seconds and multiplications per cluster vs targets in the cluster, ours and the paper's.
-
-    ``result`` is the dict of :func:`jointtrack.experiments.bojilov.reproduce`.
-    Top row: Table 3 (seconds per cluster, log scale) for β = 1, 2; bottom
-    row: Table 2 (multiplications per cluster; the paper counts floating point
-    operations). Lines: ours; hollow markers: the paper's values.
-    """
-    paper = result["paper"]
-    betas = [b for b in result["betas"]]
-    fig, axes = plt.subplots(2, len(betas), figsize=(6 * len(betas), 8), squeeze=False)
-    p2 = {r[0]: r for r in paper["table2_flops_per_cluster"]["rows"]}
-    p3 = {r[0]: r for r in paper["table3_seconds_per_cluster"]["rows"]}
-    for col, beta in enumerate(betas):
-        rows = result["results"][_key(beta)]["rows"]
-        rows = [r for r in rows if r["n_clusters"] > 0]
-        n = [r["targets"] for r in rows]
-        off = 1 if float(beta) == 1.0 else 4  # paper column offset (beta1 / beta2)
-        ax = axes[0, col]
-        _ours_vs_paper(
-            ax,
-            n,
-            rows,
-            (
-                ("naive", "mean_seconds_naive"),
-                ("optimised", "mean_seconds_optimised"),
-                ("exact", "mean_seconds_exact"),
-            ),
-            p3,
-            off,
-        )
-        ax.axhline(1e-3, c="0.5", ls=":", lw=1)
-        ax.text(2.0, 1.15e-3, "target 1 ms", fontsize=8, color="0.4")
-        _log_panel(ax, f"Table 3: seconds per cluster, β = {beta:g}", "seconds per cluster")
-        ax = axes[1, col]
-        _ours_vs_paper(
-            ax,
-            n,
-            rows,
-            (("naive", "mean_mult_naive"), ("optimised", "mean_mult_optimised")),
-            p2,
-            off,
-            ours_note=" (multiplications)",
-            paper_note=" (flops)",
-        )
-        ax.set_xlabel("targets (tracks) in cluster")
-        _log_panel(ax, f"Table 2: operations per cluster, β = {beta:g}", "operations per cluster")
-    fig.suptitle(
-        f"Bojilov et al. Tables 2–3 vs jointtrack ({result['settings']['runs']} runs per β; "
-        "β units differ, compare trends)",
-        fontsize=11,
-    )
-    fig.tight_layout()
-    return save_figure(fig, path)
-
-
-def _key(beta) -> str:
-    return f"beta={float(beta):g}"
-
-
-def plot_schaub(path, res: dict, paper: dict) -> Path:
-    """Max KL (58) vs time step for every method — Schaub's Figures 5–7 for one example.
-
-    An infinite divergence (the one-hot max-weight answer while it is wrong) is
-    drawn as a marker at the top edge instead of a point.
-    """
-    from jointtrack.experiments.schaub import LABELS
-
-    ex = str(res["example"])
-    fig, ax = plt.subplots(figsize=(8.0, 4.8))
-    finite_max = max(
-        (v for series in res["max_kl"].values() for v in series if np.isfinite(v)), default=1.0
-    )
-    top = max(1.0, 1.15 * finite_max)
-    styles = {"exact": "-", "sinkhorn": "--", "local": ":", "maxweight": "-."}
-    colors = {}
-    for m, series in res["max_kl"].items():
-        y = np.array(series, dtype=float)
-        k = np.arange(1, y.size + 1)
-        finite = np.isfinite(y)
-        (line,) = ax.plot(
-            np.where(finite, k, np.nan),
-            np.where(finite, y, np.nan),
-            styles.get(m, "-"),
-            label=LABELS.get(m, m),
-        )
-        colors[m] = line.get_color()
-        if (~finite).any():
-            ax.plot(
-                k[~finite],
-                np.full((~finite).sum(), top),
-                "v",
-                color=line.get_color(),
-                markersize=4,
-                label=f"{LABELS.get(m, m)}: ∞ (wrong)",
-            )
-    med = res.get("over_seeds", {}).get("median_max_kl")
-    if med and len(res["over_seeds"]["seeds"]) > 1:
-        for m, series in med.items():
-            y = np.array(series, dtype=float)
-            ax.plot(
-                np.arange(1, y.size + 1),
-                np.where(np.isfinite(y), y, np.nan),
-                styles.get(m, "-"),
-                lw=0.7,
-                alpha=0.45,
-                color=colors.get(m),
-            )
-        ax.plot(
-            [],
-            [],
-            "k-",
-            lw=0.7,
-            alpha=0.45,
-            label=f"thin: median over {len(res['over_seeds']['seeds'])} seeds",
-        )
-    ax.axhline(np.log(2), color="grey", lw=0.6)
-    ax.text(1, np.log(2), " ln 2", va="bottom", fontsize=8, color="grey")
-    ax.set_ylim(0, top * 1.05)
-    ax.set_xlabel("time step k")
-    ax.set_ylabel(f"max KL over observed tracks, nats ({res['plotted_kl']})")
-    ax.set_title(
-        f"Schaub example {ex} (seed {res['seed']}): {res['n_observed_tracks']} observed tracks, "
-        f"{res['n_identities']} identities — exact {1e3 * res['seconds_per_step']['exact']:.1f} "
-        f"ms/step (paper {1e3 * paper['seconds_per_step'][ex]:.0f} ms)",
-        fontsize=9,
-    )
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return save_figure(fig, path)
