@@ -114,26 +114,27 @@ def _span(lo: int, hi: int, noun: str) -> str:
 def _why(reason: str, assoc: Mapping) -> str:
     """A fallback's reason kind in words, naming the budget and its value."""
     if reason == "exact_max_tracks":
-        return f"above exact_max_tracks = {assoc.get('exact_max_tracks', '?')} tracks"
+        return f"as they have more than exact_max_tracks = {assoc.get('exact_max_tracks', '?')}"
     if reason == "exact_max_bits_tentative":
         bits = assoc.get("exact_max_bits_tentative", "?")
         return (
-            f"exact sum wider than the tentative budget of 2^{bits} states "
-            f"(exact_max_bits_tentative = {bits})"
+            f"as their exact sum needs more than 2^{bits} states (the tentative-track "
+            f"budget, exact_max_bits_tentative = {bits})"
         )
     if reason == "refused":
-        return "beyond the exact engine's own state or memory limit"
+        return "as their exact sum is beyond the exact engine's state or memory limit"
     if reason == "dense_budget":
-        return "too large for a tracks × measurements matrix"
-    return reason
+        return "as they are too large for a tracks × measurements matrix"
+    return f"({reason})"
 
 
 def association_line(metrics: Mapping) -> str | None:
     """The run's association in one plain sentence, from ``association.clusters``.
 
     E.g. ``association: 57 clusters of confirmed tracks (2–5 tracks) solved
-    exactly; 84 clusters of tentative tracks: 60 (2–40 tracks) solved exactly, 24
-    (25–178 tracks) by loopy belief propagation (exact sum wider than …)``, or
+    exactly; 112 clusters of tentative tracks (2–185 tracks): 36 (2–85 tracks)
+    solved exactly and 76 (91–185 tracks) by loopy belief propagation as their
+    exact sum needs more than 2^12 states (…)``, or
     ``association: all 141 multi-track clusters solved exactly …`` when no
     cluster needed the approximation. None for a metrics dict without the tally
     (a particle or PMBM run, or one written by an older jointtrack).
@@ -171,10 +172,11 @@ def association_line(metrics: Mapping) -> str | None:
             by = _BY.get(r["method"], f"by {r['method']}")
             ways.append(
                 f"{r['count']} ({_span(*r['n_tracks'], 'tracks')}) "
-                f"{'solved ' if by == 'exactly' else ''}{by}"
-                + (f", {_why(r['reason'], assoc)}" if r["reason"] else "")
+                f"{'solved ' if by.startswith('exactly') else ''}{by}"
+                + (f" {_why(r['reason'], assoc)}" if r["reason"] else "")
             )
-        parts.append(f"{head}: {'; '.join(ways)}")
+        joined = ways[0] if len(ways) == 1 else ", ".join(ways[:-1]) + " and " + ways[-1]
+        parts.append(f"{head}: {joined}")
     if exact:
         total = sum(r["count"] for r in rows)
         return f"association: all {total} multi-track clusters solved exactly ({', '.join(parts)})"
