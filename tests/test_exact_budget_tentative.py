@@ -202,3 +202,14 @@ def test_default_run_solves_large_tentative_clusters_exactly(tmp_path):
         assert "exact_max_bits_tentative = 12" in line
     else:
         assert line.startswith("association: all ")
+
+
+def test_resumed_run_tallies_every_scan(tmp_path):
+    """The tally is kept in the checkpoint: a resumed run reports the whole run's clusters."""
+    whole = _run(tmp_path, "whole")
+    part, ck = tmp_path / "part", tmp_path / "ck.npz"
+    run_scenario("bojilov", {}, part, plots=False, max_scans=4, checkpoint=ck)
+    run_scenario("bojilov", {}, part, plots=False, max_scans=10, resume=ck)
+    resumed = json.loads((part / "metrics.json").read_text())
+    assert resumed["association"]["clusters"] == whole["association"]["clusters"]
+    assert association_line(resumed) == association_line(whole)

@@ -20,7 +20,10 @@ tracks and timing only). Both write into ``out_dir``:
   (number of tracks in a multi-track cluster) the count, mean and maximum
   association seconds, plus the run's wall time and scans per second; the
   clusters the approximation solved instead of the configured method
-  (``association.fallbacks``) and, for ISO-8601 detection times, the
+  (``association.fallbacks``), every multi-track cluster by kind of track
+  (confirmed or tentative), method and reason with its count and size range
+  (``association.clusters``: the summary's closing ``association:`` sentence)
+  and, for ISO-8601 detection times, the
   ``time_origin``. Without a truth there is no GOSPA/OSPA and the track counts
   are the numbers of confirmed tracks.
 * ``scene.png``: truth trajectories, detections (grey; clutter lighter),
@@ -56,7 +59,8 @@ Config file (``--config FILE``, TOML)
     association = "exact"  # or enumerate, pda, lbp, mcmc, kbest
     clutter_density = "estimate"   # a number (per unit area), or "estimate" =
                                    # Bojilov's heuristic (8)
-    exact_max_tracks = 12
+    exact_max_tracks = 12          # confirmed-track clusters above it: the approximation
+    exact_max_bits_tentative = 12  # tentative-track clusters: exact up to 2^12 DP states
     # range–bearing detections (columns time, range, bearing) need:
     # sensor = "range-bearing"
     # sensor_position = [2000.0, 0.0]
@@ -637,6 +641,7 @@ def _run(
     fallbacks: dict = {}  # reason → clusters solved by the approximation instead
     tiers: dict = {}  # method (approximation, lbp-sparse, pda) → those clusters
     solved: dict = {}  # every multi-track cluster by kind, method, reason (count_cluster)
+    tally_complete = True  # solved covers every scan of the run
     coincident = [0]  # returns dropped as exact repeats of another of their scan
     elapsed_before = 0.0
     start = 0
@@ -664,7 +669,10 @@ def _run(
             clusters = list(info.get("clusters", []))
             fallbacks.update(info.get("fallbacks", {}))
             tiers.update(info.get("fallback_tiers", {}))
-            solved.update(info.get("cluster_tally", {}))  # absent in older checkpoints
+            # absent in older checkpoints: a tally of the resumed scans alone would
+            # undercount, so such a run reports no association.clusters
+            tally_complete = "cluster_tally" in info
+            solved.update(info.get("cluster_tally", {}))
             coincident[0] = int(info.get("coincident_returns", 0))
             elapsed_before = float(info.get("elapsed_seconds", 0.0))
             if type(trk.config) is not type(cfg):
@@ -887,7 +895,7 @@ def _run(
             "fallback_tiers": dict(sorted(tiers.items())),
             "exact_max_tracks": getattr(cfg, "exact_max_tracks", None),
             "exact_max_bits_tentative": getattr(cfg, "exact_max_bits_tentative", None),
-            "clusters": cluster_rows(solved),
+            **({"clusters": cluster_rows(solved)} if tally_complete else {}),
             "coincident_returns": coincident[0],
             "fallbacks_note": "clusters solved by the approximation instead of the configured "
             "method, by reason (exact_max_tracks, exact_max_bits_tentative, refused by the exact "
