@@ -213,3 +213,11 @@ def test_resumed_run_tallies_every_scan(tmp_path):
     resumed = json.loads((part / "metrics.json").read_text())
     assert resumed["association"]["clusters"] == whole["association"]["clusters"]
     assert association_line(resumed) == association_line(whole)
+
+
+def test_enumerate_keeps_the_track_limit_for_tentative_clusters():
+    """Frontier bits measure the exact DP only: enumeration keeps exact_max_tracks."""
+    seen, res = _tentative_cluster(association="enumerate", exact_max_tracks=2)
+    big = [r for r in seen if len(r.track_ids) > 2]
+    assert big and all(r.method == "lbp" for r in big)
+    assert set(f for f in res.cluster_fallbacks if f) == {"exact_max_tracks"}

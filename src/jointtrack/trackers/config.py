@@ -101,15 +101,18 @@ class TrackerConfig(ModelSettings):
         the engine before any work and go to ``approximation``. An integer in
         [0, 30], or None: tentative clusters are budgeted like confirmed ones,
         by ``exact_max_tracks`` (the behaviour before this setting; state files
-        written before it load with None). Default 12, from the measurement
-        in ``benchmarks/tentative_budget.py`` (issue 25): tentative clusters in
-        heavy clutter are clutter-born tracks glued by shared returns, up to
-        ~200 tracks, yet many separate into a narrow frontier; every one of at
-        most 12 bits (up to 93 tracks) took at most 5 ms (median 0.1–0.2 ms,
-        within a few times LBP's), the next measured widths 17, 18 and 22 bits
-        0.27, 0.6 and 13–15 s (200–7000 × LBP). Confirmed clusters keep
+        written before it load with None). Applies with ``association =
+        "exact"``; with ``"enumerate"`` every cluster has ``exact_max_tracks``.
+        Default 12, from the measurement in ``benchmarks/tentative_budget.py``
+        (issue 25; ``benchmarks/RESULTS.md``): tentative clusters in heavy
+        clutter are clutter-born tracks glued by shared returns, up to ~200
+        tracks, yet many separate into a narrow frontier; every one of at most
+        12 bits (up to 93 tracks) took at most 7 ms (median 0.15–0.3 ms, 1–6 ×
+        LBP's time), the next measured widths 17, 18 and 22 bits 0.28 s, 0.8 s
+        and 13–15 s (200–7000 × LBP). The engine's refusal of a wider cluster
+        (its plan, before any DP) takes 2–4 ms. Confirmed clusters keep
         ``exact_max_tracks``: their β matter most (LBP was off by up to 0.4
-        there) and the measured ones (2–5 tracks) took under 0.3 ms.
+        there) and the measured ones (2–5 tracks) took under 0.4 ms.
     approximation : ``"lbp"``, ``"mcmc"``, ``"kbest"`` or ``"pda"``.
     initiation : ``"one-point"`` (default: a track on one return, zero mean
         velocity with per-axis σ_v = max_speed/2; with ``existence`` every

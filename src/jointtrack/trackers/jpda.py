@@ -424,9 +424,12 @@ class JPDATracker(ScanTracker):
     def _exact_budget(self, loud):
         """Confirmed tracks (``loud``): ``exact_max_tracks``; tentative ones: the
         frontier-width budget ``exact_max_bits_tentative`` and no track limit (or,
-        when that is None, ``exact_max_tracks`` as for confirmed tracks)."""
+        when that is None, ``exact_max_tracks`` as for confirmed tracks). The
+        frontier width is the measure of the ``"exact"`` engine only; with
+        ``association = "enumerate"`` (whose cost is the number of hypotheses)
+        every cluster keeps ``exact_max_tracks``."""
         bits = self.config.exact_max_bits_tentative
-        if loud or bits is None:
+        if loud or bits is None or self.config.association != "exact":
             return self.config.exact_max_tracks, None, ""
         return None, bits, "exact_max_bits_tentative"
 
