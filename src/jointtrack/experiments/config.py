@@ -470,6 +470,7 @@ JPDA_ONLY_KEYS = (
     "r_report",
     "merge_threshold",
     "miss_model",
+    "exact_max_bits_tentative",
 )
 #: expected births per scan over the surveillance region when a scene states no birth
 #: model (every scene but ``many`` and ``coalescence``, and detection files)

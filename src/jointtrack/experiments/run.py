@@ -20,7 +20,10 @@ tracks and timing only). Both write into ``out_dir``:
   (number of tracks in a multi-track cluster) the count, mean and maximum
   association seconds, plus the run's wall time and scans per second; the
   clusters the approximation solved instead of the configured method
-  (``association.fallbacks``) and, for ISO-8601 detection times, the
+  (``association.fallbacks``), every multi-track cluster by kind of track
+  (confirmed or tentative), method and reason with its count and size range
+  (``association.clusters``: the summary's closing ``association:`` sentence)
+  and, for ISO-8601 detection times, the
   ``time_origin``. Without a truth there is no GOSPA/OSPA and the track counts
   are the numbers of confirmed tracks.
 * ``scene.png``: truth trajectories, detections (grey; clutter lighter),
@@ -56,7 +59,8 @@ Config file (``--config FILE``, TOML)
     association = "exact"  # or enumerate, pda, lbp, mcmc, kbest
     clutter_density = "estimate"   # a number (per unit area), or "estimate" =
                                    # Bojilov's heuristic (8)
-    exact_max_tracks = 12
+    exact_max_tracks = 12          # confirmed-track clusters above it: the approximation
+    exact_max_bits_tentative = 12  # tentative-track clusters: exact up to 2^12 DP states
     # range–bearing detections (columns time, range, bearing) need:
     # sensor = "range-bearing"
     # sensor_position = [2000.0, 0.0]
@@ -232,6 +236,8 @@ from jointtrack.experiments.summary import (  # noqa: F401 - re-exported
     _ospa_mean,
     _run_metrics,
     _version,
+    cluster_rows,
+    count_cluster,
     particle_metrics,
     print_summary,
     start_description,
@@ -731,6 +737,8 @@ def _run(
     clusters: list = []  # [n_tracks, n_measurements, seconds] of multi-track confirmed clusters
     fallbacks: dict = {}  # reason → clusters solved by the approximation instead
     tiers: dict = {}  # method (approximation, lbp-sparse, pda) → those clusters
+    solved: dict = {}  # every multi-track cluster by kind, method, reason (count_cluster)
+    tally_complete = True  # solved covers every scan of the run
     coincident = [0]  # returns dropped as exact repeats of another of their scan
     elapsed_before = 0.0
     start = 0
@@ -758,6 +766,10 @@ def _run(
             clusters = list(info.get("clusters", []))
             fallbacks.update(info.get("fallbacks", {}))
             tiers.update(info.get("fallback_tiers", {}))
+            # absent in older checkpoints: a tally of the resumed scans alone would
+            # undercount, so such a run reports no association.clusters
+            tally_complete = "cluster_tally" in info
+            solved.update(info.get("cluster_tally", {}))
             coincident[0] = int(info.get("coincident_returns", 0))
             elapsed_before = float(info.get("elapsed_seconds", 0.0))
             if type(trk.config) is not type(cfg):
@@ -834,6 +846,7 @@ def _run(
                 "clusters": clusters,
                 "fallbacks": dict(fallbacks),
                 "fallback_tiers": dict(tiers),
+                "cluster_tally": solved,
                 "coincident_returns": coincident[0],
                 "sensors": sensor_tables_to_run(sensor_tables),
                 "tracker_notes": list(src.tracker_notes),
@@ -888,12 +901,14 @@ def _run(
                             ):
                                 if conf:
                                     clusters.append([int(n_tr), int(n_me), float(sec)])
-                            for reason, method, conf in zip(
+                            for (n_tr, n_me), reason, method, conf in zip(
+                                res.cluster_sizes,
                                 res.cluster_fallbacks,
                                 res.cluster_methods,
                                 res.cluster_confirmed,
                                 strict=True,
                             ):
+                                count_cluster(solved, conf, method, reason, n_tr, n_me)
                                 if reason:
                                     # the reason's kind (exact_max_tracks, refused, dense_budget)
                                     # and the tier that solved the cluster
@@ -980,12 +995,19 @@ def _run(
             "approximation": cfg.approximation,
             "fallbacks": dict(sorted(fallbacks.items())),
             "fallback_tiers": dict(sorted(tiers.items())),
+            "exact_max_tracks": getattr(cfg, "exact_max_tracks", None),
+            "exact_max_bits_tentative": getattr(cfg, "exact_max_bits_tentative", None),
+            **({"clusters": cluster_rows(solved)} if tally_complete else {}),
             "coincident_returns": coincident[0],
             "fallbacks_note": "clusters solved by the approximation instead of the configured "
-            "method, by reason (exact_max_tracks, refused by the exact engine's budget, or "
+            "method, by reason (exact_max_tracks, exact_max_bits_tentative, refused by the exact "
+            "engine's own limits, or "
             "dense_budget: too large for an N × M matrix), and in fallback_tiers by the "
             "method that solved them (the approximation, else lbp-sparse, else per-track "
             "pda); ', tentative tracks' marks clusters of tentative tracks. "
+            "clusters: every multi-track cluster by kind of track, method and reason "
+            "(empty when the configured method solved it), with its count and the range "
+            "of its numbers of tracks and measurements. "
             "coincident_returns: returns dropped as exact repeats of another return of "
             "their scan",
         }

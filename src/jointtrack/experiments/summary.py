@@ -20,6 +20,8 @@ from jointtrack.trackers import TrackerConfig
 
 __all__ = [
     "PARTICLE_START_NOTE",
+    "association_line",
+    "count_cluster",
     "particle_metrics",
     "print_summary",
     "start_description",
@@ -53,6 +55,132 @@ def _cluster_timing(clusters: list) -> list[dict]:
             }
         )
     return out
+
+
+def count_cluster(solved: dict, confirmed: bool, method: str, reason: str, n_tracks, n_meas):
+    """Count one multi-track cluster in ``solved`` (a run's ``association.clusters`` tally).
+
+    Key ``"<confirmed|tentative>|<method>|<reason kind>"`` (reason kind: the part
+    of the fallback reason before its first ``:``/``;``, empty when the configured
+    method solved it) → ``[count, min tracks, max tracks, min measurements, max
+    measurements]``: plain JSON, kept in a checkpoint's run bookkeeping.
+    """
+    why = reason.split(":", 1)[0].split(";", 1)[0] if reason else ""
+    key = f"{'confirmed' if confirmed else 'tentative'}|{method}|{why}"
+    n_tracks, n_meas = int(n_tracks), int(n_meas)
+    row = solved.get(key)
+    if row is None:
+        solved[key] = [1, n_tracks, n_tracks, n_meas, n_meas]
+    else:
+        row[0] += 1
+        row[1], row[2] = min(row[1], n_tracks), max(row[2], n_tracks)
+        row[3], row[4] = min(row[3], n_meas), max(row[4], n_meas)
+
+
+def cluster_rows(solved: Mapping) -> list[dict]:
+    """``metrics.json``'s ``association.clusters``: the :func:`count_cluster` tally as rows."""
+    rows = []
+    for key, (count, t0, t1, m0, m1) in sorted(solved.items()):
+        kind, method, why = key.split("|", 2)
+        rows.append(
+            {
+                "tracks": kind,
+                "method": method,
+                "reason": why,
+                "count": int(count),
+                "n_tracks": [int(t0), int(t1)],
+                "n_measurements": [int(m0), int(m1)],
+            }
+        )
+    return rows
+
+
+#: how each method solved a cluster, in words
+_BY = {
+    "exact": "exactly",
+    "enumerate": "exactly (hypothesis enumeration)",
+    "lbp": "by loopy belief propagation",
+    "lbp-sparse": "by sparse loopy belief propagation",
+    "pda": "by per-track PDA",
+    "mcmc": "by MCMC sampling",
+    "kbest": "by the k best hypotheses",
+}
+
+
+def _span(lo: int, hi: int, noun: str) -> str:
+    return f"{lo} {noun}" if lo == hi else f"{lo}–{hi} {noun}"
+
+
+def _why(reason: str, assoc: Mapping) -> str:
+    """A fallback's reason kind in words, naming the budget and its value."""
+    if reason == "exact_max_tracks":
+        return f"as they have more than exact_max_tracks = {assoc.get('exact_max_tracks', '?')}"
+    if reason == "exact_max_bits_tentative":
+        bits = assoc.get("exact_max_bits_tentative", "?")
+        return (
+            f"as their exact sum needs more than 2^{bits} states (the tentative-track "
+            f"budget, exact_max_bits_tentative = {bits})"
+        )
+    if reason == "refused":
+        return "as their exact sum is beyond the exact engine's state or memory limit"
+    if reason == "dense_budget":
+        return "as they are too large for a tracks × measurements matrix"
+    return f"({reason})"
+
+
+def association_line(metrics: Mapping) -> str | None:
+    """The run's association in one plain sentence, from ``association.clusters``.
+
+    E.g. ``association: 57 clusters of confirmed tracks (2–5 tracks) solved
+    exactly; 112 clusters of tentative tracks (2–185 tracks): 36 (2–85 tracks)
+    solved exactly and 76 (91–185 tracks) by loopy belief propagation as their
+    exact sum needs more than 2^12 states (…)``, or
+    ``association: all 141 multi-track clusters solved exactly …`` when no
+    cluster needed the approximation. None for a metrics dict without the tally
+    (a particle or PMBM run, or one written by an older jointtrack).
+    """
+    assoc = metrics.get("association") or {}
+    rows = assoc.get("clusters")
+    if rows is None:
+        return None
+    if not rows:
+        return "association: no multi-track clusters (every cluster was a single track)"
+    poisson = (metrics.get("tracker") or {}).get("kind") in ("pmb", "pmbm")
+    exact = all(r["method"] in ("exact", "enumerate") and not r["reason"] for r in rows)
+
+    def tracks_of(kind):
+        return "tracks" if poisson else f"{kind} tracks"
+
+    parts = []
+    for kind in ("confirmed", "tentative"):
+        mine = [r for r in rows if r["tracks"] == kind]
+        if not mine:
+            continue
+        n = sum(r["count"] for r in mine)
+        lo = min(r["n_tracks"][0] for r in mine)
+        hi = max(r["n_tracks"][1] for r in mine)
+        head = f"{n} cluster{'s' * (n != 1)} of {tracks_of(kind)} ({_span(lo, hi, 'tracks')})"
+        if len(mine) == 1 and not mine[0]["reason"]:
+            parts.append(
+                head
+                if exact
+                else f"{head} solved {_BY.get(mine[0]['method'], 'by ' + mine[0]['method'])}"
+            )
+            continue
+        ways = []
+        for r in sorted(mine, key=lambda r: (bool(r["reason"]), -r["count"])):
+            by = _BY.get(r["method"], f"by {r['method']}")
+            ways.append(
+                f"{r['count']} ({_span(*r['n_tracks'], 'tracks')}) "
+                f"{'solved ' if by.startswith('exactly') else ''}{by}"
+                + (f" {_why(r['reason'], assoc)}" if r["reason"] else "")
+            )
+        joined = ways[0] if len(ways) == 1 else ", ".join(ways[:-1]) + " and " + ways[-1]
+        parts.append(f"{head}: {joined}")
+    if exact:
+        total = sum(r["count"] for r in rows)
+        return f"association: all {total} multi-track clusters solved exactly ({', '.join(parts)})"
+    return "association: " + "; ".join(parts)
 
 
 def _ospa_mean(truth, tracks, scan_times, c, p) -> float:
@@ -432,14 +560,19 @@ def print_summary(metrics: Mapping, console) -> None:
     """Print :func:`summary_tables` to a rich console, and the approximation fallbacks once."""
     for table in summary_tables(metrics):
         console.print(table)
+    line = association_line(metrics)
     assoc = metrics.get("association") or {}
     fallbacks = assoc.get("fallbacks") or {}
-    if fallbacks:
+    if line is None and fallbacks:  # a metrics dict without the per-kind tally
         parts = ", ".join(f"{n} ({reason})" for reason, n in fallbacks.items())
-        console.print(
+        line = (
             f"{sum(fallbacks.values())} cluster(s) solved by {assoc.get('approximation')} "
-            f"instead of {assoc.get('method')}: {parts}",
-            style="yellow",
+            f"instead of {assoc.get('method')}: {parts}"
+        )
+    if line is not None:
+        console.print(
+            line,
+            style="yellow" if fallbacks else None,
             markup=False,
             highlight=False,
             soft_wrap=True,

@@ -82,7 +82,9 @@ class ScanResult:
     was a cluster of confirmed (True) or tentative (False) tracks and
     ``cluster_fallbacks`` why the approximation replaced the configured method
     (``""`` when it did not; ``"exact_max_tracks"`` for a cluster above the
-    budget; ``"refused: …"`` when the exact engine declined it;
+    budget; ``"exact_max_bits_tentative: …"`` for a cluster of tentative tracks
+    whose exact DP is wider than their budget; ``"refused: …"`` when the exact
+    engine declined it at its own limits;
     ``"dense_budget: …"`` for a cluster too large for an N × M matrix).
     ``n_coincident``: returns dropped because they repeated another return of
     the scan exactly (see :meth:`JPDATracker.step`).
@@ -502,21 +504,44 @@ class ScanTracker:
 
     def _cluster_marginals(self, Lc, mc, loud):
         """β of one multi-track cluster by the configured method under the exact
-        budget (:func:`~jointtrack.association.budget.budgeted_marginals`), each
+        budget of its kind of track (:meth:`_exact_budget`;
+        :func:`~jointtrack.association.budget.budgeted_marginals`), each
         fallback to the approximation logged."""
         c = self.config
+        max_tracks, max_bits, label = self._exact_budget(loud)
         t0 = _time.perf_counter()
         res = budgeted_marginals(
             Lc,
             mc,
             method=c.association,
             approximation=c.approximation,
-            max_tracks=c.exact_max_tracks,
+            max_tracks=max_tracks,
             rng=self.rng,
+            exact_options=None if max_bits is None else {"max_bits": max_bits},
         )
-        if res.reason:
-            self._log_fallback(len(Lc), Lc.shape[1], loud, res.reason, res.method)
-        return res.beta, res.method, res.reason, _time.perf_counter() - t0
+        reason = res.reason
+        if (
+            max_bits is not None
+            and reason.startswith("refused: ")
+            and (f"above max_bits = {max_bits};" in reason)
+        ):
+            # the engine refused the cluster at this kind's budget, not at its own limits:
+            # name the setting, so that counts and messages say which budget it was
+            reason = f"{label}: {reason.removeprefix('refused: ')}"
+        if reason:
+            self._log_fallback(len(Lc), Lc.shape[1], loud, reason, res.method)
+        return res.beta, res.method, reason, _time.perf_counter() - t0
+
+    def _exact_budget(self, loud):
+        """``(max_tracks, max_bits, label)``: the exact budget of a cluster of this kind.
+
+        ``loud``: the cluster's kind (JPDA: confirmed tracks). Here every cluster has
+        ``exact_max_tracks`` and the exact engine's own limits (``max_bits`` None);
+        :class:`~jointtrack.trackers.JPDATracker` gives tentative tracks a budget in
+        frontier bits instead. ``label`` names the ``max_bits`` setting in the reason
+        of a cluster the engine refused at it.
+        """
+        return self.config.exact_max_tracks, None, ""
 
     def _log_fallback(self, n, m, loud, reason, method):
         """Count a cluster the configured method did not solve; log the first of each kind.

@@ -90,8 +90,29 @@ class TrackerConfig(ModelSettings):
     clutter_density : λ, false returns per unit volume; ``None`` estimates it per
         cluster by Bojilov's heuristic (8), λ = Σ m_i / Σ V_i.
     association : method for clusters within budget (``"exact"`` by default).
-    exact_max_tracks : clusters with more tracks than this use ``approximation``
-        (logged as a warning with the cluster size).
+    exact_max_tracks : clusters of confirmed tracks with more tracks than this use
+        ``approximation`` (logged as a warning with the cluster size); so do
+        clusters of tentative tracks when ``exact_max_bits_tentative`` is None.
+    exact_max_bits_tentative : the exact budget of clusters of tentative tracks,
+        in the exact engine's own measure of work: such a cluster is solved
+        exactly, whatever its number of tracks, when the exact DP's state needs
+        at most 2^exact_max_bits_tentative subsets (its frontier width, see
+        :func:`jointtrack.assignment.assignment_sum`); wider ones are refused by
+        the engine before any work and go to ``approximation``. An integer in
+        [0, 30], or None: tentative clusters are budgeted like confirmed ones,
+        by ``exact_max_tracks`` (the behaviour before this setting; state files
+        written before it load with None). Applies with ``association =
+        "exact"``; with ``"enumerate"`` every cluster has ``exact_max_tracks``.
+        Default 12, from the measurement in ``benchmarks/tentative_budget.py``
+        (issue 25; ``benchmarks/RESULTS.md``): tentative clusters in heavy
+        clutter are clutter-born tracks glued by shared returns, up to ~200
+        tracks, yet many separate into a narrow frontier; every one of at most
+        12 bits (up to 93 tracks) took at most 7 ms (median 0.15–0.3 ms, 1–6 ×
+        LBP's time), the next measured widths 17, 18 and 22 bits 0.28 s, 0.8 s
+        and 13–15 s (200–7000 × LBP). The engine's refusal of a wider cluster
+        (its plan, before any DP) takes 2–4 ms. Confirmed clusters keep
+        ``exact_max_tracks``: their β matter most (LBP was off by up to 0.4
+        there) and the measured ones (2–5 tracks) took under 0.4 ms.
     approximation : ``"lbp"``, ``"mcmc"``, ``"kbest"`` or ``"pda"``.
     initiation : ``"one-point"`` (default: a track on one return, zero mean
         velocity with per-axis σ_v = max_speed/2; with ``existence`` every
@@ -179,6 +200,7 @@ class TrackerConfig(ModelSettings):
     clutter_density: float | None = None
     association: str = "exact"
     exact_max_tracks: int = 16
+    exact_max_bits_tentative: int | None = 12
     approximation: str = "lbp"
     initiation: str = "one-point"
     max_speed: float = 50.0
@@ -431,6 +453,14 @@ def _seed(name, v):
     return v
 
 
+def _bits_or_none(name, v):
+    """A frontier-width budget in bits: None, or an integer in [0, 30] (2^30 states is
+    the exact engine's own default limit, ``jointtrack.assignment.core.DEFAULT_MAX_BITS``)."""
+    if v is None:
+        return None
+    return _int_range(0, 30)(name, v)
+
+
 def _association(name, v):
     from jointtrack.association.core import METHODS
 
@@ -499,6 +529,7 @@ _CHECKS = {
     "clutter_density": _clutter,
     "association": _association,
     "exact_max_tracks": _int_range(1),
+    "exact_max_bits_tentative": _bits_or_none,
     "approximation": _choice(("lbp", "mcmc", "kbest", "pda")),
     "initiation": _choice(("two-point", "one-point")),
     "max_speed": _positive,

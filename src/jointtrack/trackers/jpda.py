@@ -421,6 +421,18 @@ class JPDATracker(ScanTracker):
         if len(rows):
             self.x[rows], self.P[rows] = self._initial_states(z_new, velocities)
 
+    def _exact_budget(self, loud):
+        """Confirmed tracks (``loud``): ``exact_max_tracks``; tentative ones: the
+        frontier-width budget ``exact_max_bits_tentative`` and no track limit (or,
+        when that is None, ``exact_max_tracks`` as for confirmed tracks). The
+        frontier width is the measure of the ``"exact"`` engine only; with
+        ``association = "enumerate"`` (whose cost is the number of hypotheses)
+        every cluster keeps ``exact_max_tracks``."""
+        bits = self.config.exact_max_bits_tentative
+        if loud or bits is None or self.config.association != "exact":
+            return self.config.exact_max_tracks, None, ""
+        return None, bits, "exact_max_bits_tentative"
+
     def _associate(self, tracks, z, loud, available=None):
         """Association probabilities of the given tracks against ``z``, cluster by cluster.
 

@@ -185,7 +185,20 @@ def _read_verified(path):
             raise bad(f"header has no {key}")
     if version < VERSION:
         _upgrade(header, arrays)
+    _fill_added_settings(header)
     return header, arrays
+
+
+def _fill_added_settings(header: dict) -> None:
+    """Fill the JPDA settings added after a state file was written, in place.
+
+    ``exact_max_bits_tentative`` (issue 25) gets None: tentative clusters budgeted
+    by ``exact_max_tracks`` like confirmed ones, as every earlier jointtrack did, so
+    the continued run is identical (not the new default, which would change it).
+    """
+    if header["scalars"].get("tracker", "jpda") != "jpda":
+        return
+    header["config"].setdefault("exact_max_bits_tentative", None)
 
 
 def _upgrade(header: dict, arrays: dict) -> None:
