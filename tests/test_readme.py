@@ -33,7 +33,7 @@ def _stated_outputs(block: str) -> dict[int, str]:
 
 
 def test_stated_outputs_are_read_from_print_comments():
-    block = 'x = 1  # 9\nprint(x, 2)  # 1 2: prose\nprint(x)\nprint([1])  # [1]\n'
+    block = "x = 1  # 9\nprint(x, 2)  # 1 2: prose\nprint(x)\nprint([1])  # [1]\n"
     assert _stated_outputs(block) == {2: "1 2", 4: "[1]"}
 
 
