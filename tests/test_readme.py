@@ -1,8 +1,15 @@
-"""Every ```python block of the README runs as written (in a scratch directory)."""
+"""Every ```python block of the README runs as written (in a scratch directory), and
+prints what it says it prints.
+
+A ``print(...)`` line with a trailing comment states its output: the comment up to
+the first ``": "`` (or all of it) must be exactly what that line printed, e.g.
+``print(spec.n_cells, spec.n_runs)  # 2 4`` or ``print(first)  # 3: prose``.
+"""
 
 from __future__ import annotations
 
 import re
+import sys
 from pathlib import Path
 
 import pytest
@@ -15,10 +22,39 @@ def test_readme_has_python_examples():
     assert len(BLOCKS) >= 3
 
 
+def _stated_outputs(block: str) -> dict[int, str]:
+    """Line number (1-based) → the output a ``print(...)  # OUTPUT[: prose]`` line states."""
+    stated = {}
+    for number, line in enumerate(block.splitlines(), start=1):
+        code, sep, comment = line.partition("  # ")
+        if sep and code.lstrip().startswith("print("):
+            stated[number] = comment.split(": ", 1)[0].strip()
+    return stated
+
+
+def test_stated_outputs_are_read_from_print_comments():
+    block = "x = 1  # 9\nprint(x, 2)  # 1 2: prose\nprint(x)\nprint([1])  # [1]\n"
+    assert _stated_outputs(block) == {2: "1 2", 4: "[1]"}
+
+
 @pytest.mark.parametrize("index", range(len(BLOCKS)))
 def test_readme_example_runs(index, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    exec(compile(BLOCKS[index], f"README.md[python block {index}]", "exec"), {})
+    name = f"README.md[python block {index}]"
+    printed: dict[int, list[str]] = {}
+
+    def recording_print(*args, sep=" ", end="\n", **kwargs):
+        # the README line that called print: its stated output is checked below
+        frame = sys._getframe(1)
+        if frame.f_code.co_filename == name:
+            printed.setdefault(frame.f_lineno, []).append(sep.join(map(str, args)))
+        print(*args, sep=sep, end=end, **kwargs)
+
+    exec(compile(BLOCKS[index], name, "exec"), {"print": recording_print})
+    for line, stated in _stated_outputs(BLOCKS[index]).items():
+        assert printed.get(line) == [stated], (
+            f"{name} line {line} says it prints {stated!r}, printed {printed.get(line)!r}"
+        )
 
 
 def _real_data_commands() -> list[str]:

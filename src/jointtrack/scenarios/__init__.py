@@ -9,7 +9,8 @@
   there (the PMBM papers' scenario, with their filter model in ``info``).
 * :func:`acoustic` — 3–5 targets read by a 5 × 5 grid of superpositional
   amplitude sensors (no detections; :class:`AcousticScenario`).
-* :class:`Scenario` — the result; :func:`simulate_scenario` builds one from
+* :class:`Scenario` — the result (:meth:`Scenario.tracker_config`: the matched
+  ``TrackerConfig``); :func:`simulate_scenario` builds one from
   any truth; :func:`nominal_gate` the steady-state NCV gate used as Bojilov's
   clutter unit.
 """

@@ -200,6 +200,55 @@ class Scenario:
             times=self.times, scans=self.detections, sensors=None, dim=self.dim, source=None
         )
 
+    def tracker_config(self, **overrides):
+        """The :class:`~jointtrack.TrackerConfig` matched to how this scenario was made.
+
+        The settings are those ``jointtrack run --scenario`` derives
+        (:func:`jointtrack.experiments.config.scenario_tracker_settings`, the one
+        mapping): ``dim``, NCV motion (``motion="cv"``) with the truth's process
+        noise q, ``measurement_noise`` = R, ``p_d``, ``p_g`` (the scenario's, else
+        0.99), the clutter density λ the clutter was drawn with (``None``, i.e.
+        estimated, for a scene without clutter) and ``max_speed`` = 1.5 × the
+        fastest true speed. The scan interval needs no setting: the tracker takes
+        it from the times passed to ``step`` (``self.times``, spaced ``self.dt``).
+
+        Parameters
+        ----------
+        **overrides
+            any :class:`~jointtrack.TrackerConfig` field, replacing the derived
+            value (e.g. ``association="lbp"``, ``existence=False``). An unknown
+            name or a bad value raises ValueError naming it; ``dim`` may only
+            restate the scenario's own.
+
+        Returns
+        -------
+        TrackerConfig
+
+        Examples
+        --------
+        >>> from jointtrack import JPDATracker
+        >>> from jointtrack.scenarios import crossing
+        >>> sc = crossing(seed=1)  # R = 100 I, q = 0.01, P_D = 0.9
+        >>> cfg = sc.tracker_config()
+        >>> cfg.measurement_noise, cfg.process_noise, cfg.p_d
+        (100.0, 0.01, 0.9)
+        >>> trk = JPDATracker(sc.tracker_config(association="lbp"))
+        >>> sc.tracker_config(measurment_noise=1.0)  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        ValueError: unknown tracker setting(s): measurment_noise; known: ...
+        """
+        # imported here: experiments builds on scenarios, not the other way round
+        from jointtrack.experiments.config import scenario_tracker_settings
+        from jointtrack.trackers.config import TrackerConfig
+
+        if "dim" in overrides and overrides["dim"] != self.dim:
+            raise ValueError(
+                f"dim = {overrides['dim']!r} does not match the {self.dim}-D scenario "
+                f"{self.name!r}; leave dim out"
+            )
+        return TrackerConfig.from_dict({**scenario_tracker_settings(self), **overrides})
+
     def truth_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Flat truth ``(times (R,), ids (R,), positions (R, dim))`` for the metrics."""
         n = [a.size for a in self.truth_ids]
