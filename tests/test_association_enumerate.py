@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import time
 
 import numpy as np
 import pytest
@@ -51,11 +50,9 @@ def test_hypothesis_counter_matches_closed_form_on_full_gating(N, M):
 
 
 def test_count_hypotheses_on_big_clusters_without_enumerating():
-    # 20 × 40 full gating: ~1e36 hypotheses, counted by the exact DP in well under a second
-    count_hypotheses(np.ones((2, 3)), np.ones(2))  # compile outside the timing
-    t = time.perf_counter()
+    # 12 × 24 full gating: ~1e20 hypotheses, counted by the DP (enumerating them would
+    # never finish, so an enumeration regression shows as a hung CI, not a wrong count)
     c = count_hypotheses(np.ones((12, 24)), np.ones(12))
-    assert time.perf_counter() - t < 5
     assert c == pytest.approx(full_gating_count(12, 24), rel=1e-12)
 
 
@@ -158,7 +155,6 @@ def test_limit_is_checked_before_enumerating_and_names_exact():
     rng = np.random.default_rng(3)
     L = 5 * rng.random((10, 20))
     miss = np.full(10, 0.1)
-    t = time.perf_counter()
     with pytest.raises(ValueError, match="method='exact'"):
         enumerate_jpda(L, miss)
     with pytest.raises(ValueError, match="max_hypotheses"):
@@ -168,7 +164,6 @@ def test_limit_is_checked_before_enumerating_and_names_exact():
     # a cluster too big even for an exact count is refused from a cheap lower bound
     with pytest.raises(ValueError, match="at least 2"):
         enumerate_jpda(np.ones((24, 48)), np.full(24, 0.1))
-    assert time.perf_counter() - t < 5
     # a small limit is honoured too, and None disables the check
     small_L = rng.random((3, 3))
     with pytest.raises(ValueError):

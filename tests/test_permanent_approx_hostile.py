@@ -7,7 +7,6 @@ any dynamic range).
 from __future__ import annotations
 
 import math
-import time
 import warnings
 
 import numpy as np
@@ -171,10 +170,8 @@ def test_sampling_reports_non_convergence():
 
 def test_sinkhorn_newton_on_nearly_decomposable():
     A = np.array([[1e8, 1.0], [1.0, 1.0]])
-    sinkhorn(A)  # compile
-    t0 = time.perf_counter()
+    # within 100 iterations (the work bound; plain Sinkhorn needs ~1e8 on this matrix)
     d1, B, d2 = sinkhorn(A, max_iter=100)
-    assert time.perf_counter() - t0 < 1.0
     np.testing.assert_allclose(B.sum(0), 1, atol=1e-12)
     np.testing.assert_allclose(B.sum(1), 1, atol=1e-12)
     np.testing.assert_allclose(B, d1[:, None] * A * d2[None, :], rtol=1e-12)
