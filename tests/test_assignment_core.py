@@ -30,7 +30,7 @@ from hypothesis import strategies as st
 from brute import brute_assignment, brute_grouped, expand, log_fraction
 from jointtrack.assignment import assignment_sum
 from jointtrack.association import exact_jpda
-from jointtrack.errors import InfeasibleAssignmentError
+from jointtrack.errors import ExactLimitError, InfeasibleAssignmentError
 from jointtrack.permanent import assignment_marginals, log_permanent, permanent
 
 TOL_LOG = 1e-12
@@ -595,3 +595,19 @@ def test_method_typo_is_named_value_error(fn, method):
 def test_core_method_typo_is_named_value_error(method):
     with pytest.raises(ValueError, match="method"):
         assignment_sum([[1.0]], method=method)
+
+
+@pytest.mark.parametrize("method", ["auto", "glynn", "ryser", "frontier"])
+def test_dense_problem_past_max_bits_is_refused_not_run(method):
+    # a dense 40×40 needs 2^39 Glynn terms or 2^40 DP states; under max_bits = 20 every
+    # method refuses at once (before, "auto" and "glynn" ran Glynn's formula for hours)
+    W = np.random.default_rng(0).uniform(0.5, 2.0, (40, 40))
+    with pytest.raises(ExactLimitError, match="max_bits = 20"):
+        assignment_sum(W, marginals=False, method=method, max_bits=20)
+
+
+def test_glynn_within_max_bits_still_serves_auto():
+    W = np.random.default_rng(1).uniform(0.5, 2.0, (16, 16))
+    assert assignment_sum(W, marginals=False, max_bits=15).method == "glynn"  # 2^15 terms
+    with pytest.raises(ExactLimitError):  # neither 2^15 Glynn terms nor 2^16 DP states fit
+        assignment_sum(W, marginals=False, max_bits=14)

@@ -281,10 +281,11 @@ def _glynn_value(W, kind, warn) -> AssignmentResult | None:
     return AssignmentResult(math.log(value) - log_shift, None, None, kind, True, info)
 
 
-def _glynn_wins(W) -> bool:
-    """For a square permanent value: is Glynn's n·2^(n−1) cheaper than the frontier DP?"""
+def _glynn_wins(W, max_bits: int) -> bool:
+    """For a square permanent value: is Glynn's n·2^(n−1) cheaper than the frontier DP,
+    and within the budget (its 2^(n−1) terms count against ``max_bits`` like DP states)?"""
     n = W.shape[0]
-    if n < GLYNN_MIN or n > GLYNN_MAX:
+    if n < GLYNN_MIN or n > GLYNN_MAX or n - 1 > max_bits:
         return False
     if (W > 0.0).all():  # dense: the frontier is n wide whichever way (and no plan is loaded)
         return True
@@ -416,7 +417,9 @@ def assignment_sum(
         their measured rounding error is too large the DP's value is returned
         with a warning.
     max_bits, max_memory : int
-        Refuse DP states above 2^max_bits subsets or max_memory bytes.
+        Refuse DP states above 2^max_bits subsets or max_memory bytes; Glynn's
+        and Ryser's 2^(n−1) terms count against ``max_bits`` too (``"auto"``
+        does not pick them past it, an explicit ``method`` is refused).
     parallel : bool
         Split large frontier layers over numba's threads.
 
@@ -532,10 +535,17 @@ def solve_checked(W, null, rows, cols, marginals, method, max_bits, max_memory, 
             )
         if R > GLYNN_MAX:
             raise ValueError(f"{method} on a {R}×{R} matrix would take 2^{R - 1} steps")
+        if R - 1 > max_bits:
+            # the same work budget as the DP's states: a dense 40×40 would otherwise run
+            # for hours instead of being refused
+            raise ExactLimitError(
+                f"{method} on a {R}×{R} matrix sums 2^{R - 1} terms, above max_bits = "
+                f"{max_bits}; raise max_bits or use an approximation"
+            )
         res = _glynn_value(W, method, warn=True)
         if res is not None:
             return res
-    elif method == "auto" and not marginals and square_permanent and _glynn_wins(W):
+    elif method == "auto" and not marginals and square_permanent and _glynn_wins(W, max_bits):
         res = _glynn_value(W, "glynn", warn=False)
         if res is not None:
             return res
