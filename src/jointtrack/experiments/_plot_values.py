@@ -68,3 +68,22 @@ def off_scale_note(n_off: int, what: str, log: bool = False) -> str:
 
 #: resolution of the reproductions' PNGs (≈ 100 dpi keeps each under 300 KB)
 REPRO_DPI = 100
+
+
+def legend_below(fig, axes, ncols: int) -> None:
+    """One legend for all ``axes`` below the panels (each label once), off the data.
+
+    Needs a figure with constrained layout (``"outside"`` locations).
+    """
+    handles: dict = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(label, handle)
+    fig.legend(
+        handles.values(),
+        handles.keys(),
+        loc="outside lower center",
+        ncols=ncols,
+        fontsize=8,
+        frameon=False,
+    )

@@ -25,6 +25,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from jointtrack.experiments._plot_values import (  # noqa: E402
     REPRO_DPI,
+    legend_below,
     off_scale_note,
     plottable,
 )
@@ -126,18 +127,7 @@ def bojilov_figure(result: dict):
             "(ours: multiplications; paper: floating point operations)",
             "operations per cluster (count)",
         )
-    handles = {}
-    for ax in axes.ravel():
-        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
-            handles.setdefault(lab, h)
-    fig.legend(
-        handles.values(),
-        handles.keys(),
-        loc="outside lower center",
-        ncols=3,
-        fontsize=8,
-        frameon=False,
-    )
+    legend_below(fig, axes.ravel(), ncols=3)
     note = off_scale_note(n_off, "values", log=True)
     fig.suptitle(
         f"Bojilov et al. Tables 2–3 vs jointtrack: cost of one cluster's association "

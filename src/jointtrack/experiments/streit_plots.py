@@ -35,6 +35,7 @@ from matplotlib.ticker import Formatter, MaxNLocator  # noqa: E402
 
 from jointtrack.experiments._plot_values import (  # noqa: E402
     REPRO_DPI,
+    legend_below,
     off_scale_note,
     plottable,
 )
@@ -329,22 +330,11 @@ def cost_figure(result: dict):
     ax.set_title(f"§7 parts of the saddle method, N = {N}", fontsize=9)
     ax.set_xlabel("M, measurements (count)")
     ax.grid(alpha=0.3, which="both")
-    handles = {}
-    for a in axes[:n]:
-        for h, lab in zip(*a.get_legend_handles_labels(), strict=True):
-            handles.setdefault(lab, h)
     note = off_scale_note(n_off, "times", log=True)
     L = result["settings"]["particles"]
     title = f"Streit §7: cost per particle (one target, L = {L} particles)"
     fig.suptitle(title + (f"; {note}" if note else ""), fontsize=10)
-    fig.legend(
-        handles.values(),
-        handles.keys(),
-        loc="outside lower center",
-        ncols=2,
-        fontsize=8,
-        frameon=False,
-    )
+    legend_below(fig, axes[:n], ncols=2)
     return fig
 
 
