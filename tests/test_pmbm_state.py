@@ -419,8 +419,11 @@ trk = PMBMTracker.load(state) if state.exists() else PMBMTracker(cfg)
 print("ready", flush=True)
 for k in range(trk.n_scans, len(sc.times)):
     r = trk.step(sc.times[k], sc.detections[k])
+    # the estimates before the state that counts them: a kill between the last save and
+    # a final write would leave a finished state and no estimates (a resume then has no
+    # scan left to step)
+    np.savez(out, ids=r.ids, x=r.x, P=r.P, existence=r.existence)
     trk.save(state)
-np.savez(out, ids=r.ids, x=r.x, P=r.P, existence=r.existence)
 print("done", flush=True)
 """
 

@@ -32,7 +32,12 @@ def _cli(args, cwd, fault=None):
     env.pop("JOINTTRACK_FAULT", None)
     if fault:
         env["JOINTTRACK_FAULT"] = fault
-    code = "import sys; from jointtrack.cli import main; sys.argv[0] = 'jointtrack'; main()"
+    # Ctrl-C as from a terminal: a runner that ignores SIGINT (pytest-xdist's workers do)
+    # passes SIG_IGN on to its children, and Python then installs no KeyboardInterrupt
+    code = (
+        "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+        "from jointtrack.cli import main; sys.argv[0] = 'jointtrack'; main()"
+    )
     return subprocess.run(
         [sys.executable, "-c", code, *map(str, args)],
         cwd=cwd,
