@@ -9,7 +9,7 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from jointtrack.metrics import track_statistics
@@ -177,6 +177,10 @@ def _exact_truth(times, pos, t, max_gap):
 
 
 @settings(max_examples=80, deadline=None)
+# a gap of 2 + 5.6e-120 rounds to max_gap = 2: the rounded comparison kept it
+@example(
+    gaps=[2.0], start=-5.6385143376026816e-120, coords=[(0.0, 0.0)] * 9, window=1.0, max_gap=2.0
+)
 @given(
     gaps=st.lists(st.floats(0.5, 400.0), min_size=1, max_size=8),
     start=st.floats(-1e4, 1e4),

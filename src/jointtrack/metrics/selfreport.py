@@ -75,6 +75,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from fractions import Fraction
 
 import numpy as np
 
@@ -324,6 +325,11 @@ def _sample_truth(times, ids, P, instants, max_gap):
         nxt = np.minimum(j + 1, tau.size - 1)
         gap = tau[nxt] - tau[j]
         present = exact | (gap <= max_gap)
+        # a rounded gap equal to max_gap may hide an exact gap just above it (rounding is
+        # monotone, so only ties are in doubt): decide those in rationals
+        for k in np.flatnonzero(~exact & (gap == max_gap)):
+            exact_gap = Fraction(float(tau[nxt[k]])) - Fraction(float(tau[j[k]]))
+            present[k] = exact_gap <= Fraction(max_gap)
         T, j, nxt, gap, exact = T[present], j[present], nxt[present], gap[present], exact[present]
         w = np.where(exact, 0.0, (T - tau[j]) / np.where(exact, 1.0, gap))
         X = pos[j] + w[:, None] * (pos[nxt] - pos[j])
