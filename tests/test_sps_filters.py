@@ -217,9 +217,7 @@ def test_mb_existence_update_matches_exact_and_sampling(r, seed):
     # moments μ̂₂, Σ̂₂ vary with the particles too (a delta method on Â alone missed that and
     # failed at r = 0.25, seed 53)
     n = len(x1)
-    boot = [
-        plug_in_of(x1[rng.integers(0, n, n)], x2[rng.integers(0, n, n)]) for _ in range(100)
-    ]
+    boot = [plug_in_of(x1[rng.integers(0, n, n)], x2[rng.integers(0, n, n)]) for _ in range(100)]
     se = float(np.std(boot))
     assert abs(f.r[0] - exact) <= 4 * se + 0.005
     assert f.r[1] == pytest.approx(1.0)
