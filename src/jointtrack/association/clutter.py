@@ -33,11 +33,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from jointtrack.assignment._checks import _as_real_array
 from jointtrack.association._validate import check_indices, check_integer
-from jointtrack.association.gating import Gating, _cholesky_checked, unit_ball_log_volume
+from jointtrack.association.gating import (
+    Gating,
+    _cholesky_checked,
+    gate_threshold,
+    unit_ball_log_volume,
+)
 
 __all__ = [
     "ClutterEstimate",
@@ -202,7 +206,7 @@ def _gates(centers, S, P_G, gamma):
         P_G = float(P_G)
         if not 0.0 < P_G < 1.0:
             raise ValueError(f"P_G must lie strictly between 0 and 1, got {P_G}")
-        gamma = float(stats.chi2.ppf(P_G, d))
+        gamma = gate_threshold(P_G, d)
     gamma = float(gamma)
     if not np.isfinite(gamma) or gamma <= 0:
         raise ValueError(f"gate threshold gamma must be positive and finite, got {gamma}")

@@ -54,8 +54,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import linalg, stats
+from scipy import linalg
 
+from jointtrack.association.gating import gate_threshold
 from jointtrack.scenarios.simulate import (
     Scenario,
     _count,
@@ -95,7 +96,7 @@ def nominal_gate(
     else:
         P = linalg.solve_discrete_are(F.T, H.T, Q, np.array([[sigma**2]]))
         s = float(P[0, 0] + sigma**2)
-    gamma = float(stats.chi2.ppf(p_g, dim))
+    gamma = gate_threshold(p_g, dim)
     unit = math.pi ** (dim / 2) / math.gamma(dim / 2 + 1)
     return {
         "S": s,

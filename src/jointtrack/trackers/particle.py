@@ -80,10 +80,10 @@ import time as _time
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy import stats
 from scipy.special import logsumexp
 
 from jointtrack.assignment._checks import _as_real_array, as_float
+from jointtrack.association.gating import gate_threshold
 from jointtrack.models import LinearPosition
 from jointtrack.saddle import (
     jpda_coefficients,
@@ -541,7 +541,7 @@ class ParticleJPDATracker:
         Lr = np.linalg.cholesky(R)
         self._whiten = np.linalg.inv(Lr)  # ‖W (y − Hx)‖² is the Mahalanobis distance
         self._log_norm = -0.5 * d * math.log(2 * math.pi) - float(np.log(np.diag(Lr)).sum())
-        self._gamma = math.inf if c.p_g >= 1 else float(stats.chi2.ppf(c.p_g, d))
+        self._gamma = math.inf if c.p_g >= 1 else gate_threshold(c.p_g, d)
         self._mdim = d
         if p_d is None:
             p_d = c.p_d
