@@ -49,6 +49,7 @@ __all__ = [
     "PairMarginals",
     "budgeted_marginals",
     "fallback_pair_marginals",
+    "reason_kind",
 ]
 
 log = logging.getLogger("jointtrack.association")
@@ -151,6 +152,13 @@ def budgeted_marginals(
         reason = f"{reason + '; ' if reason else ''}{method} refused: {exc}"
         return _dense_fallback(L, miss, reason)
     return BudgetedMarginals(beta, method, reason)
+
+
+def reason_kind(reason: str) -> str:
+    """A fallback reason's kind: the part before its first ``:`` or ``;``
+    (``"exact_max_tracks"``, ``"refused"``, ``"dense_budget"``, …; ``""`` for none),
+    the key runs and logs count fallbacks by."""
+    return reason.split(":", 1)[0].split(";", 1)[0]
 
 
 def _dense_fallback(L, miss, reason: str) -> BudgetedMarginals:

@@ -190,6 +190,7 @@ from pathlib import Path
 
 import numpy as np
 
+from jointtrack.association.budget import reason_kind
 from jointtrack.errors import CoincidentReturnsWarning
 from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     _METRIC_KEYS,
@@ -912,7 +913,7 @@ def _run(
                                 if reason:
                                     # the reason's kind (exact_max_tracks, refused, dense_budget)
                                     # and the tier that solved the cluster
-                                    key = reason.split(":", 1)[0].split(";", 1)[0]
+                                    key = reason_kind(reason)
                                     # tentative-track clusters (clutter-born, in heavy clutter)
                                     # apart from the confirmed ones the experiment is about
                                     key += "" if conf else ", tentative tracks"

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from jointtrack.association.budget import reason_kind
 from jointtrack.experiments.config import TRUTH_START_NOTE, _describe
 from jointtrack.trackers import TrackerConfig
 
@@ -65,7 +66,7 @@ def count_cluster(solved: dict, confirmed: bool, method: str, reason: str, n_tra
     method solved it) → ``[count, min tracks, max tracks, min measurements, max
     measurements]``: plain JSON, kept in a checkpoint's run bookkeeping.
     """
-    why = reason.split(":", 1)[0].split(";", 1)[0] if reason else ""
+    why = reason_kind(reason)
     key = f"{'confirmed' if confirmed else 'tentative'}|{method}|{why}"
     n_tracks, n_meas = int(n_tracks), int(n_meas)
     row = solved.get(key)

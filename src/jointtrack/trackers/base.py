@@ -40,6 +40,7 @@ from jointtrack.association.budget import (
     DENSE_MAX_ENTRIES,
     budgeted_marginals,
     fallback_pair_marginals,
+    reason_kind,
 )
 from jointtrack.association.clustering import cluster_pair_marginals, clusters
 from jointtrack.association.gating import gate_measurements, gate_pairs
@@ -550,7 +551,7 @@ class ScanTracker:
         ones at DEBUG), then DEBUG only: a long run would otherwise log one line per
         approximated cluster. :attr:`fallback_counts` holds the counts.
         """
-        key = reason.split(":", 1)[0].split(";", 1)[0] + ("" if loud else ", tentative tracks")
+        key = reason_kind(reason) + ("" if loud else ", tentative tracks")
         self._fallbacks[key] = self._fallbacks.get(key, 0) + 1
         first = self._fallbacks[key] == 1 and loud
         (log.warning if first else log.debug)(
