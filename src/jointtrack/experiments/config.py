@@ -44,6 +44,7 @@ __all__ = [
     "RunConfig",
     "RunConfigError",
     "bounding_box_clutter",
+    "detections_extent",
     "check_kind_keys",
     "check_pmbm_keys",
     "check_sensor",
@@ -570,6 +571,17 @@ def kind_of_config(cfg) -> str:
     return None
 
 
+def detections_extent(scans, dim: int) -> tuple[np.ndarray | None, float]:
+    """The side lengths of the bounding box of every (finite) detection of ``scans``
+    in measurement coordinates (None without any), and the mean detections per scan."""
+    pts = [np.asarray(z, dtype=float).reshape(-1, dim) for z in scans]
+    allz = np.concatenate(pts) if pts else np.zeros((0, dim))
+    per_scan = len(allz) / max(len(pts), 1)
+    allz = allz[np.all(np.isfinite(allz), axis=1)]
+    side = allz.max(axis=0) - allz.min(axis=0) if len(allz) else None
+    return side, per_scan
+
+
 def bounding_box_clutter(scans, dim: int) -> tuple[float, str]:
     """An upper bound on the clutter density from detections alone: ``(λ, note)``.
 
@@ -580,19 +592,17 @@ def bounding_box_clutter(scans, dim: int) -> tuple[float, str]:
     per unit range × radian). Raises :class:`RunConfigError` when the box has no
     volume (fewer than two distinct detections along some axis).
     """
-    pts = [np.asarray(z, dtype=float).reshape(-1, dim) for z in scans]
-    allz = np.concatenate(pts) if pts else np.zeros((0, dim))
-    side = allz.max(axis=0) - allz.min(axis=0) if len(allz) else np.zeros(dim)
-    volume = float(np.prod(side))
-    if not len(allz) or not (np.isfinite(volume) and volume > 0):
+    side, per_scan = detections_extent(scans, dim)
+    volume = float(np.prod(side)) if side is not None else 0.0
+    if not (np.isfinite(volume) and volume > 0):
         raise RunConfigError(
             "the PMB/PMBM trackers need a clutter density, and the detections' bounding box "
             "has no volume to estimate one from; set clutter_density = <number> in [tracker]"
         )
-    lam = len(allz) / max(len(pts), 1) / volume
+    lam = per_scan / volume
     note = (
         f"clutter density not given: estimated as {lam:.4g} = mean detections per scan "
-        f"({len(allz) / max(len(pts), 1):.4g}) / bounding-box {'area' if dim == 2 else 'volume'} "
+        f"({per_scan:.4g}) / bounding-box {'area' if dim == 2 else 'volume'} "
         f"of the detections in measurement coordinates ({volume:.4g}) — an upper bound (every "
         "detection counted as clutter)"
     )

@@ -211,6 +211,7 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     check_kind_keys,
     check_sensor,
     default_start,
+    detections_extent,
     jpda_kind_overrides,
     kind_of_config,
     load_config,
@@ -418,16 +419,13 @@ def clutter_hint(scans, kind: str, clutter_density) -> str | None:
     """
     if clutter_density is None or not len(scans):
         return None
-    pts = [np.asarray(z, dtype=float) for z in scans if len(z)]
-    if not pts:
+    dims = [np.shape(z)[-1] for z in scans if len(z)]
+    if not dims:
         return None
-    allz = np.concatenate(pts)
-    allz = allz[np.all(np.isfinite(allz), axis=1)]
-    if not len(allz):
+    extent, per_scan = detections_extent(scans, dims[0])
+    if extent is None:
         return None
-    extent = allz.max(axis=0) - allz.min(axis=0)
     expected = float(clutter_density) * float(np.prod(extent))
-    per_scan = sum(len(z) for z in scans) / len(scans)
     if not expected > CLUTTER_HINT_FACTOR * per_scan:
         return None
     if kind == "range-bearing":
