@@ -443,7 +443,7 @@ def run_command(
         checkpoint_every = 10 if checkpoint_every is None else checkpoint_every
         if scenario is not None and scenario not in runmod.SCENARIOS:
             # acoustic runs on its own path (_run_acoustic), so is not among runmod's
-            names = ", ".join((*runmod.SCENARIOS, "acoustic"))
+            names = ", ".join(RUN_SCENARIOS)
             raise runmod.RunConfigError(f"--scenario must be one of {names}, got {scenario!r}")
         cfg = runmod.load_config(config) if config is not None else runmod.RunConfig()
         if restored is not None:
