@@ -361,20 +361,6 @@ def test_kbest_edge_cases():
 # ------------------------------------------- general unused weights (after scaling)
 
 
-def test_lbp_kernel_with_unused_weights_equals_unit_clutter_on_rescaled_columns():
-    """ν_{j→i} = 1/(v_j + Σ μ) on (W, v) is the unit-clutter recursion on W/v."""
-    from jointtrack.association.lbp import _lbp_kernel
-
-    rng = np.random.default_rng(4)
-    W = rng.random((4, 6)) * (rng.random((4, 6)) < 0.7)
-    m = rng.uniform(0.1, 1, 4)
-    v = 2.0 ** rng.integers(-30, 30, 6)
-    nu_v, it_v, *_ = _lbp_kernel(W, m, v, np.inf, np.inf, 1e-13, 10_000, False)
-    nu_1, it_1, *_ = _lbp_kernel(W / v, m, np.ones(6), np.inf, np.inf, 1e-13, 10_000, False)
-    assert it_v == it_1
-    np.testing.assert_allclose(W * nu_v, (W / v) * nu_1, rtol=1e-12)
-
-
 def test_mcmc_kernel_targets_the_general_unused_weights():
     """π(ω) ∝ Π W · Π miss · Π_{j unused} v_j: compare the chain with enumeration."""
     from jointtrack.association.mcmc import _mcmc_chunk

@@ -14,15 +14,15 @@ subsets for a block of frontier width K. The policy, shared by the JPDA tracker
    ``"refused: …"`` with the engine's message).
 
 3. past every budget — the approximation refuses the cluster too (the dense
-   LBP's scaling is limited to N + M ≤ 4000), or the cluster is too large for
+   LBP is limited to N + M ≤ 4000), or the cluster is too large for
    an N × M matrix at all (more than :data:`DENSE_MAX_ENTRIES` entries, then no
    dense method is tried) — the cheaper tiers of :func:`fallback_pair_marginals`
    work on the gated pairs only (memory O(pairs)): sparse LBP
    (:func:`~jointtrack.association.lbp.lbp_pair_marginals`, method
-   ``"lbp-sparse"``), and where that cannot run (more than ``max_pairs`` pairs,
-   or BP degenerates) per-track PDA (method ``"pda"``), which never fails on
-   a cluster whose every track can miss. A tracker step therefore never fails
-   for the size of a cluster.
+   ``"lbp-sparse"``), and where that cannot run (more than ``max_pairs`` pairs)
+   per-track PDA (method ``"pda"``), which never fails on a cluster whose every
+   track can miss. A tracker step therefore never fails for the size of a
+   cluster.
 
 The result says which method (tier) produced each cluster's β and why, so
 callers can count and report every fallback.
@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from jointtrack.association.core import marginals
-from jointtrack.errors import ExactLimitError, InfeasibleAssignmentError
+from jointtrack.errors import ExactLimitError
 
 __all__ = [
     "APPROXIMATIONS",
@@ -61,7 +61,7 @@ TIERS = ("lbp-sparse", "pda")
 #: Largest cluster (tracks × measurements) handed to the dense methods: 4·10⁶
 #: entries, 32 MB per float64 N × M array (the dense LBP's N + M ≤ 4000 fits).
 DENSE_MAX_ENTRIES = 4_000_000
-#: Largest number of gated pairs for the sparse LBP tier (about 48 bytes each: 400 MB).
+#: Largest number of gated pairs for the sparse LBP tier (about 56 bytes each: 470 MB).
 MAX_LBP_PAIRS = 2**23
 #: Message updates (pairs × sweeps) the sparse LBP tier may spend (a few seconds).
 MAX_LBP_WORK = 2**26
@@ -209,8 +209,7 @@ def fallback_pair_marginals(
        last sweep if BP has not converged by then;
     2. ``"pda"``: per-track PDA (Bojilov eqs. (1)–(3),
        :func:`~jointtrack.association.pda.pda_pair_marginals`; O(P), no joint
-       constraint) when there are more pairs or BP degenerates (possible only
-       with ``miss = 0`` tracks). Exact for a one-track cluster.
+       constraint) when there are more pairs. Exact for a one-track cluster.
 
     Each use of the PDA tier is logged (warning). Arguments as
     :func:`~jointtrack.association.lbp.lbp_pair_marginals`; ``reason`` is
@@ -221,27 +220,20 @@ def fallback_pair_marginals(
     ValueError
         bad input.
     InfeasibleAssignmentError
-        a ``miss = 0`` track has no gated pair.
+        a ``miss = 0`` track has no gated pair, or (sparse LBP tier) the cluster
+        has no feasible joint event.
     """
     from jointtrack.association.lbp import lbp_pair_marginals
     from jointtrack.association.pda import pda_pair_marginals
 
     n_pairs = int(np.size(rows))
     if n_pairs <= max_pairs:
-        try:
-            sweeps = int(min(1000, max(10, max_work // max(n_pairs, 1))))
-            beta0, pair_beta, info = lbp_pair_marginals(
-                rows, cols, L_values, miss, n_measurements, max_iter=sweeps
-            )
-            if info.floored:  # BP ran on a nearby problem: say so (LBPInfo.floored)
-                note = f"{info.floored} weights raised to 2^-400 of their track's largest"
-                log.warning("association: sparse LBP for a cluster: %s", note)
-                reason = f"{reason + '; ' if reason else ''}{note}"
-            return PairMarginals(beta0, pair_beta, "lbp-sparse", reason)
-        except InfeasibleAssignmentError as exc:  # BP degenerated; PDA re-checks feasibility
-            why = f"lbp-sparse failed: {exc}"
-    else:
-        why = f"{n_pairs} gated pairs > max_pairs = {max_pairs} of the sparse LBP tier"
+        sweeps = int(min(1000, max(10, max_work // max(n_pairs, 1))))
+        beta0, pair_beta, _info = lbp_pair_marginals(
+            rows, cols, L_values, miss, n_measurements, max_iter=sweeps
+        )
+        return PairMarginals(beta0, pair_beta, "lbp-sparse", reason)
+    why = f"{n_pairs} gated pairs > max_pairs = {max_pairs} of the sparse LBP tier"
     log.warning("association: per-track PDA for a cluster (%s)", why)
     beta0, pair_beta = pda_pair_marginals(rows, L_values, miss)
     return PairMarginals(beta0, pair_beta, "pda", f"{reason + '; ' if reason else ''}{why}")
