@@ -534,10 +534,41 @@ def write_columns(
         path.write_text(data, encoding="utf-8", newline="")
 
 
+#: why a label or identity with a NUL character is refused
+NUL_REASON = (
+    "holds a NUL character (U+0000), which labels cannot keep: they are numpy strings, "
+    'which drop trailing NULs, so "A" and "A\\x00" would become one label'
+)
+
+
+def nul_index(texts: Sequence[str]) -> int | None:
+    """The index of the first text holding a NUL character, else None (:data:`NUL_REASON`)."""
+    if "\x00" not in "".join(texts):  # one pass in C for the usual clean column
+        return None
+    return next(i for i, t in enumerate(texts) if "\x00" in t)
+
+
+def text_array(path, err, texts: list[str], lines, name: str) -> np.ndarray:
+    """A file column's text cells as a numpy string array; ``err`` naming the row of
+    the first cell with a NUL character (:data:`NUL_REASON`)."""
+    i = nul_index(texts)
+    if i is not None:
+        raise row_error(err, path, f"value {texts[i]!r} {NUL_REASON}", i, lines, name)
+    return np.array(texts or [""], dtype=str)[: len(texts)]
+
+
 def string_array(value, name: str, error=TypeError) -> np.ndarray:
     """``value`` as a numpy string (``U``) array; ``error`` naming ``name`` for
-    anything but strings (an object array of str is converted; empty is fine)."""
-    a = np.asarray(value)
+    anything but strings (an object array of str is converted; empty is fine); a
+    ValueError for strings holding a NUL character (:data:`NUL_REASON`; a list is
+    looked at before numpy drops its trailing NULs)."""
+    if isinstance(value, np.ndarray):
+        a = value
+    else:
+        try:
+            a = np.array(value, dtype=object)
+        except ValueError:  # ragged nesting
+            raise error(f"{name} must be a flat sequence of strings") from None
     if a.size == 0:
         return np.zeros(a.shape, dtype=str)
     if a.dtype.kind == "O":
@@ -545,6 +576,9 @@ def string_array(value, name: str, error=TypeError) -> np.ndarray:
         bad = next((v for v in vals if not isinstance(v, str)), None)
         if bad is not None:
             raise error(f"{name} must hold strings, got {bad!r}")
+        i = nul_index(vals)
+        if i is not None:
+            raise ValueError(f"{name}: {vals[i]!r} {NUL_REASON}")
         a = np.array(vals, dtype=str).reshape(a.shape)
     if a.dtype.kind != "U":
         raise error(f"{name} must hold strings, got dtype {a.dtype}")
