@@ -255,3 +255,109 @@ def test_to_table_columns():
     # the reference itself, through pymap3d's inverse (not bit-exact)
     assert abs(t["lat"][0] - 50.0) < 1e-12 and abs(t["lon"][0] + 1.0) < 1e-12
     assert d.geo_frame() == LocalFrame(50.0, -1.0)
+
+
+# ----------------------------------------------------------------------------- issue 31
+
+
+# a label holding a NUL (U+0000) somewhere, e.g. "A\x00": numpy's fixed-width strings
+# drop trailing NULs, so "A" and "A\x00" became one label and the tracker dropped the
+# second report of "A" in a scan (50 km away) as a repeat
+nul_labels = st.tuples(st.text(max_size=3), st.text(max_size=3)).map(lambda p: p[0] + "\x00" + p[1])
+
+
+@settings(max_examples=60, deadline=None)
+@given(bad=nul_labels, row=st.integers(0, 2))
+def test_labels_with_a_nul_are_refused_everywhere(bad, row):
+    from jointtrack.io.reports import Reports
+    from jointtrack.trackers import JPDATracker, TrackerConfig
+
+    labels = ["A", "B", "C"]
+    labels[row] = bad
+    z = np.array([[0.0, 0.0], [5e4, 0.0], [0.0, 5e4]])
+    with pytest.raises(ValueError, match="NUL") as info:
+        Detections(times=[0.0], scans=[z], labels=[labels])
+    assert "labels[0]" in str(info.value)
+    with pytest.raises(ValueError, match="NUL"):
+        Detections(times=[0.0], scans=[z], sensors=[labels])
+    with pytest.raises(ValueError, match="NUL") as info:
+        Reports(times=[0.0, 1.0, 2.0], time_origin="2016-01-12T13:02:11Z", lat=[50.0] * 3,
+                lon=[-1.0] * 3, identity=labels)  # fmt: skip
+    assert "identity" in str(info.value)
+    trk = JPDATracker(TrackerConfig(clutter_density=1e-6, measurement_noise=100.0))
+    with pytest.raises(ValueError, match="NUL") as info:
+        trk.step(0.0, z, labels=labels)
+    assert f"labels[{row}]" in str(info.value) and len(trk.ids) == 0
+
+
+@settings(
+    max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(bad=nul_labels, row=st.integers(1, 3), suffix=st.sampled_from([".csv", ".parquet"]))
+def test_label_and_sensor_cells_with_a_nul_are_named(tmp_path, bad, row, suffix):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    for column in ("label", "sensor"):
+        cells = ["A", "B", "C"]
+        cells[row - 1] = bad
+        p = tmp_path / f"d{suffix}"
+        table = {"time": [0.0, 1.0, 2.0], "x": [0.0, 1.0, 2.0], "y": [0.0, 1.0, 2.0], column: cells}
+        if suffix == ".csv":
+            import csv
+
+            with open(p, "w", newline="", encoding="utf-8") as fh:
+                w = csv.writer(fh)
+                w.writerow(list(table))
+                w.writerows(zip(*table.values(), strict=True))
+        else:
+            pq.write_table(pa.table(table), p)
+        with pytest.raises(DetectionFileError, match="NUL") as info:
+            read_detections(p)
+        assert (info.value.row, info.value.column) == (row, column)
+
+
+def test_report_identities_with_a_nul_are_named(tmp_path):
+    import gzip
+    import json
+
+    from jointtrack.io.reports import read_ais_csv, read_traffic_records
+
+    p = tmp_path / "ais.csv"
+    p.write_text(
+        "Time,MMSI,Latitude_degrees,Longitude_degrees\n2016-01-12 13:02:11,235,50.0,-1.0\n"
+        "2016-01-12 13:02:12,235\x00,50.45,-1.0\n"
+    )
+    with pytest.raises(DetectionFileError, match="NUL") as info:
+        read_ais_csv(p)
+    assert (info.value.row, info.value.column) == (2, "mmsi")
+    rec = {"timestamp": 1533101250000, "latitude": 48.0, "longitude": 3.0}
+    q = tmp_path / "t.json.gz"
+    recs = [{**rec, "icao24": "3c4591"}, {**rec, "icao24": "3c4591\x00"}]
+    q.write_bytes(gzip.compress(json.dumps(recs).encode()))
+    with pytest.raises(DetectionFileError, match="NUL") as info:
+        read_traffic_records(q)
+    assert (info.value.row, info.value.column) == (2, "icao24")
+
+
+def test_geodetic_files_beyond_the_plane_or_the_altitude_range_are_named(tmp_path):
+    # issue 31.5 / 31.14: a point on the far side of the Earth from the reference, and
+    # alt = 1e300 (reported as "column 'x'" once projected)
+    p = tmp_path / "far.csv"
+    p.write_text("time,lat,lon\n0,50.0,-1.0\n1,-50.8,178.7\n")
+    with pytest.raises(DetectionFileError, match="60°") as info:
+        read_detections(p, reference=(50.0, -1.0))
+    assert (info.value.row, info.value.column) == (2, "lat") and "--reference" in str(info.value)
+    with pytest.raises(DetectionFileError, match="centre of the data"):
+        read_detections(p)
+    q = tmp_path / "alt.csv"
+    q.write_text("time,lat,lon,alt\n0,50.0,-1.0,100\n1,50.01,-1.0,1e300\n")
+    with pytest.raises(DetectionFileError, match="outside") as info:
+        read_detections(q)
+    assert (info.value.row, info.value.column) == (2, "alt")
+    # east, north, up holds the far side exactly: with an alt column it is read
+    r = tmp_path / "far3d.csv"
+    r.write_text("time,lat,lon,alt\n0,50.0,-1.0,0\n1,-50.8,178.7,0\n")
+    d = read_detections(r, reference=(50.0, -1.0))
+    lat, lon, _ = LocalFrame(50.0, -1.0).to_geodetic(np.concatenate(d.scans))
+    assert np.allclose(lat, [50.0, -50.8], atol=1e-9) and np.allclose(lon, [-1.0, 178.7], atol=1e-9)

@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from jointtrack.io import DetectionFileError
@@ -77,7 +77,8 @@ def ais_rows(draw, max_size=30):
             st.integers(0, 10**7),
             st.sampled_from(["235070762", "7", "abc"]),
             st.floats(-90, 90),
-            st.floats(-180, 360),
+            # 181 is AIS's "longitude not available": such rows are left out (tested below)
+            st.floats(-180, 360).filter(lambda v: v != 181.0),
             st.none() | st.floats(0, 359.9),
             st.none() | st.floats(0, 102.2),
         ),
@@ -112,7 +113,7 @@ def test_ais_not_available_codes_are_unknown(tmp_path):
     ("body", "row", "column", "words"),
     [
         ("2016-01-12 13:02:11.218,1,abc,-1.0,1,1\n", 1, "latitude_degrees", "'abc'"),
-        ("2016-01-12 13:02:11.218,1,91,-1.0,1,1\n", 1, "latitude_degrees", "outside"),
+        ("2016-01-12 13:02:11.218,1,91.5,-1.0,1,1\n", 1, "latitude_degrees", "outside"),
         ("2016-01-12 13:02:11.218,1,50,400,1,1\n", 1, "longitude_degrees", "outside"),
         ("2016-01-12 13:02:11.218,1,50,1,1,-1\n", 1, "sog_knots", "negative"),
         ("2016-01-12 13:02:11.218,1,50,1,1,1\nyesterday,1,50,1,1,1\n", 2, "time", "timestamp"),
@@ -519,3 +520,399 @@ def test_subset():
         r.subset([7])
     with pytest.raises(TypeError, match="rows"):
         r.subset([0.5])
+
+
+# ----------------------------------------------------------------------------- issue 31
+
+
+def _solent_like(tmp_path, n=20):
+    """Ships near the Solent (50.8° N, 1.2° W): AIS rows (ms, mmsi, lat, lon, cog, sog)."""
+    rows = [(1000 * k, str(235000000 + k % 3), 50.8 + 1e-3 * k, -1.2 + 1e-3 * k, 90.0, 5.0)
+            for k in range(n)]  # fmt: skip
+    return _ais_file(tmp_path, rows), rows
+
+
+@pytest.mark.parametrize("reference", [(-50.8, 178.7), (-50.8, 178.7, 0.0), (0.0, 90.0)])
+def test_a_reference_whose_plane_cannot_hold_the_reports_is_refused(tmp_path, reference):
+    # issue 31.5: --reference -50.8,178.7 (the antipode) put every track on the other
+    # side of the Earth and exited 0: the plane folds the far side onto the near side
+    path, _ = _solent_like(tmp_path)
+    r = read_ais_csv(path)
+    for call in (
+        lambda: r.frame(reference),
+        lambda: r.detections(reference),
+        lambda: r.truth(reference),
+        lambda: r.detections(LocalFrame(*reference)),
+    ):
+        with pytest.raises(ValueError) as info:
+            call()
+        text = str(info.value)
+        assert str(path) in text and "20 of 20 reports" in text and "--reference" in text
+        assert "60°" in text and "given reference" in text
+    ok = r.frame((50.0, 0.0))  # near the data: kept
+    assert ok.reference == (50.0, 0.0, 0.0) and len(r.detections(ok).scans) == 20
+
+
+def test_reports_spread_beyond_one_plane_are_refused_about_their_centre():
+    r = _reports(4, lat=[0.0, 0.0, 0.0, 0.0], lon=[-100.0, -99.0, 99.0, 100.0])
+    with pytest.raises(ValueError, match="centre of the reports"):
+        r.detections()
+
+
+# -- 31.7: raw exceptions from the readers, each now an error naming the file
+
+
+@pytest.mark.parametrize("depth", [10_000, 200_000])
+@pytest.mark.parametrize("brackets", ["[]", '{"a":}'])
+def test_traffic_json_nested_past_the_parser_is_named(tmp_path, depth, brackets):
+    p = tmp_path / "deep.json"
+    if brackets == "[]":
+        p.write_text("[" * depth + "]" * depth)
+    else:
+        p.write_text('{"a":' * depth + "1" + "}" * depth)
+    with pytest.raises(DetectionFileError, match="too deeply") as info:
+        read_traffic_records(p)
+    assert str(p) in str(info.value)
+
+
+_RECORD = {"timestamp": 1_533_101_250_000, "icao24": "3c4591", "latitude": 48.5,
+           "longitude": 3.8, "altitude": 35000.0, "groundspeed": 400.0, "track": 90.0}  # fmt: skip
+
+
+@SETTINGS
+@given(
+    digits=st.integers(310, 20_000),
+    field=st.sampled_from(
+        ["timestamp", "icao24", "latitude", "longitude", "altitude", "groundspeed", "track"]
+    ),
+    row=st.integers(0, 3),
+    sign=st.sampled_from(["", "-"]),
+)
+def test_traffic_numbers_of_thousands_of_digits_are_named(tmp_path, digits, field, row, sign):
+    # a 5,000-digit number raised "Exceeds the limit (4300 digits)", no file named
+    recs = [dict(_RECORD, timestamp=_RECORD["timestamp"] + k) for k in range(4)]
+    text = json.dumps(recs)
+    big = sign + "7" * digits
+    marker = f'"{field}": "BIG{row}"'
+    recs[row][field] = f"BIG{row}"
+    text = json.dumps(recs).replace(marker, f'"{field}": {big}')
+    p = tmp_path / "big.json"
+    p.write_text(text)
+    with pytest.raises(DetectionFileError) as info:
+        read_traffic_records(p)
+    e = info.value
+    assert (e.row, e.column) == (row + 1, field) and str(p) in str(e), str(e)
+    assert f"{digits + len(sign):,} characters" in str(e)
+
+
+@SETTINGS
+@given(value=st.integers(2**43 + 1, 10**300) | st.integers(-(10**300), -(2**43) - 1))
+def test_traffic_timestamps_beyond_the_unix_range_are_named(tmp_path, value):
+    # "timestamp": 10**30 raised a TypeError from numpy
+    p = _traffic([dict(_RECORD), dict(_RECORD, timestamp=value)], tmp_path / "t.json", False)
+    with pytest.raises(DetectionFileError, match="outside the Unix times read") as info:
+        read_traffic_records(p)
+    assert (info.value.row, info.value.column) == (2, "timestamp")
+
+
+def test_traffic_gzip_inflating_past_the_cap_is_refused_while_streaming(tmp_path, monkeypatch):
+    # a 2 MB gzip inflating to 2 GiB raised MemoryError: gzip.decompress inflated it all.
+    # Here a 64 MiB bomb against a 1 MiB cap: refused, naming the cap, and the reader
+    # never holds much more than the cap (traced), whatever the file inflates to.
+    import tracemalloc
+    import zlib
+
+    import jointtrack.io.reports as reports
+
+    assert reports.MAX_JSON_BYTES == 256 * 2**20  # the stated cap
+    monkeypatch.setattr(reports, "MAX_JSON_BYTES", 2**20)
+    body = b"[" + b" " * (64 * 2**20) + b"]"
+    z = zlib.compressobj(9, zlib.DEFLATED, 31)  # gzip container
+    bomb = tmp_path / "bomb.json.gz"
+    bomb.write_bytes(z.compress(body) + z.flush())
+    del body
+    assert bomb.stat().st_size < 2**20
+    tracemalloc.start()
+    try:
+        with pytest.raises(DetectionFileError, match="inflates to more than 1,048,576") as info:
+            read_traffic_records(bomb)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert "MAX_JSON_BYTES" in str(info.value) and str(bomb) in str(info.value)
+    assert peak < 8 * 2**20, peak
+    plain = tmp_path / "big.json"
+    plain.write_bytes(b"[" + b" " * 2**20 + b"]")
+    with pytest.raises(DetectionFileError, match="holds more than 1,048,576"):
+        read_traffic_records(plain)
+    # at the cap exactly: read
+    ok = json.dumps([_RECORD]).encode()
+    fits = tmp_path / "fits.json.gz"
+    fits.write_bytes(gzip.compress(ok + b" " * (2**20 - len(ok))))
+    assert len(read_traffic_records(fits)) == 1
+
+
+_YEAR = st.integers(1, 1676) | st.integers(2263, 9999)
+
+
+@SETTINGS
+@given(year=_YEAR, row=st.integers(1, 3))
+def test_ais_times_outside_int64_nanoseconds_are_named(tmp_path, year, row):
+    # AIS times before 1678 or after 2261 raised OverflowError (int64 ns wrap)
+    p = tmp_path / "old.csv"
+    rows = [f"2016-01-12 13:02:1{k}.218,1,50.0,-1.0,1,1" for k in range(3)]
+    rows[row - 1] = f"{year:04d}-01-12 13:02:11.218,1,50.0,-1.0,1,1"
+    p.write_text(AIS_HEADER + "\n".join(rows) + "\n")
+    with pytest.raises(DetectionFileError, match="outside the times that can be held") as info:
+        read_ais_csv(p)
+    e = info.value
+    assert (e.row, e.line, e.column) == (row, row + 1, "time")
+    assert "1677-09-21T00:12:43.145224192 to 2262-04-11T23:47:16.854775807" in str(e)
+
+
+def test_times_spanning_more_than_int64_nanoseconds_are_refused(tmp_path):
+    # each time fits int64 ns, their difference does not: it wrapped around silently
+    p = tmp_path / "span.csv"
+    p.write_text(
+        AIS_HEADER + "1700-01-01 00:00:00,1,50.0,-1.0,1,1\n2250-01-01 00:00:00,1,50.0,-1.0,1,1\n"
+    )
+    with pytest.raises(DetectionFileError, match="span 550 years"):
+        read_ais_csv(p)
+    d = tmp_path / "det.csv"
+    d.write_text("time,x,y\n1700-01-01T00:00:00,0,0\n2250-01-01T00:00:00,1,1\n")
+    from jointtrack.io import read_detections
+
+    with pytest.raises(DetectionFileError, match="span 550 years"):
+        read_detections(d)
+
+
+@pytest.mark.parametrize("unit", ["s", "ms", "us"])
+def test_parquet_timestamps_outside_int64_nanoseconds_are_named(tmp_path, unit):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from jointtrack.io import read_detections
+
+    per_s = {"s": 1, "ms": 1000, "us": 10**6}[unit]
+    far = 20_000_000_000 * per_s  # year 2603
+    times = pa.array([0, far], type=pa.timestamp(unit, tz="UTC"))
+    p = tmp_path / "t.parquet"
+    pq.write_table(
+        pa.table({"Time": times, "MMSI": ["1", "1"], "Latitude_degrees": [50.0, 50.0],
+                  "Longitude_degrees": [-1.0, -1.0]}), p,
+    )  # fmt: skip
+    with pytest.raises(DetectionFileError, match="outside the times") as info:
+        read_ais_csv(p)
+    assert (info.value.row, info.value.column) == (2, "time")
+    q = tmp_path / "d.parquet"
+    pq.write_table(pa.table({"time": times, "x": [0.0, 1.0], "y": [0.0, 1.0]}), q)
+    with pytest.raises(DetectionFileError, match="outside the times") as info:
+        read_detections(q)
+    assert info.value.row == 2
+
+
+@SETTINGS
+@given(
+    window=st.floats(1.0001e9, 1e300) | st.sampled_from([1e12, float(2**63)]),
+    n=st.integers(1, 5),
+)
+def test_windows_beyond_the_maximum_are_refused_by_name(window, n):
+    # --window 1e12 raised OverflowError
+    from jointtrack.io.reports import MAX_WINDOW
+
+    assert MAX_WINDOW == 1e9
+    with pytest.raises(ValueError, match="window must be at most 1e\\+09 seconds"):
+        _reports(n).window_index(window)
+
+
+@SETTINGS
+@given(
+    window=st.floats(1e-3, 1e9),
+    offsets=st.lists(st.integers(0, 10**12), min_size=1, max_size=8),
+    first=st.integers(-(9 * 10**18), 9 * 10**18),
+)
+@example(window=1e9, offsets=[0, 1], first=9 * 10**18)
+@example(window=5e8, offsets=[0, 10**9], first=-(9 * 10**18))
+def test_window_ends_are_exact_up_to_the_maximum_window(window, offsets, first):
+    # the ends t0 + k·w in whole nanoseconds, without int64 wrap-around: with t0 near
+    # the end of int64 nanoseconds (2262) the next window's end wrapped to a negative
+    # time; times beyond int64 nanoseconds are refused by name
+    ns = np.sort(np.array([first + o * 1000 for o in offsets], dtype=np.int64))
+    r = _reports(len(ns), times=ns / 1e9)
+    if np.abs(r.times).max() * 1e9 >= 2.0**63:
+        with pytest.raises(ValueError, match="times reach"):
+            r.window_index(window)
+        return
+    k, ends = r.window_index(window)
+    w_ns = round(window * 1e9)
+    got_ns = [int(v) for v in np.rint(r.times * 1e9).astype(np.int64)]
+    rel = [v - got_ns[0] for v in got_ns]
+    assert k.tolist() == [-(-v // w_ns) for v in rel]
+    assert ends.tolist() == [(got_ns[0] + j * w_ns) / 1e9 for j in range(int(k[-1]) + 1)]
+
+
+# -- 31.8: values that were accepted silently
+
+
+@SETTINGS
+@given(
+    value=st.integers(-(2**70), 2**70)
+    | st.floats(allow_nan=False, allow_infinity=False)
+    | st.booleans()
+    | st.lists(st.text(max_size=3), max_size=2)
+    | st.dictionaries(st.text(max_size=2), st.integers(), max_size=2),
+    row=st.integers(0, 2),
+)
+def test_traffic_icao24_must_be_text(tmp_path, value, row):
+    # an icao24 given as an object, list or number was stringified ("{'a': 1}", 404040
+    # losing the leading zeros of "0404040"...)
+    recs = [dict(_RECORD) for _ in range(3)]
+    recs[row]["icao24"] = value
+    p = _traffic(recs, tmp_path / "t.json", False)
+    with pytest.raises(DetectionFileError, match="icao24 must be a string") as info:
+        read_traffic_records(p)
+    assert (info.value.row, info.value.column) == (row + 1, "icao24")
+
+
+_NS_1990, _NS_2100 = 631_152_000 * 10**9, 4_102_444_800 * 10**9
+
+
+@SETTINGS
+@given(
+    instants=st.lists(st.integers(_NS_1990, _NS_2100), min_size=1, max_size=6),
+    unit=st.sampled_from(["s", "ms"]),
+    as_float=st.booleans(),
+    gz=st.booleans(),
+)
+def test_traffic_timestamps_in_seconds_or_milliseconds_are_told_apart(
+    tmp_path, instants, unit, as_float, gz
+):
+    # 1.5e9 (seconds) was read as milliseconds: 1970-01-18. Each value is exact: whole
+    # seconds or milliseconds (a float holds them exactly in this range)
+    per = 10**9 if unit == "s" else 10**6
+    whole = [v // per for v in instants]
+    recs = [
+        dict(_RECORD, timestamp=float(w) if as_float else w, icao24=f"a{i}")
+        for i, w in enumerate(whole)
+    ]
+    r = read_traffic_records(_traffic(recs, tmp_path / ("t.json.gz" if gz else "t.json"), gz))
+    ns = sorted(w * per for w in whole)
+    from jointtrack.io.times import parse_timestamp
+
+    assert parse_timestamp(r.time_origin)[0] == ns[0]
+    assert r.times.tolist() == [(v - ns[0]) / 1e9 for v in ns]
+
+
+@SETTINGS
+@given(
+    seconds=st.floats(-(2.0**33), 2.0**33),
+    ms=st.floats(2.0**33, 2.0**43, exclude_min=True)
+    | st.floats(-(2.0**43), -(2.0**33), exclude_max=True),
+)
+def test_traffic_timestamp_units_by_magnitude_exactly(tmp_path, seconds, ms):
+    from fractions import Fraction
+
+    from jointtrack.io.times import parse_timestamp
+
+    recs = [dict(_RECORD, timestamp=seconds), dict(_RECORD, timestamp=ms)]
+    want = sorted([round(Fraction(seconds) * 10**9), round(Fraction(ms) * 10**6)])
+    if want[1] - want[0] >= 2**63:  # more than ~292 years apart: refused (tested above)
+        return
+    r = read_traffic_records(_traffic(recs, tmp_path / "t.json", False))
+    assert parse_timestamp(r.time_origin)[0] == want[0]
+    assert r.times.tolist() == [0.0, (want[1] - want[0]) / 1e9]
+
+
+@SETTINGS
+@given(
+    codes=st.lists(
+        st.sampled_from([None, (91.0, -1.0), (50.0, 181.0), (91.0, 181.0)]), min_size=1,
+        max_size=12,
+    ),
+    gz=st.booleans(),
+)  # fmt: skip
+def test_ais_position_not_available_rows_are_skipped_and_counted(tmp_path, codes, gz):
+    # lat 91 refused the whole file and lon 181 was read as -179°: ITU-R M.1371's
+    # "position not available" codes; such rows are left out and counted
+    rows = []
+    for k, c in enumerate(codes):
+        la, lo = (50.0 + 1e-3 * k, -1.0) if c is None else c
+        rows.append((1000 * k, str(k), la, lo, 90.0, 5.0))
+    path = _ais_file(tmp_path, rows, name="ais.csv.gz" if gz else "ais.csv")
+    if gz:
+        path.write_bytes(gzip.compress(path.read_bytes()))
+    r = read_ais_csv(path)
+    kept = [row for row, c in zip(rows, codes, strict=True) if c is None]
+    assert r.skipped == len(rows) - len(kept)
+    assert r.identity.tolist() == [row[1] for row in kept]
+    assert r.lat.tolist() == [row[2] for row in kept]
+    assert r.lon.tolist() == [row[3] for row in kept]
+    assert (r.lat <= 90).all() and (r.lon != 181.0).all()
+
+
+def test_a_gzip_csv_of_blank_lines_is_skipped_in_bulk(tmp_path, monkeypatch):
+    # a 1 MB .csv.gz of blank lines took 238 s, one csv record per blank line; now the
+    # blank runs between records are skipped a block of text at a time: the records the
+    # csv parser makes are the file's own, however many blank lines there are (counted
+    # here by wrapping csv.reader; tests/test_io_csv_records.py checks the records equal)
+    import csv
+    import zlib
+
+    made = []
+    plain_reader = csv.reader
+
+    class CountingReader:
+        def __init__(self, lines):
+            self._reader = plain_reader(lines)
+            made.append(0)
+
+        def __iter__(self):
+            return self
+
+        def __next__(self):
+            rec = next(self._reader)
+            made[-1] += 1
+            return rec
+
+        @property
+        def line_num(self):
+            return self._reader.line_num
+
+    monkeypatch.setattr(csv, "reader", CountingReader)
+    blank = 1_000_000
+    z = zlib.compressobj(9, zlib.DEFLATED, 31)
+    head = (
+        "\n" * 3 + AIS_HEADER + " \r\n\t\n" * 5 + "2016-01-12 13:02:11.218,1,50.0,-1.0,1,1\n"
+    ).encode()
+    data = z.compress(head) + z.compress(b"\n" * blank)
+    data += z.compress(b"2016-01-12 13:02:12.218,2,50.0,-1.0,1,1\n" + b"\n" * 1000) + z.flush()
+    p = tmp_path / "blank.csv.gz"
+    p.write_bytes(data)
+    assert p.stat().st_size < 5_000
+    r = read_ais_csv(p)
+    assert r.identity.tolist() == ["1", "2"] and r.times.tolist() == [0.0, 1.0]
+    # the sniffing of the header (read_reports) and the reader: a few records each
+    assert read_reports(p).identity.tolist() == ["1", "2"]
+    assert made and max(made) <= 3 + 2 * (blank // 2**20 + 2), made
+    bad = tmp_path / "bad.csv.gz"
+    bad.write_bytes(gzip.compress(head + b"\n" * blank + b"2016-01-12 13:02:12.218,2,x,1,1,1\n"))
+    with pytest.raises(DetectionFileError) as info:
+        read_ais_csv(bad)
+    assert (info.value.row, info.value.line, info.value.column) == (
+        2, 16 + blank, "latitude_degrees"
+    )  # fmt: skip
+
+
+def test_altitudes_beyond_the_frame_range_are_named(tmp_path):
+    # issue 31.14: alt = 1e300 was reported as "column 'x'" (detections) or kept
+    recs = [dict(_RECORD), dict(_RECORD, altitude=1e300)]
+    with pytest.raises(DetectionFileError, match="outside") as info:
+        read_traffic_records(_traffic(recs, tmp_path / "t.json", False))
+    assert (info.value.row, info.value.column) == (2, "altitude")
+    p = _opensky_file(tmp_path, [(1626098400, "a", 50.0, 1.0, 3.0, 1.0, None, 1e300)])
+    with pytest.raises(DetectionFileError, match="outside") as info:
+        read_opensky_states(p)
+    assert (info.value.row, info.value.column) == (1, "geoaltitude")
+    with pytest.raises(ValueError, match="alt must be within"):
+        _reports(5, alt=np.full(5, 1e300))
+    assert np.isnan(_reports(5, alt=np.full(5, np.nan)).alt).all()

@@ -178,3 +178,51 @@ def test_bad_input(tmp_path, change, match):
     with pytest.raises(ValueError, match=match):
         plot_track_map(tmp_path / "bad.png", **args)
     assert plt.get_fignums() == before and not (tmp_path / "bad.png").exists()
+
+
+@pytest.mark.parametrize("east_of_180", ["negative", "over180"])
+def test_data_across_the_antimeridian_is_drawn_together(tmp_path, capfd, east_of_180):
+    # issue 31.14: ships crossing 180° spread the map over a 360° axis (and a raw
+    # matplotlib warning reached stderr); now the longitudes are unwrapped about the data
+    k = np.arange(60)
+    rlat = np.concatenate([51.0 + 1e-4 * k + d for d in (0.0, 0.05, 0.1)])
+    rlon = np.tile(179.97 + 1e-3 * k, 3)
+    if east_of_180 == "negative":
+        rlon = np.where(rlon >= 180.0, rlon - 360.0, rlon)
+    tid = np.repeat([1, 2, 3], 60)
+    # the tracks' lat/lon come from LocalFrame.to_geodetic: always within [-180, 180]
+    tlon = np.where(rlon >= 180.0, rlon - 360.0, rlon)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = plot_track_map(
+            tmp_path / "map.png", rlat, rlon, rlat, tlon, tid, title="across", keep_figure=True
+        )
+    try:
+        assert capfd.readouterr().err == ""
+        ax = m.figure.axes[0]
+        lo, hi = ax.get_xlim()
+        assert 179.9 < lo < 179.97 and 180.03 < hi < 180.1 and m.n_outside == 0
+        for line in ax.lines:  # each track is one short line, not a stroke across the map
+            x = line.get_xdata()
+            assert np.ptp(x) < 0.07 and np.all(np.diff(x) > 0)
+        labels = [t.get_text() for t in ax.get_xticklabels()]
+        values = [float(t.replace("−", "-")) for t in labels]
+        assert all(-180.0 < v <= 180.0 for v in values) and "180.00" in labels
+        assert any(v < 0 for v in values)  # west of the antimeridian: negative °E
+    finally:
+        plt.close(m.figure)
+
+
+def test_an_extent_across_the_antimeridian_unwraps_the_data_about_it(tmp_path):
+    lat = np.array([10.0, 10.1, 10.2])
+    lon = np.array([179.9, -179.9, -179.8])
+    m = plot_track_map(
+        tmp_path / "m.png", lat, lon, lat, lon, np.array([1, 1, 1]), title="x",
+        extent=(179.5, 180.5, 9.5, 10.5), keep_figure=True,
+    )  # fmt: skip
+    try:
+        assert m.n_outside == 0
+        (line,) = m.figure.axes[0].lines
+        assert np.allclose(line.get_xdata(), [179.9, 180.1, 180.2])
+    finally:
+        plt.close(m.figure)

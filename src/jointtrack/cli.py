@@ -676,6 +676,7 @@ def _run_report_file(path, rfmt, kind, table, resume, window, reference, labels,
 
     from jointtrack.experiments.realdata import LABEL_MODES, run_reports
     from jointtrack.experiments.run import RunConfigError, read_run
+    from jointtrack.io.reports import MAX_WINDOW
 
     if kind not in (None, "jipda"):
         raise RunConfigError(
@@ -685,6 +686,11 @@ def _run_report_file(path, rfmt, kind, table, resume, window, reference, labels,
     # checked here, not only by run_reports, so that the message names the flag
     if window is not None and not (math.isfinite(window) and window > 0):
         raise RunConfigError(f"--window must be a positive number of seconds, got {window:g}")
+    if window is not None and window > MAX_WINDOW:
+        raise RunConfigError(
+            f"--window must be at most {MAX_WINDOW:g} seconds (~31.7 years; windows are "
+            f"counted in 64-bit nanoseconds), got {window:g}"
+        )
     if labels is not None and labels not in LABEL_MODES:
         raise RunConfigError(f"--labels must be one of {', '.join(LABEL_MODES)}, got {labels!r}")
     ref = _reference(reference)

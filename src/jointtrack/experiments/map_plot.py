@@ -113,6 +113,31 @@ def _view(values: np.ndarray, pad_min: float) -> tuple[float, float]:
     return lo - pad, hi + pad
 
 
+def _unwrap(report_lon: np.ndarray, track_lon: np.ndarray, centre: float | None):
+    """``(report_lon, track_lon)`` in one run of 360°: [centre - 180, centre + 180)
+    about ``centre`` (the view's middle), or else the narrower of [-180, 180) and
+    [0, 360) for the data. Longitudes already in the run keep their exact values."""
+    both = np.concatenate([report_lon, track_lon])
+
+    def about(c):
+        turns = np.floor((both - c + 180.0) / 360.0)
+        return np.where(turns == 0, both, both - 360.0 * turns)
+
+    if centre is not None:
+        out = about(centre)
+    else:
+        west, east = about(0.0), about(180.0)
+        out = east if both.size and np.ptp(east) < np.ptp(west) else west
+    return out[: report_lon.size], out[report_lon.size :]
+
+
+def _wrap180(lon: float) -> float:
+    """A longitude in (-180, 180] (180° E stays 180)."""
+    w = math.fmod(lon + 180.0, 360.0)
+    w = w + 360.0 if w < 0 else w
+    return 180.0 if w == 0.0 else w - 180.0
+
+
 def _extent(extent) -> tuple[tuple[float, float], tuple[float, float]]:
     box = _as_real_array(extent, "extent")
     if box.shape != (4,) or not np.all(np.isfinite(box)):
@@ -216,10 +241,15 @@ def plot_track_map(
         order = np.argsort(tid, kind="stable")  # rows of one track keep their order
     tla, tlo, tid = tla[order], tlo[order], tid[order]
 
+    # longitudes in one run of 360° about the data: the narrower of [-180, 180) and
+    # [0, 360), so data across the antimeridian (179.9°, -179.9°) is drawn together,
+    # not at both ends of a 360° axis
+    box = _extent(extent) if extent is not None else None
+    rlo, tlo = _unwrap(rlo, tlo, None if box is None else 0.5 * (box[0][0] + box[0][1]))
     all_lat = np.concatenate([rla, tla])
     all_lon = np.concatenate([rlo, tlo])
-    if extent is not None:
-        xlim, ylim = _extent(extent)
+    if box is not None:
+        xlim, ylim = box
     elif all_lat.size:
         xlim, ylim = _view(all_lon, 0.005), _view(all_lat, 0.005)
     else:
@@ -272,6 +302,12 @@ def plot_track_map(
 
     ax.set_xlim(*xlim)
     ax.set_ylim(*ylim)
+    if xlim[0] < -180.0 or xlim[1] > 180.0:  # ticks past ±180° labelled within (-180, 180]
+        ticks = ax.xaxis.get_major_locator().tick_values(*xlim)
+        ticks = ticks[(ticks >= xlim[0]) & (ticks <= xlim[1])]
+        step = float(np.min(np.diff(ticks))) if ticks.size > 1 else 1.0
+        decimals = max(0, -math.floor(math.log10(step) + 1e-9)) if step > 0 else 0
+        ax.set_xticks(ticks, [f"{_wrap180(t):.{decimals}f}" for t in ticks])
     ax.set_aspect(aspect)
     ax.set_xlabel("longitude (°E)")
     ax.set_ylabel("latitude (°N)")

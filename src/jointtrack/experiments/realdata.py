@@ -207,6 +207,13 @@ def run_reports(
             f"positions are metres east/north of lat {lat0:.6f}, lon {lon0:.6f} (WGS-84); "
             "tracks file also in lat/lon"
         )
+        # rows the reader left out (no position: AIS lat 91 / lon 181, ADS-B without one)
+        metrics["reports_skipped"] = rep.skipped
+        if rep.skipped:
+            metrics["notes"].append(
+                f"{rep.skipped:,} report rows without a position left out (AIS lat 91 / "
+                "lon 181 'not available', ADS-B states without lat/lon)"
+            )
         path = Path(files["tracks"])
         table = read_tracks(path)
         write_tracks(table, path, frame=frame)

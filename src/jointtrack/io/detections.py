@@ -14,8 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from jointtrack.io._files import (
+    NUL_REASON,
     check_integer,
     load_columns,
+    nul_index,
     out_path,
     parquet_column,
     parquet_column_nullable,
@@ -26,10 +28,19 @@ from jointtrack.io._files import (
     string_array,
     strings_to_floats,
     strings_to_floats_nullable,
+    text_array,
     write_columns,
 )
 from jointtrack.io.errors import DetectionFileError
-from jointtrack.io.times import EXPECTED_TIMES, format_timestamp, parse_origin, parse_timestamp
+from jointtrack.io.times import (
+    EXPECTED_TIMES,
+    format_timestamp,
+    outside_time_range,
+    parse_origin,
+    parse_timestamp,
+    span_problem,
+    units_to_ns,
+)
 
 __all__ = [
     "DETECTION_KINDS",
@@ -384,7 +395,8 @@ def sensor_ids(sensors) -> tuple:
     """
     out, kinds = [], set()
     for k, s in enumerate(sensors):
-        a = np.asarray(s) if not isinstance(s, np.ndarray) else s
+        # a list as objects: numpy strings would drop trailing NULs before the check
+        a = _as_array(s) if not isinstance(s, np.ndarray) else s
         if a.ndim != 1:
             a = a.reshape(-1) if a.size == 0 else a
         if a.ndim != 1:
@@ -395,6 +407,9 @@ def sensor_ids(sensors) -> tuple:
         if a.dtype.kind == "O":
             vals = a.tolist()
             if all(isinstance(v, str) for v in vals):
+                i = nul_index(vals)
+                if i is not None:
+                    raise ValueError(f"sensors[{k}]: {vals[i]!r} {NUL_REASON}")
                 a = np.array(vals, dtype=str)
             elif all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in vals):
                 if any(not (_INT64.min <= int(v) <= _INT64.max) for v in vals):
@@ -423,6 +438,12 @@ def sensor_ids(sensors) -> tuple:
         raise ValueError("sensors: the ids are integers in some scans and strings in others")
     empty = np.zeros(0, dtype=str if kinds == {"string"} else np.int64)
     return tuple(empty if a is None else a for a in out)
+
+
+def _as_array(s) -> np.ndarray:
+    """A sequence of ids as an array: strings as objects (kept whole), else as numpy sees it."""
+    a = np.asarray(s)
+    return np.array(s, dtype=object) if a.dtype.kind == "U" else a
 
 
 def _check_row_kinds(kind: str, row_kinds, scans) -> tuple | None:
@@ -640,8 +661,12 @@ def _finite_times(path, err, v: np.ndarray, lines) -> np.ndarray:
     return v
 
 
-def _relative(ns: np.ndarray) -> np.ndarray:
-    """Seconds since the first value of int64 nanoseconds."""
+def _relative(path, err, ns: np.ndarray) -> np.ndarray:
+    """Seconds since the first value of int64 nanoseconds (``err`` if their span
+    overflows int64, where the differences would wrap around)."""
+    problem = span_problem(ns)
+    if problem is not None:
+        raise err(path, problem, column="time")
     return (ns - ns[0]).astype(np.float64) / 1e9 if ns.size else np.zeros(0)
 
 
@@ -700,7 +725,7 @@ def _time_strings(path, err, cells: list, lines) -> tuple[np.ndarray, str | None
                 f"timestamp {s!r} {has} a UTC offset (Z or ±HH:MM) but data row 1 "
                 f"({first!r}) {lacks} one; give an offset on all timestamps or on none",
             )
-    return _relative(ns), format_timestamp(int(ns[0]), bool(aware0))
+    return _relative(path, err, ns), format_timestamp(int(ns[0]), bool(aware0))
 
 
 def _time_column(path, err, raw, lines) -> tuple[np.ndarray, str | None]:
@@ -715,10 +740,15 @@ def _time_column(path, err, raw, lines) -> tuple[np.ndarray, str | None]:
         v = np.asarray(raw.to_numpy(zero_copy_only=False), dtype=np.float64)
         return _finite_times(path, err, v, None), None
     if pa.types.is_timestamp(t):
-        ns = raw.cast(pa.int64()).to_numpy(zero_copy_only=False).astype(np.int64)
-        ns = ns * _UNIT_NS[t.unit]
+        counts = raw.cast(pa.int64()).to_numpy(zero_copy_only=False)
+        ns, bad = units_to_ns(counts, _UNIT_NS[t.unit])
+        if bad is not None:
+            raise row_error(
+                err, path, f"{counts[bad]} {t.unit} since 1970 is {outside_time_range()}",
+                bad, None, "time",
+            )  # fmt: skip
         origin = format_timestamp(int(ns[0]), t.tz is not None) if ns.size else None
-        return _relative(ns), origin
+        return _relative(path, err, ns), origin
     if parquet_is_string(t):
         return _time_strings(path, err, raw.to_pylist(), None)
     raise err(
@@ -762,7 +792,7 @@ def _sensor_column(path, err, raw, lines) -> np.ndarray:
                 path, err, np.asarray(raw.to_numpy(zero_copy_only=False), float), lines
             )
         if parquet_is_string(t):
-            return np.array([str(v).strip() for v in raw.to_pylist()], dtype=str).reshape(-1)
+            return text_array(path, err, [str(v).strip() for v in raw.to_pylist()], None, "sensor")
         raise err(path, f"has type {t}; sensor ids are integers or strings", column="sensor")
     texts = [str(c).strip() for c in raw]
     for i, c in enumerate(texts):
@@ -783,7 +813,7 @@ def _sensor_column(path, err, raw, lines) -> np.ndarray:
         return np.array(ints, dtype=np.int64)
     if all(_is_number(c) for c in texts):  # e.g. 7.0 from a float column
         return _integral_floats(path, err, np.array(texts, dtype=np.float64), lines)
-    return np.array(texts, dtype=str).reshape(-1)
+    return text_array(path, err, texts, lines, "sensor")
 
 
 def _integral_floats(path, err, v: np.ndarray, lines) -> np.ndarray:
@@ -936,7 +966,7 @@ def read_detections(path, *, allow_empty: bool = False, reference=None) -> Detec
     where = None
     if "sensor_x" in cols or "sensor_y" in cols:
         where = _sensor_position_rows(path, err, cols, t, sensor, row_rb, lines)
-    labels = _label_column(cols["label"]) if "label" in cols else None
+    labels = _label_column(path, err, cols["label"], lines) if "label" in cols else None
     velocities = _velocity_rows(path, err, cols, lines, Z.shape[1]) if kind == "position" else None
     # scans: one per distinct time of the file, the empty-scan rows' times included
     first = np.flatnonzero(np.r_[True, np.diff(t_all) != 0]) if t_all.size else np.zeros(0, int)
@@ -1068,10 +1098,47 @@ def _project(path, err, cols, lines, reference):
     lat, lon = cols["lat"], cols["lon"]
     alt = cols.get("alt")
     dim = 2 if alt is None else 3
+    _geo_altitudes(path, err, alt, lines)  # before a wild altitude becomes a wild x
     if not lat.size:
         return np.zeros((0, dim)), reference
     frame = LocalFrame(*reference) if reference is not None else LocalFrame.centre(lat, lon)
+    if dim == 2:
+        where = "the reference" if reference is not None else "the centre of the data"
+        _geo_in_plane(path, err, frame, lat, lon, lines, where)
     return frame.to_local(lat, lon, alt), frame.reference
+
+
+def _geo_altitudes(path, err, alt, lines) -> None:
+    """``err`` at the first altitude outside :data:`~jointtrack.io.geodetic.ALT_RANGE`."""
+    from jointtrack.io.geodetic import ALT_RANGE, ALT_RANGE_TEXT
+
+    if alt is None:
+        return
+    bad = np.flatnonzero((alt < ALT_RANGE[0]) | (alt > ALT_RANGE[1]))
+    if bad.size:
+        i = int(bad[0])
+        raise row_error(
+            err, path, f"{float(alt[i])!r} is outside {ALT_RANGE_TEXT}", i, lines, "alt"
+        )
+
+
+def _geo_in_plane(path, err, frame, lat, lon, lines, where: str) -> None:
+    """``err`` at the first row beyond what ``frame``'s east-north plane represents
+    (:data:`~jointtrack.io.geodetic.PLANE_MAX_ANGLE` from its reference)."""
+    from jointtrack.io.geodetic import PLANE_MAX_ANGLE, _km
+
+    angle = frame.plane_angle(lat, lon)
+    far = np.flatnonzero(angle > PLANE_MAX_ANGLE)
+    if far.size:
+        i = int(far[0])
+        raise row_error(
+            err, path, f"lat, lon ({float(lat[i])!r}, {float(lon[i])!r}) is "
+            f"{float(angle[i]):.1f}° from {where} (lat {frame.reference[0]:.6g}, lon "
+            f"{frame.reference[1]:.6g}): the local east-north plane represents points up "
+            f"to {PLANE_MAX_ANGLE:g}° ({_km(PLANE_MAX_ANGLE)}) from its reference; give a "
+            "reference near the data (--reference LAT,LON) or split the data by region",
+            i, lines, "lat",
+        )  # fmt: skip
 
 
 #: how far (metres) lat, lon may place a row from its x, y in the file's own frame: the
@@ -1123,6 +1190,10 @@ def _file_reference(path, err, cols, lines, reference, refs, ref_lines):
     if "lat" in cols and "lon" in cols:
         dim = 3 if "z" in cols and "alt" in cols else 2
         _geo_rows(path, err, cols, lines, ("lat", "lon"))
+        if dim == 3:
+            _geo_altitudes(path, err, cols["alt"], lines)
+        else:
+            _geo_in_plane(path, err, frame, cols["lat"], cols["lon"], lines, "the file's reference")
         got = frame.to_local(cols["lat"], cols["lon"], cols["alt"] if dim == 3 else None)
         want = np.column_stack([cols[c] for c in ("x", "y", "z")[:dim]])
         off = np.sqrt(np.sum((got - want) ** 2, axis=1))
@@ -1137,12 +1208,14 @@ def _file_reference(path, err, cols, lines, reference, refs, ref_lines):
     return frame.reference
 
 
-def _label_column(raw) -> np.ndarray:
-    """Labels as written (CSV text; a Parquet column's values as text, null → "")."""
+def _label_column(path, err, raw, lines) -> np.ndarray:
+    """Labels as written (CSV text; a Parquet column's values as text, null → ""); ``err``
+    at a label with a NUL character (:data:`~jointtrack.io._files.NUL_REASON`)."""
     if isinstance(raw, list):
-        return np.array([str(c) for c in raw] or [""], dtype=str)[: len(raw)]
-    cells = ["" if c is None else str(c) for c in raw.to_pylist()]
-    return np.array(cells or [""], dtype=str)[: len(cells)]
+        cells = [str(c) for c in raw]
+    else:
+        cells = ["" if c is None else str(c) for c in raw.to_pylist()]
+    return text_array(path, err, cells, lines, "label")
 
 
 def _velocity_rows(path, err, cols, lines, dim: int) -> np.ndarray | None:

@@ -13,9 +13,27 @@ Two projections:
   ``alt0`` (its own altitude is ignored): the orthographic projection of the
   surface at ``alt0`` onto the tangent plane. ``to_geodetic`` of ``(R, 2)``
   inverts it exactly — it finds the up coordinate at which that point lies at
-  height ``alt0`` (Newton's iteration on pymap3d's inverse) — so a 2-D round
-  trip is exact to about 1e-9 m, not just to the curvature drop (≈ 8 m at
-  10 km from the reference).
+  height ``alt0`` by Newton's method on pymap3d's inverse, iterated until the
+  step is below :data:`NEWTON_TOLERANCE` (an error if it is not) — so a 2-D
+  round trip is exact to about 1e-8 m, not just to the curvature drop (≈ 8 m
+  at 10 km from the reference).
+
+The plane holds only part of the Earth. The orthographic projection folds the
+far hemisphere onto the near one (the antipode lands on the reference), and
+towards the horizon it squeezes ground distances along the line of sight by
+cos θ, θ the angle between the point's vertical and the reference's; a plane
+error δ (a track's estimate, rounding) is δ / cos θ on the ground. Measured
+(``benchmarks/io_issue31.py plane``; ``benchmarks/RESULTS.md``, issue 31): the
+round trip stays below 2e-8 m up to θ = 80° and grows as 1 / cos θ (1.6e-6 m
+at 89.9°), while the old 8 fixed steps were off by 2e-5 m at θ = 20°, 53 m at
+45° and 6 km at 60°. So a 2-D frame represents the points within :data:`PLANE_MAX_ANGLE`
+(60°, about 6,700 km) of its reference: there cos θ ≥ 1/2, ground lengths
+shrink at most by half and plane errors at most double. ``to_local`` refuses
+points beyond, and ``to_geodetic`` plane points whose ground point lies
+beyond (or that no point projects to, such as 1e8 m east). The 3-D east,
+north, up coordinates are exact everywhere and have no such limit.
+
+Altitudes (``alt0``, ``alt``) are within :data:`ALT_RANGE`, metres.
 
 Units: :data:`KNOT` (m/s) and :data:`FOOT` (m) are exact by definition.
 """
@@ -26,7 +44,16 @@ import numbers
 
 import numpy as np
 
-__all__ = ["FOOT", "GEO_COLUMNS", "KNOT", "LocalFrame", "velocity_en"]
+__all__ = [
+    "ALT_RANGE",
+    "FOOT",
+    "GEO_COLUMNS",
+    "KNOT",
+    "LocalFrame",
+    "NEWTON_TOLERANCE",
+    "PLANE_MAX_ANGLE",
+    "velocity_en",
+]
 
 #: the names of WGS-84 columns in the package's files: degrees, degrees, metres
 GEO_COLUMNS = ("lat", "lon", "alt")
@@ -35,6 +62,29 @@ GEO_COLUMNS = ("lat", "lon", "alt")
 KNOT = 1852.0 / 3600.0
 #: one international foot in metres
 FOOT = 0.3048
+
+#: the largest angle (degrees) between a point's vertical and the reference's that a
+#: 2-D frame represents: cos 60° = 1/2, so ground lengths shrink at most by half in the
+#: plane (the orthographic projection's radial scale is cos θ) and a plane error at
+#: most doubles on the ground; beyond the horizon (90°) the plane folds the far side
+#: of the Earth onto the near side
+PLANE_MAX_ANGLE = 60.0
+#: mean Earth radius (m, IUGG), only to state angles as approximate distances
+_EARTH_RADIUS = 6_371_008.8
+#: Newton's method in ``to_geodetic`` stops once every step is below this (metres)
+NEWTON_TOLERANCE = 1e-7
+#: ... or fails after this many steps (it converges quadratically: 5 or 6 suffice at 60°)
+_NEWTON_STEPS = 40
+#: altitudes (m above the WGS-84 ellipsoid) a frame takes: 1,000 km below (far below
+#: any ocean floor or mine, and far from the Earth's centre, where geodetic heights stop
+#: being unique) to 100,000 km above (beyond geostationary orbit); values such as
+#: 1e300 m are no positions near the Earth and would overflow the east/north coordinates
+ALT_RANGE = (-1.0e6, 1.0e8)
+#: ALT_RANGE in words, for messages
+ALT_RANGE_TEXT = (
+    f"[{ALT_RANGE[0]:g}, {ALT_RANGE[1]:g}] metres (1,000 km below to 100,000 km above "
+    "the WGS-84 ellipsoid)"
+)
 
 
 def _real_array(value, name: str, *, allow_nan: bool = False) -> np.ndarray:
@@ -85,6 +135,22 @@ def _real_array(value, name: str, *, allow_nan: bool = False) -> np.ndarray:
     return a
 
 
+def _altitudes(alt, name: str = "alt", *, allow_nan: bool = False) -> np.ndarray:
+    """``alt`` as float64 metres within :data:`ALT_RANGE` (NaN passes when ``allow_nan``)."""
+    a = _real_array(alt, name, allow_nan=allow_nan)
+    bad = (a < ALT_RANGE[0]) | (a > ALT_RANGE[1])
+    if bad.any():
+        raise ValueError(
+            f"{name} must be within {ALT_RANGE_TEXT}, got {float(a[bad].reshape(-1)[0])!r}"
+        )
+    return a
+
+
+def _km(angle_deg: float) -> str:
+    """An angle at the Earth's centre as an approximate distance, e.g. "about 6,672 km"."""
+    return f"about {np.deg2rad(angle_deg) * _EARTH_RADIUS / 1000:,.0f} km"
+
+
 def _latitudes(lat, name: str = "lat") -> np.ndarray:
     a = _real_array(lat, name)
     if a.size and np.abs(a).max() > 90:
@@ -125,7 +191,7 @@ class LocalFrame:
                 raise ValueError(f"{name} must be one number, got shape {np.shape(v)}")
         self._lat0 = float(_latitudes(lat0, "lat0"))
         self._lon0 = float(_longitudes(lon0, "lon0"))
-        self._alt0 = float(_real_array(alt0, "alt0"))
+        self._alt0 = float(_altitudes(alt0, "alt0"))
 
     @property
     def reference(self) -> tuple[float, float, float]:
@@ -178,19 +244,62 @@ class LocalFrame:
         if alt is None:
             h = np.full(la.shape, self._alt0)
         else:
-            h = _real_array(alt, "alt").reshape(-1)
+            h = _altitudes(alt, "alt").reshape(-1)
             if h.shape != la.shape:
                 raise ValueError(f"alt must have the shape of lat, {la.shape}, got {h.shape}")
         if not la.size:
             return np.zeros((0, 2 if alt is None else 3))
+        if alt is None:
+            angle = self.plane_angle(la, lo)
+            far = np.flatnonzero(angle > PLANE_MAX_ANGLE)
+            if far.size:
+                i = int(far[0])
+                raise ValueError(
+                    f"lat, lon [{i}] = ({float(la[i])!r}, {float(lo[i])!r}) is {angle[i]:.1f}° "
+                    f"({_km(angle[i])}) from the frame's reference ({self._lat0!r}, "
+                    f"{self._lon0!r}): {self._plane_limit()}; choose a reference nearer the "
+                    "points"
+                )
         e, n, u = pymap3d.geodetic2enu(la, lo, h, self._lat0, self._lon0, self._alt0)
         cols = [e, n] if alt is None else [e, n, u]
         return np.column_stack([np.asarray(c, dtype=np.float64).reshape(-1) for c in cols])
 
+    def plane_angle(self, lat, lon) -> np.ndarray:
+        """Degrees between each point's vertical (the WGS-84 ellipsoid normal) and the
+        reference's: a 2-D frame represents the points up to :data:`PLANE_MAX_ANGLE`.
+        Times the Earth's radius it is roughly the distance from the reference."""
+        la = np.deg2rad(_latitudes(lat).reshape(-1))
+        lo = _longitudes(lon).reshape(-1)
+        if la.shape != lo.shape:
+            raise ValueError(f"lat and lon must have one shape, got {la.shape} and {lo.shape}")
+        return self._angle(la, lo)
+
+    def _angle(self, lat_rad: np.ndarray, lon_deg: np.ndarray) -> np.ndarray:
+        lat0, dlon = np.deg2rad(self._lat0), np.deg2rad(lon_deg - self._lon0)
+        # the normals' dot and cross products: atan2 keeps small angles exact
+        # (arccos of a dot product near 1 loses half the digits)
+        a = np.array([np.cos(lat_rad) * np.cos(dlon), np.cos(lat_rad) * np.sin(dlon)])
+        a = np.vstack([a, np.sin(lat_rad)[None]])
+        b = np.array([np.cos(lat0), 0.0, np.sin(lat0)])[:, None]
+        cross = np.linalg.norm(np.cross(a, b, axis=0), axis=0)
+        return np.rad2deg(np.arctan2(cross, np.sum(a * b, axis=0)))
+
+    def _plane_limit(self) -> str:
+        return (
+            f"a 2-D (east, north) frame represents points up to {PLANE_MAX_ANGLE:g}° "
+            f"({_km(PLANE_MAX_ANGLE)}) from its reference, where its plane shortens ground "
+            "lengths at most by half (beyond the horizon it folds the far side of the Earth "
+            "onto the near side)"
+        )
+
     def to_geodetic(self, xy) -> tuple[np.ndarray, ...]:
         """``(lat, lon)`` degrees of ``(R, 2)`` east/north points (the inverse of the
         2-D :meth:`to_local`: the point at height ``alt0``), or ``(lat, lon, alt)`` of
-        ``(R, 3)`` east/north/up points. Longitudes in [-180, 180]."""
+        ``(R, 3)`` east/north/up points. Longitudes in [-180, 180].
+
+        Raises ValueError for a 2-D point whose ground point is more than
+        :data:`PLANE_MAX_ANGLE` from the reference, or that no ground point
+        projects to (beyond the Earth's disc in the plane)."""
         import pymap3d
 
         p = _real_array(xy, "xy")
@@ -205,21 +314,50 @@ class LocalFrame:
         if p.shape[1] == 3:
             lat, lon, h = pymap3d.enu2geodetic(p[:, 0], p[:, 1], p[:, 2], *ref)
             return tuple(np.asarray(v, dtype=np.float64).reshape(-1) for v in (lat, lon, h))
-        # Newton on the up coordinate: dh/du is the cosine of the angle between the
-        # reference's and the point's verticals, ≈ 1 within thousands of km, so each
-        # step gains several digits; 8 steps reach float64 resolution.
-        u = np.zeros(p.shape[0])
-        for _ in range(8):
-            lat, lon, h = pymap3d.enu2geodetic(p[:, 0], p[:, 1], u, *ref)
-            step = np.asarray(h, dtype=np.float64).reshape(-1) - self._alt0
+        # Newton on the up coordinate u: the height h grows along the reference's
+        # vertical at the rate dh/du = cos θ, the cosine of the angle between the
+        # reference's and the point's verticals (h's gradient is the point's unit
+        # normal). Above the ellipsoid h is the distance to a convex surface, so it is
+        # convex in u, and Newton from u = 0 (above the surface at alt0) descends
+        # monotonically to the near-side root, quadratically. A plane point beyond the
+        # Earth's disc has no root: its iterates reach the far side (cos θ ≤ 0) or do
+        # not settle; both are refused, as is a root beyond PLANE_MAX_ANGLE.
+        n = p.shape[0]
+        u = np.zeros(n)
+        lost = np.zeros(n, dtype=bool)
+        converged = False
+        for _ in range(_NEWTON_STEPS):
+            lat, lon, h = (
+                np.asarray(v, dtype=np.float64).reshape(-1)
+                for v in pymap3d.enu2geodetic(p[:, 0], p[:, 1], u, *ref)
+            )
+            cos = np.cos(np.deg2rad(self._angle(np.deg2rad(lat), lon)))
+            # at the horizon (cos θ → 0) a step would divide by nearly nothing: such
+            # points are far beyond the limit, stop them there
+            lost |= ~(cos > 1e-3)
+            step = np.where(lost, 0.0, (h - self._alt0) / np.where(lost, 1.0, cos))
             u = u - step
-            if np.all(np.abs(step) < 1e-10):
+            if np.all(np.abs(step) <= NEWTON_TOLERANCE):
+                converged = True
                 break
-        lat, lon, _ = pymap3d.enu2geodetic(p[:, 0], p[:, 1], u, *ref)
-        return (
-            np.asarray(lat, dtype=np.float64).reshape(-1),
-            np.asarray(lon, dtype=np.float64).reshape(-1),
+        lat, lon, _ = (
+            np.asarray(v, dtype=np.float64).reshape(-1)
+            for v in pymap3d.enu2geodetic(p[:, 0], p[:, 1], u, *ref)
         )
+        angle = self._angle(np.deg2rad(lat), lon)
+        # the limit with one part in 1e9 to spare: to_local accepts a point at 60°
+        # whose round trip lands a rounding error beyond
+        bad = lost | (angle > PLANE_MAX_ANGLE * (1 + 1e-9))
+        if not converged:
+            bad |= np.abs(step) > NEWTON_TOLERANCE
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f"xy[{i}] = ({float(p[i, 0])!r}, {float(p[i, 1])!r}) m is not in this frame's "
+                f"plane: no ground point within {PLANE_MAX_ANGLE:g}° of the reference "
+                f"({self._lat0!r}, {self._lon0!r}) projects there; {self._plane_limit()}"
+            )
+        return lat, lon
 
 
 def velocity_en(speed_mps, course_deg) -> np.ndarray:

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import math
 import numbers
 import os
 from dataclasses import dataclass
@@ -40,13 +41,36 @@ from pathlib import Path
 
 import numpy as np
 
-from jointtrack.io._files import load_columns, row_error, string_array
+from jointtrack.io._files import (
+    CsvRecords,
+    load_columns,
+    row_error,
+    string_array,
+    text_array,
+)
 from jointtrack.io.detections import Detections
 from jointtrack.io.errors import DetectionFileError
-from jointtrack.io.geodetic import FOOT, KNOT, LocalFrame, velocity_en
-from jointtrack.io.times import format_timestamp, parse_origin, parse_timestamp
+from jointtrack.io.geodetic import (
+    ALT_RANGE,
+    FOOT,
+    KNOT,
+    PLANE_MAX_ANGLE,
+    LocalFrame,
+    _km,
+    velocity_en,
+)
+from jointtrack.io.times import (
+    format_timestamp,
+    outside_time_range,
+    parse_origin,
+    parse_timestamp,
+    span_problem,
+    units_to_ns,
+)
 
 __all__ = [
+    "MAX_JSON_BYTES",
+    "MAX_WINDOW",
     "REPORT_FORMATS",
     "report_format",
     "Reports",
@@ -60,9 +84,12 @@ __all__ = [
 REPORT_FORMATS = ("ais", "opensky", "traffic")
 
 _NS = 1_000_000_000
-#: AIS "not available" codes (ITU-R M.1371-5, message 1): COG 360°, SOG 102.3 kn
+#: AIS "not available" codes (ITU-R M.1371-5, message 1): COG 360°, SOG 102.3 kn,
+#: latitude 91°, longitude 181°
 _AIS_COG_UNAVAILABLE = 360.0
 _AIS_SOG_UNAVAILABLE = 102.3
+_AIS_LAT_UNAVAILABLE = 91.0
+_AIS_LON_UNAVAILABLE = 181.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,7 +125,7 @@ class Reports:
     skipped: int = 0
 
     def __post_init__(self):
-        from jointtrack.io.geodetic import _latitudes, _longitudes, _real_array
+        from jointtrack.io.geodetic import _altitudes, _latitudes, _longitudes, _real_array
 
         origin, _, _ = parse_origin(self.time_origin)
         if origin is None:
@@ -123,7 +150,7 @@ class Reports:
 
         lat = column(self.lat, "lat", None, _latitudes)
         lon = column(self.lon, "lon", None, _longitudes)
-        alt = column(self.alt, "alt", np.nan, lambda v, m: _real_array(v, m, allow_nan=True))
+        alt = column(self.alt, "alt", np.nan, lambda v, m: _altitudes(v, m, allow_nan=True))
         speed = column(self.speed, "speed", np.nan, lambda v, m: _real_array(v, m, allow_nan=True))
         if np.any(speed < 0):
             raise ValueError("speed must be ≥ 0 (or NaN: unknown)")
@@ -185,24 +212,57 @@ class Reports:
         about the centre of the reports' lat/lon bounding box (:meth:`LocalFrame.centre`)
         without the 1 % most extreme reports on each side in latitude and
         longitude: one glitch (the Solent AIS file has a report at 54.8° E among
-        ships near 1° W) would otherwise move the centre ~1,900 km away."""
+        ships near 1° W) would otherwise move the centre ~1,900 km away.
+
+        Raises ValueError when a report is more than
+        :data:`~jointtrack.io.geodetic.PLANE_MAX_ANGLE` (60°, about 6,700 km)
+        from the reference: the frame's east-north plane cannot represent it
+        (:mod:`jointtrack.io.geodetic`), and tracks there would come back on the
+        wrong part of the Earth.
+        """
         if reference is not None:
             if isinstance(reference, LocalFrame):
-                return reference
-            if isinstance(reference, str) or not hasattr(reference, "__len__"):
+                frame = reference
+            elif isinstance(reference, str) or not hasattr(reference, "__len__"):
                 raise ValueError(f"reference must be (lat0, lon0[, alt0]), got {reference!r}")
-            if len(reference) not in (2, 3):
+            elif len(reference) not in (2, 3):
                 raise ValueError(f"reference must be (lat0, lon0[, alt0]), got {reference!r}")
-            return LocalFrame(*reference)
-        if not len(self):
+            else:
+                frame = LocalFrame(*reference)
+        elif not len(self):
             raise ValueError("no reports: give a reference to build a frame")
-        lat_lo, lat_hi = np.quantile(self.lat, [0.01, 0.99])
-        lon_lo, lon_hi = np.quantile(self.lon, [0.01, 0.99])
-        core = (self.lat >= lat_lo) & (self.lat <= lat_hi)
-        core &= (self.lon >= lon_lo) & (self.lon <= lon_hi)
-        if not core.any():  # (data across the antimeridian) the full box
-            core[:] = True
-        return LocalFrame.centre(self.lat[core], self.lon[core])
+        else:
+            lat_lo, lat_hi = np.quantile(self.lat, [0.01, 0.99])
+            lon_lo, lon_hi = np.quantile(self.lon, [0.01, 0.99])
+            core = (self.lat >= lat_lo) & (self.lat <= lat_hi)
+            core &= (self.lon >= lon_lo) & (self.lon <= lon_hi)
+            if not core.any():  # (data across the antimeridian) the full box
+                core[:] = True
+            frame = LocalFrame.centre(self.lat[core], self.lon[core])
+        self._check_plane(frame, given=reference is not None)
+        return frame
+
+    def _check_plane(self, frame: LocalFrame, given: bool) -> None:
+        """ValueError if a report lies beyond what ``frame``'s plane represents."""
+        if not len(self):
+            return
+        angle = frame.plane_angle(self.lat, self.lon)
+        far = angle > PLANE_MAX_ANGLE
+        if not far.any():
+            return
+        i = int(np.argmax(angle))
+        lat0, lon0, _ = frame.reference
+        where = "the given reference" if given else "the centre of the reports"
+        raise ValueError(
+            f"{self.source or 'reports'}: {int(far.sum()):,} of {len(self):,} reports lie "
+            f"more than {PLANE_MAX_ANGLE:g}° ({_km(PLANE_MAX_ANGLE)}) from {where} "
+            f"(lat {lat0:.6g}, lon {lon0:.6g}), the farthest at lat {float(self.lat[i])!r}, "
+            f"lon {float(self.lon[i])!r} ({float(angle[i]):.1f}° away); the east-north plane "
+            "of a frame represents points up to that angle from its reference (beyond the "
+            "horizon it folds the far side of the Earth onto the near side): give a "
+            "reference near the reports (--reference LAT,LON; Reports.frame(reference)) or "
+            "leave the far reports out (Reports.subset)"
+        )
 
     # ------------------------------------------------------------------ degradation
 
@@ -274,19 +334,35 @@ class Reports:
         (between the first and the last) are kept, empty. Times are compared in
         whole nanoseconds, so a report exactly on an end belongs to the window
         that ends there, as in Stone Soup (whose datetimes are exact).
+        ``window`` is at most :data:`MAX_WINDOW` seconds.
         """
         w = _rate(window, "window")
         if w <= 0:
             raise ValueError(f"window must be > 0 seconds, got {window!r}")
+        if w > MAX_WINDOW:
+            raise ValueError(
+                f"window must be at most {MAX_WINDOW:g} seconds (~31.7 years), got {window!r}: "
+                "windows are counted in 64-bit nanoseconds"
+            )
         w_ns = int(round(w * _NS))
         if w_ns < 1:
             raise ValueError(f"window must be at least 1 ns, got {window!r}")
         if not len(self):
             return np.zeros(0, np.int64), np.zeros(0)
+        if np.abs(self.times).max() >= _MAX_NS_SECONDS:
+            raise ValueError(
+                f"times reach {float(np.abs(self.times).max()):g} s; windows count whole "
+                f"nanoseconds in 64 bits, which hold up to {_MAX_NS_SECONDS:g} s (~292 years)"
+            )
         ns = _whole_ns(self.times)
         rel = ns - ns[0]
         k = -(-rel // w_ns)  # ceil: (t0 + (k-1)w, t0 + kw]
-        ends = (ns[0] + np.arange(int(k[-1]) + 1, dtype=np.int64) * w_ns) / _NS
+        n_ends = int(k[-1]) + 1
+        span_ns = (n_ends - 1) * w_ns
+        if span_ns < 2**63 and abs(int(ns[0]) + span_ns) < 2**63:
+            ends = (ns[0] + np.arange(n_ends, dtype=np.int64) * w_ns) / _NS
+        else:  # the last end overflows int64: exact Python integers (few windows then)
+            ends = np.array([(int(ns[0]) + j * w_ns) / _NS for j in range(n_ends)])
         return k.astype(np.int64), ends
 
     def reduce(self, window) -> Reports:
@@ -450,6 +526,14 @@ def _lon_box(lon: np.ndarray) -> tuple[float, float]:
     return lo, hi
 
 
+#: the longest window :meth:`Reports.window_index` takes, seconds: longer than the
+#: span of any report file (and far from int64 nanoseconds' ~292 years, so that the
+#: window ends, t0 + k·w, stay representable)
+MAX_WINDOW = 1e9
+#: |times| below this many seconds fit int64 nanoseconds
+_MAX_NS_SECONDS = 2.0**63 / _NS
+
+
 def _whole_ns(times: np.ndarray) -> np.ndarray:
     """Seconds → int64 nanoseconds (exact for times built from nanoseconds, up to ~100 days)."""
     return np.rint(np.asarray(times, dtype=np.float64) * _NS).astype(np.int64)
@@ -475,7 +559,14 @@ def _time_ns(path, err, raw, lines, name: str) -> np.ndarray:
 
             parquet_nulls(path, err, raw, name)
             unit = {"s": _NS, "ms": 1_000_000, "us": 1_000, "ns": 1}[raw.type.unit]
-            return raw.cast(pa.int64()).to_numpy(zero_copy_only=False).astype(np.int64) * unit
+            counts = raw.cast(pa.int64()).to_numpy(zero_copy_only=False)
+            ns, bad = units_to_ns(counts, unit)
+            if bad is not None:
+                raise row_error(
+                    err, path, f"{counts[bad]} {raw.type.unit} since 1970 is "
+                    f"{outside_time_range()}", bad, None, name,
+                )  # fmt: skip
+            return ns
         raw = ["" if v is None else str(v) for v in raw.to_pylist()]
     out = np.empty(len(raw), dtype=np.int64)
     for i, cell in enumerate(raw):
@@ -497,11 +588,12 @@ def _time_ns(path, err, raw, lines, name: str) -> np.ndarray:
     return out
 
 
-def _identities(raw) -> np.ndarray:
-    """Identity cells as text with surrounding spaces removed (OpenSky pads callsigns)."""
+def _identities(path, err, raw, lines, name: str) -> np.ndarray:
+    """Identity cells as text with surrounding spaces removed (OpenSky pads callsigns);
+    ``err`` at a cell with a NUL character (:data:`~jointtrack.io._files.NUL_REASON`)."""
     if not isinstance(raw, list):
         raw = ["" if v is None else str(v) for v in raw.to_pylist()]
-    return np.array([str(c).strip() for c in raw] or [""], dtype=str)[: len(raw)]
+    return text_array(path, err, [str(c).strip() for c in raw], lines, name)
 
 
 def _check_range(path, err, v, lines, name, lo, hi) -> None:
@@ -527,6 +619,9 @@ def _finite_or_nan(path, err, v, lines, name) -> None:
 
 def _sorted_reports(path, ns, skipped=0, **columns) -> Reports:
     """Reports in time order (stable), ``times`` in seconds since the earliest instant."""
+    problem = span_problem(ns)
+    if problem is not None:  # the int64 differences below would wrap around
+        raise DetectionFileError(path, problem)
     order = np.argsort(ns, kind="stable")
     ns = ns[order]
     ns0 = int(ns[0]) if ns.size else 0
@@ -548,8 +643,10 @@ def read_ais_csv(path) -> Reports:
     as UTC), ``MMSI`` (the identity, as text), ``Latitude_degrees``,
     ``Longitude_degrees``; optional ``COG_degrees`` (course over ground) and
     ``SOG_knots`` (speed over ground), empty = unknown. AIS's "not available"
-    codes — COG 360 and SOG 102.3 kn (ITU-R M.1371) — are read as unknown.
-    CSV (``.csv``/``.csv.gz``) or Parquet with the same columns.
+    codes (ITU-R M.1371) — COG 360 and SOG 102.3 kn — are read as unknown;
+    rows with latitude 91 or longitude 181 ("position not available") are
+    left out and counted in :attr:`Reports.skipped`. CSV (``.csv``/``.csv.gz``)
+    or Parquet with the same columns.
 
     Raises
     ------
@@ -572,8 +669,10 @@ def read_ais_csv(path) -> Reports:
     )
     ns = _time_ns(path, err, cols["time"], lines, "time")
     lat, lon = cols["latitude_degrees"], cols["longitude_degrees"]
-    _check_range(path, err, lat, lines, "latitude_degrees", -90, 90)
-    _check_range(path, err, lon, lines, "longitude_degrees", -180, 360)
+    # AIS's "position not available" (lat 91, lon 181): a report of nothing, left out
+    ok = (lat != _AIS_LAT_UNAVAILABLE) & (lon != _AIS_LON_UNAVAILABLE)
+    _check_range(path, err, np.where(ok, lat, 0.0), lines, "latitude_degrees", -90, 90)
+    _check_range(path, err, np.where(ok, lon, 0.0), lines, "longitude_degrees", -180, 360)
     cog = cols.get("cog_degrees", np.full(n, np.nan))
     sog = cols.get("sog_knots", np.full(n, np.nan))
     for name, v in (("cog_degrees", cog), ("sog_knots", sog)):
@@ -583,12 +682,13 @@ def read_ais_csv(path) -> Reports:
     sog = np.where(sog >= _AIS_SOG_UNAVAILABLE, np.nan, sog)
     return _sorted_reports(
         path,
-        ns,
-        lat=lat,
-        lon=lon,
-        identity=_identities(cols["mmsi"]),
-        speed=sog * KNOT,
-        course=cog,
+        ns[ok],
+        skipped=int(n - ok.sum()),
+        lat=lat[ok],
+        lon=lon[ok],
+        identity=_identities(path, err, cols["mmsi"], lines, "mmsi")[ok],
+        speed=sog[ok] * KNOT,
+        course=cog[ok],
     )
 
 
@@ -620,8 +720,8 @@ def read_opensky_states(path) -> Reports:
         raw=("icao24",),
     )
     t = cols["time"]
-    if t.size and np.abs(t).max() > 2.0**33:  # beyond year 2242: not Unix seconds
-        i = int(np.flatnonzero(np.abs(t) > 2.0**33)[0])
+    if t.size and np.abs(t).max() > _UNIX_SECONDS_MAX:  # beyond year 2242: not Unix seconds
+        i = int(np.flatnonzero(np.abs(t) > _UNIX_SECONDS_MAX)[0])
         raise row_error(err, path, f"{t[i]!r} is not a Unix time in seconds", i, lines, "time")
     lat, lon = cols["lat"], cols["lon"]
     for name in ("lat", "lon", *optional):
@@ -633,6 +733,8 @@ def read_opensky_states(path) -> Reports:
     speed = cols.get("velocity", nan)
     _non_negative(path, err, speed, lines, "velocity")
     geo, baro = cols.get("geoaltitude", nan), cols.get("baroaltitude", nan)
+    for name, v in (("geoaltitude", geo), ("baroaltitude", baro)):
+        _check_range(path, err, v, lines, name, *ALT_RANGE)
     alt = np.where(np.isfinite(geo), geo, baro)
     ok = np.isfinite(lat) & np.isfinite(lon)
     ns = np.rint(t * _NS).astype(np.int64)
@@ -643,7 +745,7 @@ def read_opensky_states(path) -> Reports:
         lat=lat[ok],
         lon=lon[ok],
         alt=alt[ok],
-        identity=_identities(cols["icao24"])[ok],
+        identity=_identities(path, err, cols["icao24"], lines, "icao24")[ok],
         speed=speed[ok],
         course=cols.get("heading", nan)[ok],
     )
@@ -662,14 +764,22 @@ _TRAFFIC_NUMBERS = (
 def read_traffic_records(path) -> Reports:
     """Read ADS-B points in the ``traffic`` library's pandas "records" JSON.
 
-    The file (gzip-compressed or plain; ``.json``/``.json.gz``) is a JSON
-    list of objects with ``timestamp`` (milliseconds since the Unix epoch, or
-    an ISO-8601 string; no offset = UTC), ``icao24`` (the identity),
-    ``latitude``, ``longitude`` (degrees), and optional ``altitude`` (feet;
-    taken as metres above the ellipsoid after conversion — it is barometric in
-    ADS-B), ``groundspeed`` (knots) and ``track`` (degrees). Records without a
+    The file (gzip-compressed or plain; ``.json``/``.json.gz``; at most
+    :data:`MAX_JSON_BYTES` once decompressed) is a JSON list of objects with
+    ``timestamp`` (Unix time — seconds or milliseconds, told apart by
+    magnitude: see below — or an ISO-8601 string; no offset = UTC),
+    ``icao24`` (the identity: text, the hex address), ``latitude``,
+    ``longitude`` (degrees), and optional ``altitude`` (feet; taken as metres
+    above the ellipsoid after conversion — it is barometric in ADS-B),
+    ``groundspeed`` (knots) and ``track`` (degrees). Records without a
     position (null or missing latitude/longitude) are left out and counted in
     :attr:`Reports.skipped`. Errors name the record as ``data row R`` (1-based).
+
+    A numeric ``timestamp`` of magnitude up to 2^33 is seconds since 1970 (as
+    milliseconds it would be within 100 days of 1970-01-01, decades before
+    ADS-B; as seconds it reaches the year 2242) and a larger one milliseconds
+    (as seconds it would be after 2242), up to 2^43 ms (the year 2248); each
+    value is read exactly, to the nanosecond.
 
     Raises
     ------
@@ -678,32 +788,25 @@ def read_traffic_records(path) -> Reports:
     """
     err = DetectionFileError
     path = Path(os.fspath(path))
+    raw = _json_bytes(path, err)
     try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise err(path, "file not found") from None
-    except IsADirectoryError:
-        raise err(path, "is a directory, not a file") from None
-    except OSError as exc:
-        raise err(path, f"cannot open file: {exc.strerror or exc}") from None
-    if raw[:2] == b"\x1f\x8b":
-        try:
-            raw = gzip.decompress(raw)
-        except (OSError, EOFError) as exc:
-            raise err(path, f"cannot read gzip file: {exc}") from None
-    try:
-        records = json.loads(raw.decode("utf-8-sig"))
+        records = json.loads(raw.decode("utf-8-sig"), parse_int=_json_int)
     except UnicodeDecodeError:
         raise err(path, "is not UTF-8 text (JSON)") from None
     except json.JSONDecodeError as exc:
         raise err(path, f"is not JSON: {exc.msg}", line=exc.lineno) from None
+    except RecursionError:
+        raise err(
+            path, "nests JSON arrays/objects too deeply to read; expected a list of records"
+        ) from None
+    except MemoryError:
+        raise err(path, "holds more JSON than fits in memory") from None
     if not isinstance(records, list):
-        raise err(path, f"holds a JSON {type(records).__name__}; expected a list of records")
+        raise err(path, f"holds a JSON {_json_kind(records)}; expected a list of records")
     n = len(records)
     bad = next((i for i, rec in enumerate(records) if type(rec) is not dict), None)
     if bad is not None:
-        what = type(records[bad]).__name__
-        raise err(path, f"is a JSON {what}, not an object", row=bad + 1)
+        raise err(path, f"is a JSON {_json_kind(records[bad])}, not an object", row=bad + 1)
     # one list per field, checked by the types present (a fast path for clean files;
     # the first bad record is found only when there is one)
     fields = {name: [rec.get(name) for rec in records] for name in ("timestamp", "icao24")}
@@ -712,7 +815,7 @@ def read_traffic_records(path) -> Reports:
             i = next(i for i, v in enumerate(col) if v is None)
             raise err(path, "missing value", row=i + 1, column=name)
     ns = _record_times(path, err, fields["timestamp"])
-    ident = [str(v).strip() for v in fields["icao24"]]
+    ident = _record_identities(path, err, fields["icao24"])
     vals = {
         key: _record_numbers(path, err, [rec.get(name) for rec in records], name)
         for key, name in _TRAFFIC_NUMBERS
@@ -721,6 +824,7 @@ def read_traffic_records(path) -> Reports:
     for key, name in _TRAFFIC_NUMBERS:
         _finite_or_nan(path, err, vals[key], None, name)
     _check_range(path, err, lat, None, "latitude", -90, 90)
+    _check_range(path, err, vals["altitude"], None, "altitude", *(a / FOOT for a in ALT_RANGE))
     _check_range(path, err, lon, None, "longitude", -180, 360)
     _non_negative(path, err, vals["gs"], None, "groundspeed")
     ok = np.isfinite(lat) & np.isfinite(lon)
@@ -731,10 +835,99 @@ def read_traffic_records(path) -> Reports:
         lat=lat[ok],
         lon=lon[ok],
         alt=vals["altitude"][ok] * FOOT,
-        identity=np.array(ident or [""], dtype=str)[:n][ok],
+        identity=ident[ok],
         speed=vals["gs"][ok] * KNOT,
         course=vals["track"][ok],
     )
+
+
+#: the most bytes a JSON records file may hold once decompressed (256 MiB): the JSON
+#: is parsed whole, and its Python objects take several times more memory than its
+#: text; a file over the limit (such as a small gzip that inflates to gigabytes) is
+#: refused after reading at most this much plus one block
+MAX_JSON_BYTES = 256 * 2**20
+#: the blocks a JSON file is read (and inflated) in
+_JSON_BLOCK = 2**20
+
+
+def _json_bytes(path: Path, err) -> bytes:
+    """The bytes of a JSON file, inflated if it is gzip, refused past :data:`MAX_JSON_BYTES`."""
+    import zlib
+
+    try:
+        fh = open(path, "rb")  # noqa: SIM115 - closed below, after the gzip reader
+    except FileNotFoundError:
+        raise err(path, "file not found") from None
+    except IsADirectoryError:
+        raise err(path, "is a directory, not a file") from None
+    except OSError as exc:
+        raise err(path, f"cannot open file: {exc.strerror or exc}") from None
+    limit = MAX_JSON_BYTES
+    with fh:
+        zipped = fh.read(2) == b"\x1f\x8b"
+        fh.seek(0)
+        source = gzip.GzipFile(fileobj=fh, mode="rb") if zipped else fh
+        blocks, size = [], 0
+        try:
+            while size <= limit:
+                block = source.read(_JSON_BLOCK)
+                if not block:
+                    break
+                blocks.append(block)
+                size += len(block)
+        except (OSError, EOFError, zlib.error) as exc:
+            what = "gzip file" if zipped else "file"
+            raise err(path, f"cannot read {what}: {exc}") from None
+    if size > limit:
+        what = "inflates to more than" if zipped else "holds more than"
+        raise err(
+            path,
+            f"{what} {limit:,} bytes ({limit / 2**20:g} MiB), the most JSON read "
+            "(jointtrack.io.reports.MAX_JSON_BYTES): it is parsed whole in memory",
+        )
+    return b"".join(blocks)
+
+
+class _HugeInt(str):
+    """A JSON integer too long for ``int`` (Python refuses over 4,300 digits), kept as
+    its text so that the field's check names the record."""
+
+
+def _json_int(text: str):
+    # no float holds more than 309 digits: longer integers are refused by the field's
+    # check, which names the record (int() would raise past 4,300 digits, unnamed)
+    return _HugeInt(text) if len(text) > 400 else int(text)
+
+
+def _json_kind(v) -> str:
+    """The JSON name of a parsed value's type."""
+    if isinstance(v, _HugeInt):
+        return "number"
+    kinds = {dict: "object", list: "array", str: "string", bool: "boolean", type(None): "null"}
+    return kinds.get(type(v), "number")
+
+
+def _show(v) -> str:
+    """``repr`` of a record value, long ones shortened (a 5,000-digit number)."""
+    text = str(v) if isinstance(v, _HugeInt) else repr(v)
+    return text if len(text) <= 60 else f"{text[:24]}…{text[-8:]} ({len(text):,} characters)"
+
+
+def _record_identities(path, err, col: list) -> np.ndarray:
+    """The ``icao24`` texts, stripped; ``err`` at the first that is not a JSON string
+    (a number would have lost the hex address's leading zeros; objects and lists are
+    not addresses) or holds a NUL character."""
+    bad = next((i for i, v in enumerate(col) if type(v) is not str), None)
+    if bad is not None:
+        v = col[bad]
+        raise err(
+            path,
+            f"value {_show(v)} is a JSON {_json_kind(v)}; icao24 must be a string, the hex "
+            'address (e.g. "3c4591"): a number loses leading zeros',
+            row=bad + 1,
+            column="icao24",
+        )
+    return text_array(path, err, [v.strip() for v in col], None, "icao24")
 
 
 def _record_numbers(path, err, col: list, name: str) -> np.ndarray:
@@ -748,51 +941,74 @@ def _record_numbers(path, err, col: list, name: str) -> np.ndarray:
     for i, v in enumerate(col):
         if v is None:
             continue
+        if isinstance(v, _HugeInt):
+            raise err(path, f"value {_show(v)} is beyond the float range", row=i + 1, column=name)
         if isinstance(v, bool) or not isinstance(v, int | float):
-            raise err(path, f"value {v!r} is not a number", row=i + 1, column=name)
+            raise err(path, f"value {_show(v)} is not a number", row=i + 1, column=name)
         try:
             out[i] = float(v)
         except OverflowError:
             raise err(
-                path, f"value {v!r} is beyond the float range", row=i + 1, column=name
+                path, f"value {_show(v)} is beyond the float range", row=i + 1, column=name
             ) from None
     return out
 
 
+#: a numeric timestamp up to this magnitude is Unix seconds (2^33 s: the year 2242;
+#: as milliseconds it would be within 100 days of 1970-01-01), above it milliseconds
+_UNIX_SECONDS_MAX = 2**33
+#: ... up to this many milliseconds (the year 2248; in nanoseconds within int64)
+_UNIX_MS_MAX = 2**43
+
+
 def _record_times(path, err, col: list) -> np.ndarray:
-    """int64 ns since the epoch of the records' timestamps."""
-    if set(map(type, col)) == {int}:  # milliseconds, the traffic samples' form
+    """int64 ns since the epoch of the records' timestamps (see :func:`read_traffic_records`)."""
+    if set(map(type, col)) == {int}:  # the traffic samples' form: a fast path
         try:
-            ms = np.array(col, dtype=np.int64)
+            v = np.array(col, dtype=np.int64)
         except OverflowError:
-            ms = None
-        if ms is not None and np.abs(ms).max() <= 2**43:
-            return ms * 1_000_000
+            v = None
+        if v is not None and not np.any((v > _UNIX_MS_MAX) | (v < -_UNIX_MS_MAX)):
+            seconds = (v >= -_UNIX_SECONDS_MAX) & (v <= _UNIX_SECONDS_MAX)
+            return np.where(seconds, v * _NS, v * 1_000_000)
     return np.array([_record_time(path, err, v, i) for i, v in enumerate(col)], dtype=np.int64)
 
 
 def _record_time(path, err, v, i: int) -> int:
-    """ns since the epoch of a record's ``timestamp``: ms since the epoch, or ISO-8601 text."""
+    """ns since the epoch of a record's ``timestamp``: Unix seconds or milliseconds
+    (by magnitude), or ISO-8601 text."""
+    from fractions import Fraction
+
+    def bad(reason):
+        return err(path, reason, row=i + 1, column="timestamp")
+
+    if isinstance(v, _HugeInt):
+        raise bad(f"value {_show(v)} is {_UNIX_RANGE}")
     if isinstance(v, str):
         try:
             parsed = parse_timestamp(v)
         except ValueError as exc:
-            raise err(path, str(exc), row=i + 1, column="timestamp") from None
+            raise bad(str(exc)) from None
         if parsed is None:
-            raise err(
-                path,
-                f"value {v!r} is neither milliseconds since 1970 nor an ISO-8601 timestamp",
-                row=i + 1,
-                column="timestamp",
+            raise bad(
+                f"value {_show(v)} is neither a Unix time (seconds or milliseconds) nor an "
+                "ISO-8601 timestamp"
             )
         return parsed[0]
-    if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v):
-        raise err(path, f"value {v!r} is not a time", row=i + 1, column="timestamp")
-    if abs(v) > 2.0**43:  # ms beyond year 2248
-        raise err(
-            path, f"value {v!r} is not milliseconds since 1970", row=i + 1, column="timestamp"
-        )
-    return int(round(v * 1_000_000))
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise bad(f"value {_show(v)} (a JSON {_json_kind(v)}) is not a time")
+    if isinstance(v, float) and not math.isfinite(v):
+        raise bad(f"value {v!r} is not a time")
+    if abs(v) > _UNIX_MS_MAX:  # compared as Python numbers: 10**30 stays exact
+        raise bad(f"value {_show(v)} is {_UNIX_RANGE}")
+    unit = _NS if abs(v) <= _UNIX_SECONDS_MAX else 1_000_000
+    return round(Fraction(v) * unit)  # exact: a float's binary value, to the nearest ns
+
+
+_UNIX_RANGE = (
+    "outside the Unix times read: seconds up to ±2^33 (the year 2242) or milliseconds up "
+    "to ±2^43 (the year 2248) since 1970"
+)
 
 
 def read_reports(path, format: str = "auto") -> Reports:  # noqa: A002 - the documented name
@@ -863,9 +1079,8 @@ def _csv_header(path: Path) -> list[str]:
         raise DetectionFileError(path, f"cannot open file: {exc.strerror or exc}") from None
     try:
         with fh:
-            for rec in csv.reader(fh):
-                if rec and any(f.strip() for f in rec):
-                    return [f.strip() for f in rec]
+            for rec in CsvRecords(fh):  # blank lines before the header skipped in bulk
+                return [f.strip() for f in rec]
     except (UnicodeDecodeError, csv.Error, OSError, EOFError) as exc:
         raise DetectionFileError(path, f"cannot read file: {exc}") from None
     return []

@@ -17,6 +17,10 @@ optionally ``Z`` or a UTC offset ``±HH:MM`` / ``±HHMM`` / ``±HH``.
 * Without, they are naive wall-clock times: differences are taken as written
   (no time zone, no daylight-saving changes) and the origin has no suffix.
 * A column mixing the two (or mixing numbers and timestamps) is an error.
+
+Instants are held as int64 nanoseconds since 1970-01-01, so timestamps must lie
+within :data:`TIME_RANGE` (1677-09-21T00:12:43.145224192 to
+2262-04-11T23:47:16.854775807); others are refused, not wrapped around.
 """
 
 from __future__ import annotations
@@ -24,7 +28,9 @@ from __future__ import annotations
 import re
 from datetime import datetime
 
-__all__ = ["EXPECTED_TIMES", "format_timestamp", "parse_timestamp"]
+import numpy as np
+
+__all__ = ["EXPECTED_TIMES", "TIME_RANGE", "format_timestamp", "parse_timestamp"]
 
 #: the formats a ``time`` cell may have (for error messages)
 EXPECTED_TIMES = (
@@ -39,6 +45,8 @@ _ISO = re.compile(
 )
 _EPOCH = datetime(1970, 1, 1)
 _NS = 1_000_000_000
+#: the nanoseconds since 1970-01-01 an instant may have: int64's range
+NS_RANGE = (-(2**63), 2**63 - 1)
 
 
 def parse_timestamp(s: str) -> tuple[int, bool] | None:
@@ -67,7 +75,44 @@ def parse_timestamp(s: str) -> tuple[int, bool] | None:
         if int(oh) > 23 or int(om or 0) > 59:
             raise ValueError(f"{s.strip()!r} has an invalid UTC offset")
         ns -= (1 if sign == "+" else -1) * off * 60 * _NS
+    if not NS_RANGE[0] <= ns <= NS_RANGE[1]:
+        raise ValueError(f"{s.strip()!r} is {outside_time_range()}")
     return ns, aware
+
+
+def units_to_ns(values: np.ndarray, unit_ns: int) -> tuple[np.ndarray, int | None]:
+    """int64 counts of a time unit (``unit_ns`` nanoseconds: a Parquet timestamp's
+    s, ms, us) as int64 nanoseconds, and the index of the first count whose instant
+    is outside :data:`TIME_RANGE` (None if none): multiplied as they are, those would
+    wrap around silently."""
+    v = np.asarray(values, dtype=np.int64)
+    lo, hi = -(NS_RANGE[1] // unit_ns), NS_RANGE[1] // unit_ns
+    bad = np.flatnonzero((v < lo) | (v > hi))
+    if bad.size:
+        return np.zeros(0, np.int64), int(bad[0])
+    return v * unit_ns, None
+
+
+def span_problem(ns) -> str | None:
+    """Why int64 nanoseconds ``ns`` cannot be taken relative to one another (their
+    span does not fit 64 bits: more than ~292 years), or None."""
+    if not len(ns):
+        return None
+    span = int(np.max(ns)) - int(np.min(ns))  # in Python integers: no wrap-around
+    if span > NS_RANGE[1]:
+        return (
+            f"the times span {span / _NS / 86400 / 365.25:,.0f} years, more than the ~292 "
+            "years that nanosecond differences hold in 64 bits"
+        )
+    return None
+
+
+def outside_time_range() -> str:
+    """The end of a message on an instant beyond :data:`TIME_RANGE`."""
+    return (
+        f"outside the times that can be held, {TIME_RANGE[0]} to {TIME_RANGE[1]} "
+        "(nanoseconds since 1970 in 64 bits)"
+    )
 
 
 def format_timestamp(ns: int, aware: bool) -> str:
@@ -101,3 +146,7 @@ def parse_origin(origin) -> tuple[str | None, int | None, bool]:
         )
     ns, aware = parsed
     return format_timestamp(ns, aware), ns, aware
+
+
+#: the first and last instants that can be held (ISO-8601, UTC or wall clock)
+TIME_RANGE = tuple(format_timestamp(v, False) for v in NS_RANGE)

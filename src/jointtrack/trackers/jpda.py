@@ -312,6 +312,10 @@ class JPDATracker(ScanTracker):
             if not all(isinstance(v, str) for v in arr):
                 bad = next(v for v in arr if not isinstance(v, str))
                 raise TypeError(f"labels must be strings ('' for none), got {bad!r}")
+            from jointtrack.io._files import NUL_REASON, nul_index
+
+            if (i := nul_index(arr.tolist())) is not None:  # numpy would merge "A", "A\0"
+                raise ValueError(f"labels[{i}] = {arr[i]!r} {NUL_REASON}")
             labels = np.asarray(arr.tolist() if M else [], dtype=str).reshape(M)
             if kept is not None:
                 labels = labels[kept]
