@@ -5,7 +5,6 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-import time
 
 import numpy as np
 import pytest
@@ -184,16 +183,13 @@ def test_lbp_layout_random_clusters(seed):
     assert np.abs(beta - brute_marginals(L, miss)).max() < 0.25
 
 
-def test_lbp_speed_20x40():
+def test_lbp_dense_20x40_converges():
+    # speed against Stone Soup's JPDAwithLBP lives in benchmarks/ (no timed unit tests);
+    # here: the canonical 20 x 40 cluster converges and its rows are distributions
     L, miss = dense(0, 20, 40)
-    lbp_marginals(L, miss)  # compile / warm caches
-    best = np.inf
-    for _ in range(5):
-        t = time.perf_counter()
-        _, info = lbp_marginals(L, miss)
-        best = min(best, time.perf_counter() - t)
+    beta, info = lbp_marginals(L, miss)
     assert info.converged
-    assert best < 0.052 / 5  # Stone Soup JPDAwithLBP: 0.052 s on this machine
+    check_layout(beta, L)
 
 
 def test_lbp_certain_tracks_and_edge_cases():
