@@ -57,9 +57,10 @@ Approximations, each with its knob in :class:`~jointtrack.trackers.pmbm_config.P
 * **Gaussian sums collapsed**: PMB merges each Bernoulli's mixture (the
   defining PMB approximation); a new Bernoulli's Poisson posterior is one
   Gaussian by moment matching (both filters).
-* **pruning**: Bernoullis with r < ``r_prune`` (1e-5), Poisson components
+* **pruning**: Bernoullis with r < ``r_prune`` (1e-5) or r = 0, Poisson components
   with weight < ``poisson_prune`` (1e-5), global hypotheses with normalised
-  weight < ``hypothesis_prune`` (1e-4) and beyond ``max_hypotheses`` (200);
+  weight < ``hypothesis_prune`` (1e-4; the most probable are always kept) and
+  beyond ``max_hypotheses`` (200);
   Poisson components within ``poisson_merge`` (squared Mahalanobis distance 4)
   merged.
 * **recycling** (``r_recycle``, 0.1): Bernoullis (PMBM: tracks in every
@@ -322,6 +323,12 @@ class PMBTracker(_PoissonTracker):
                 self.x, self.P = predict(self.x, self.P, F, Q)
             self.existence = c.p_survive * self.existence
             self._predict_poisson(F, Q)
+            # existence that underflowed to 0 is no Bernoulli (its L = r P_D g / ρ would be
+            # 0, a P_D of 0 to the association)
+            live = self.existence > 0
+            if not live.all():
+                self.x, self.P, self.existence = self.x[live], self.P[live], self.existence[live]
+                self.ids, self.reported = self.ids[live], self.reported[live]
         rho, e, x_new, P_new = self._poisson_detection(z)
         M, N = len(z), len(self.ids)
         taken = np.zeros(M)  # P(return j came from a prior Bernoulli)
@@ -492,6 +499,7 @@ class PMBMTracker(_PoissonTracker):
                 self.sth_x, self.sth_P = predict(self.sth_x, self.sth_P, F, Q)
             self.sth_r = c.p_survive * self.sth_r
             self._predict_poisson(F, Q)
+            self._drop_void_hypotheses()
         rho, e, x_new, P_new = self._poisson_detection(z)
         M, S, T = len(z), len(self.sth_r), len(self.track_ids)
         p_d = self._p_d
@@ -588,6 +596,24 @@ class PMBMTracker(_PoissonTracker):
             n_unassociated=int((~gated).sum()),
             n_coincident=n_coincident,
         )
+
+    def _drop_void_hypotheses(self) -> None:
+        """Single-target hypotheses whose existence underflowed to 0 are no Bernoulli.
+
+        Survival over a long gap (P_S^Δt) or many missed scans with ``r_prune = 0``
+        can take r to 0; such an STH is removed from every global hypothesis (and from
+        the state) before the update, whose likelihood ratios r P_D g / ρ would
+        otherwise hand the association a P_D of 0.
+        """
+        live = self.sth_r > 0
+        if live.all():
+            return
+        renumber = np.cumsum(live) - 1
+        self.hyp = np.where(
+            self.hyp >= 0, np.where(live, renumber, -1)[np.maximum(self.hyp, 0)], -1
+        )
+        self.sth_r, self.sth_x, self.sth_P = self.sth_r[live], self.sth_x[live], self.sth_P[live]
+        self.sth_track = self.sth_track[live]
 
     def _recycle(self, hyp, logw, child_r, child_x, child_P):
         """Never-reported tracks with existence below ``r_recycle`` everywhere go to the intensity.
