@@ -31,6 +31,56 @@ from test_pmbm_pmb_exact import _enumerate as pmb_enumerate
 from test_pmbm_pmb_exact import _log_uniform, pmb_scene
 from test_pmbm_pmb_exact import _tracker as pmb_tracker
 
+# ------------------------------------------------------------------ 3: pruning to nothing
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_hypothesis_prune_never_prunes_every_hypothesis(seed):
+    """The issue's reproduction: two returns 3 m apart, hypothesis_prune = 0.1."""
+    trk = PMBMTracker(PMBMConfig(hypothesis_prune=0.1))
+    rng = np.random.default_rng(seed)
+    for t in range(12):
+        trk.step(float(t), np.array([[0.0, 0.0], [3.0, 0.0]]) + rng.normal(0, 1, (2, 2)))
+        w = trk.hypothesis_weights()
+        assert trk.n_hypotheses >= 1 and trk.hyp_logw.max() == 0.0
+        # kept: the best, and the others above the threshold (after merging duplicates
+        # and recycling, weights only grow relative to the pruned set)
+        assert w.max() == w[0]
+
+
+def _equal_state(T, H, **config):
+    """T tracks with two equal-existence STHs each, far from the returns; H hypotheses,
+    each a different choice of STHs: after a scan every hypothesis weighs the same."""
+    trk = PMBMTracker(
+        PMBMConfig(clutter_density=1e-4, birth_density=1e-6, measurement_noise=1.0, **config)
+    )
+    trk.sth_r = np.full(2 * T, 0.9)
+    trk.sth_x = np.array([[100.0 * i + 5.0 * b, 0.0, 1.0, 0.0] for i in range(T) for b in (0, 1)])
+    trk.sth_P = np.tile(np.diag([4.0, 4.0, 1.0, 1.0]), (2 * T, 1, 1))
+    trk.sth_track = np.repeat(np.arange(T), 2)
+    trk.track_ids = np.arange(1, T + 1)
+    trk.track_reported = np.zeros(T, bool)
+    trk.next_id = T + 1
+    bits = (np.arange(H)[:, None] >> np.arange(T)[None, :]) & 1
+    trk.hyp = (2 * np.arange(T)[None, :] + bits).astype(np.int64)
+    trk.hyp_logw = np.zeros(H)
+    trk.time = 0.0
+    return trk
+
+
+@pytest.mark.parametrize("T, H, prune", [(9, 300, 0.01), (18, 200_000, 1e-4)])
+def test_many_equal_hypotheses_keep_the_best(T, H, prune):
+    """Every new hypothesis weighs 1/H < hypothesis_prune: the best — all of them, tied —
+    are kept up to max_hypotheses (it was: none, and a ValueError)."""
+    trk = _equal_state(T, H, hypothesis_prune=prune)
+    assert 1.0 / H < trk.config.hypothesis_prune
+    res = trk.step(1.0, np.array([[1e5, 1e5]]))
+    assert trk.n_hypotheses == min(H, trk.config.max_hypotheses)
+    np.testing.assert_array_equal(trk.hyp_logw, 0.0)
+    assert len(res.ids) == T  # every track in the (any) best hypothesis, r ≥ r_estimate
+    trk.step(2.0, np.array([[1e5, 1e5]]))  # and the next scan works too
+
+
 # ------------------------------------------------------- 4: detected mass and r = 0
 
 

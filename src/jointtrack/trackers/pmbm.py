@@ -529,11 +529,13 @@ class PMBMTracker(_PoissonTracker):
         new_rows, new_logw = self._hypotheses_after(
             z, rows, cols, L, log_L, miss, start, S, T, n_pairs
         )
-        # prune and cap the global hypotheses (by normalised weight)
+        # prune and cap the global hypotheses (by normalised weight, in log space); the
+        # most probable are kept whatever their weight: with many near-equal hypotheses
+        # every normalised weight may be below hypothesis_prune
         new_logw = new_logw - new_logw.max()
         w = np.exp(new_logw)
         w /= w.sum()
-        keep = np.flatnonzero(w >= c.hypothesis_prune)
+        keep = np.flatnonzero((w >= c.hypothesis_prune) | (new_logw == 0.0))
         keep = keep[np.argsort(-w[keep], kind="stable")][: c.max_hypotheses]
         hyp, logw = new_rows[keep], new_logw[keep]
         # Bernoullis too unlikely to exist are dropped from every hypothesis (r = 0 always:

@@ -101,7 +101,8 @@ class PMBMConfig(ModelSettings):
     max_hypotheses : PMBM cap on global hypotheses (the k of Murty's algorithm
         is ⌈max_hypotheses · w_h⌉ for a prior hypothesis of weight w_h).
     hypothesis_prune : PMBM global hypotheses with a normalised weight below
-        this are dropped.
+        this are dropped (the most probable ones are always kept: a scan never
+        ends with no hypothesis).
 
     Every field is checked on construction; a bad value raises ValueError
     naming the field.
