@@ -18,15 +18,20 @@
 
 from __future__ import annotations
 
+import copy
+import functools
 import math
 from fractions import Fraction
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
+from jointtrack.scenarios import crossing
+from jointtrack.trackers import StateFileError
 from jointtrack.trackers.pmbm import PMBMConfig, PMBMTracker, PMBTracker
+from jointtrack.trackers.state_io import read_state, write_state
 from test_pmbm_pmb_exact import _enumerate as pmb_enumerate
 from test_pmbm_pmb_exact import _log_uniform, pmb_scene
 from test_pmbm_pmb_exact import _tracker as pmb_tracker
@@ -157,3 +162,153 @@ def test_weak_bernoulli_existence_equals_the_rational_enumeration(sc):
         ri = Fraction(sc["r"][i])
         r_post = beta0[i] * ri * (1 - pd) / (1 - ri * pd) + sum(beta[i])
         assert math.isclose(trk.existence[i], float(r_post), rel_tol=1e-9), (i, r_post)
+
+
+# ------------------------------------------------------------------ 10: damaged states
+
+
+def _config():
+    sc = crossing(seed=3)
+    return sc, PMBMConfig(process_noise=0.05, measurement_noise=float(sc.R[0, 0]), p_d=sc.p_d,
+                          clutter_density=sc.clutter_density, max_speed=15.0,
+                          birth_density=1e-6)  # fmt: skip
+
+
+@functools.cache
+def _warm_cached(kind, n_scans=30):
+    sc, cfg = _config()
+    trk = kind(cfg)
+    for k in range(n_scans):
+        trk.step(sc.times[k], sc.detections[k])
+    return trk
+
+
+@functools.cache
+def _good_file(kind, directory):
+    return str(_warm_cached(kind).save(f"{directory}/{kind.KIND}-good.npz"))
+
+
+def _rewrite(src, dst, mutate):
+    arrays, config, scalars, rng = read_state(src)
+    arrays = {k: v.copy() for k, v in arrays.items()}
+    mutate(arrays, scalars)
+    return write_state(dst, arrays, config, scalars, rng)
+
+
+def _strip_track(arrays, track):
+    """Remove every STH of ``track`` (consistently renumbered): a track with none."""
+    keep = arrays["sth_track"] != track
+    renumber = np.cumsum(keep) - 1
+    for name in ("sth_r", "sth_x", "sth_P", "sth_track"):
+        arrays[name] = arrays[name][keep]
+    hyp = arrays["hyp"]
+    hyp[:, track] = -1
+    arrays["hyp"] = np.where(hyp >= 0, renumber[np.maximum(hyp, 0)], -1)
+
+
+def test_a_track_without_single_target_hypotheses_is_refused(tmp_path):
+    good = _warm_cached(PMBMTracker).save(tmp_path / "good.npz")
+    bad = _rewrite(good, tmp_path / "bad.npz", lambda a, s: _strip_track(a, 0))
+    with pytest.raises(StateFileError, match=r"bad.npz.*track 0 .*no single-target hypothesis"):
+        PMBMTracker.load(bad)
+
+    def nothing_left(a, s):  # tracks, and not one STH (it was: IndexError)
+        for name in ("sth_r", "sth_x", "sth_P", "sth_track"):
+            a[name] = a[name][:0]
+        a["hyp"] = np.full_like(a["hyp"], -1)
+
+    bad = _rewrite(good, tmp_path / "none.npz", nothing_left)
+    with pytest.raises(StateFileError, match="no single-target hypothesis"):
+        PMBMTracker.load(bad)
+
+
+@pytest.mark.parametrize("kind, field", [(PMBTracker, "existence"), (PMBMTracker, "sth_r")])
+@pytest.mark.parametrize("value", [0.0, -0.0, -5e-324, 1.0 + 2**-52])
+def test_existence_outside_zero_one_is_refused(tmp_path, kind, field, value):
+    good = _warm_cached(kind).save(tmp_path / "good.npz")
+
+    def mutate(a, s):
+        a[field][-1] = value
+
+    bad = _rewrite(good, tmp_path / "bad.npz", mutate)
+    with pytest.raises(StateFileError, match=rf"'{field}' has values outside \(0, 1\]"):
+        kind.load(bad)
+
+
+FLOATS = [0.0, -0.0, 5e-324, 1e-300, 1e-12, 0.5, 1.0, 1.0 + 2**-52, 2.0, 1e300, -1.0,
+          -1e300, np.nan, np.inf]  # fmt: skip
+
+
+@st.composite
+def damage(draw, fields):
+    """A list of edits of a state's arrays: set an entry, cut rows, strip a track."""
+    ops = []
+    for _ in range(draw(st.integers(1, 3))):
+        kind = draw(st.sampled_from(["set", "set", "cut", "strip"]))
+        field = draw(st.sampled_from(fields))
+        where = draw(st.floats(0, 1))
+        if kind == "set":
+            ops.append((kind, field, where, draw(st.sampled_from(FLOATS)),
+                        draw(st.integers(-3, 3))))  # fmt: skip
+        elif kind == "cut":
+            ops.append((kind, field, where, draw(st.integers(1, 3)), 0))
+        else:
+            ops.append((kind, field, where, 0, 0))
+    return ops
+
+
+def _apply(ops, arrays):
+    # strips first: they renumber a consistent state
+    for kind, field, where, value, shift in sorted(ops, key=lambda op: op[0] != "strip"):
+        a = arrays[field]
+        if kind == "strip":
+            if "sth_track" in arrays and len(arrays["track_ids"]):
+                _strip_track(arrays, int(where * (len(arrays["track_ids"]) - 1)))
+            continue
+        if a.size == 0:
+            continue
+        flat = a.reshape(-1) if kind == "set" else a
+        i = min(int(where * len(flat)), len(flat) - 1)
+        if kind == "cut":
+            arrays[field] = np.delete(a, range(i, min(i + value, len(a))), axis=0)
+        elif a.dtype.kind == "f":
+            flat[i] = value
+        elif a.dtype.kind == "b":
+            flat[i] = not flat[i]
+        else:  # an index or id near a boundary: −2 … length + 3
+            flat[i] = int(np.clip(flat[i] + shift, -2, 10**6)) if shift else len(flat) + 1
+
+
+def _steps_cleanly(trk):
+    """Three scans of the crossing after the state's own: no exception, sane output."""
+    sc, _ = _config()
+    for k in range(30, 33):
+        res = trk.step(sc.times[k], sc.detections[k])
+        assert np.isfinite(res.x).all() and np.isfinite(res.P).all()
+        assert ((res.existence > 0) & (res.existence <= 1)).all()
+
+
+PMB_FIELDS = ["x", "P", "ids", "existence", "reported", "poisson_w", "poisson_m", "poisson_P",
+              "undetected_density"]  # fmt: skip
+PMBM_FIELDS = ["sth_r", "sth_x", "sth_P", "sth_track", "track_ids", "track_reported", "hyp",
+               "hyp_logw", "poisson_w", "undetected_density"]  # fmt: skip
+
+
+@pytest.mark.parametrize("kind, fields", [(PMBTracker, PMB_FIELDS), (PMBMTracker, PMBM_FIELDS)])
+@settings(max_examples=60, deadline=None)
+@given(data=st.data())
+def test_damaged_checksummed_states_are_refused_or_step(tmp_path_factory, kind, fields, data):
+    """Edited values, cut rows, stripped tracks — saved with a valid checksum: load
+    refuses with StateFileError naming the file, or the tracker steps normally."""
+    ops = data.draw(damage(fields))
+    d = tmp_path_factory.mktemp("s")
+    good = _good_file(kind, str(d))
+    bad = _rewrite(good, d / "bad.npz", lambda a, s: _apply(ops, a))
+    try:
+        trk = kind.load(bad)
+    except StateFileError as exc:
+        assert "bad.npz" in str(exc)
+        event("refused")
+        return
+    event("loaded")
+    _steps_cleanly(copy.deepcopy(trk))

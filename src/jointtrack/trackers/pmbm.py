@@ -399,10 +399,19 @@ class PMBTracker(_PoissonTracker):
             "undetected_density": ("f", (1,)),
         }
         self._validate_common(path, arrays, spec, {})
-        r = arrays["existence"]
-        if ((r < 0) | (r > 1)).any():
-            raise StateFileError(f"{path}: field 'existence' has values outside [0, 1]")
+        _check_existence(path, "existence", arrays["existence"])
         validate_counters(path, arrays["ids"], scalars)
+
+
+def _check_existence(path, name, r) -> None:
+    """Existence probabilities of Bernoullis a state holds lie in (0, 1].
+
+    A Bernoulli of existence 0 is no Bernoulli: the trackers never keep one (its
+    likelihood ratio r P_D g / ρ would give the association a P_D of 0).
+    """
+    if ((r <= 0) | (r > 1)).any():
+        v = float(r[np.argmax((r <= 0) | (r > 1))])
+        raise StateFileError(f"{path}: field {name!r} has values outside (0, 1] ({v!r})")
 
 
 def _ranked_options(log_w, k):
@@ -834,12 +843,17 @@ class PMBMTracker(_PoissonTracker):
             return StateFileError(f"{path}: {what}")
 
         r = arrays["sth_r"]
-        if ((r < 0) | (r > 1)).any():
-            raise bad("field 'sth_r' has values outside [0, 1]")
+        _check_existence(path, "sth_r", r)
         S, T = len(r), len(arrays["track_ids"])
         tr = arrays["sth_track"]
         if ((tr < 0) | (tr >= T)).any():
             raise bad("field 'sth_track' names a track that does not exist")
+        bare = np.bincount(tr, minlength=T) == 0
+        if bare.any():  # a track is its single-target hypotheses: none is no track
+            raise bad(
+                f"field 'sth_track': track {int(np.argmax(bare))} (id "
+                f"{int(arrays['track_ids'][np.argmax(bare)])}) has no single-target hypothesis"
+            )
         hyp = arrays["hyp"]
         if len(hyp) == 0:
             raise bad("field 'hyp' holds no global hypothesis")
