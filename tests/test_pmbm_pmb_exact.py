@@ -192,8 +192,11 @@ def test_pair_marginals_equal_the_rational_enumeration(sc):
     Lmat = np.zeros((n, m))
     Lmat[g.rows, g.cols] = L
     _, P_b, P0_b = brute_assignment(Lmat, null=miss)
-    np.testing.assert_allclose(got, [[float(v) for v in row] for row in P_b], rtol=1e-9)
-    np.testing.assert_allclose(beta0, [float(v) for v in P0_b], rtol=1e-9)
+    # atol: a subnormal β (below 2.2e-308) holds fewer than 53 bits, one ulp (5e-324)
+    # of 1.5e-315 is 3e-9 relative
+    want = [[float(v) for v in row] for row in P_b]
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-300)
+    np.testing.assert_allclose(beta0, [float(v) for v in P0_b], rtol=1e-9, atol=1e-300)
 
 
 @settings(max_examples=60, deadline=None)

@@ -275,8 +275,9 @@ POISSON_CASES = [
 PMB_CASES = [
     (_drop("x"), "missing field 'x'"),
     (_drop("existence"), "missing field 'existence'"),
-    (_set("existence", 0, 1.5), r"'existence' has values outside \[0, 1\]"),
-    (_set("existence", 0, -0.1), r"'existence' has values outside \[0, 1\]"),
+    (_set("existence", 0, 1.5), r"'existence' has values outside \(0, 1\]"),
+    (_set("existence", 0, -0.1), r"'existence' has values outside \(0, 1\]"),
+    (_set("existence", 0, 0.0), r"'existence' has values outside \(0, 1\]"),
     (_set("x", (0, 0), np.nan), "non-finite"),
     (_non_spd("P"), "'P' holds a covariance"),
     (_asym("P"), "'P' holds a covariance"),
@@ -288,7 +289,8 @@ PMB_CASES = [
 PMBM_CASES = [
     (_drop("hyp"), "missing field 'hyp'"),
     (_drop("sth_P"), "missing field 'sth_P'"),
-    (_set("sth_r", 0, 1.5), r"'sth_r' has values outside \[0, 1\]"),
+    (_set("sth_r", 0, 1.5), r"'sth_r' has values outside \(0, 1\]"),
+    (_set("sth_r", 0, 0.0), r"'sth_r' has values outside \(0, 1\]"),
     (_set("hyp", (0, 0), 10**6), "'hyp' names a single-target hypothesis that does not exist"),
     (_set("hyp", (0, 0), -2), "'hyp' names a single-target hypothesis that does not exist"),
     (_set("sth_track", 0, 10**6), "'sth_track' names a track that does not exist"),

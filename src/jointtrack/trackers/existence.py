@@ -85,7 +85,9 @@ def existence_update(r, beta0, weights, rows, pdg):
     # P(exists, no return) = β₀ · r(1 − P_D P_G) / (1 − r P_D P_G): the share of
     # "no return" in which the target exists but was missed
     exists_missed = beta0 * r * (1.0 - pdg) / (1.0 - r * pdg)
-    detected = 1.0 - beta0
+    # Σ of the detection weights, not 1 − β₀: for a weak track β₀ ≈ 1 and 1 − β₀ keeps
+    # only its last few bits (β₀ + Σ w / total then missed 1 by 3e-6)
+    detected = np.bincount(rows, weights, minlength=len(r))
     total = exists_missed + detected
     r_post = np.clip(total, 1e-12, 1.0)
     # r = 0 (survival per second over a long gap underflows) and no return taken:

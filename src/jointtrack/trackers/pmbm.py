@@ -57,9 +57,10 @@ Approximations, each with its knob in :class:`~jointtrack.trackers.pmbm_config.P
 * **Gaussian sums collapsed**: PMB merges each Bernoulli's mixture (the
   defining PMB approximation); a new Bernoulli's Poisson posterior is one
   Gaussian by moment matching (both filters).
-* **pruning**: Bernoullis with r < ``r_prune`` (1e-5), Poisson components
+* **pruning**: Bernoullis with r < ``r_prune`` (1e-5) or r = 0, Poisson components
   with weight < ``poisson_prune`` (1e-5), global hypotheses with normalised
-  weight < ``hypothesis_prune`` (1e-4) and beyond ``max_hypotheses`` (200);
+  weight < ``hypothesis_prune`` (1e-4; the most probable are always kept) and
+  beyond ``max_hypotheses`` (200);
   Poisson components within ``poisson_merge`` (squared Mahalanobis distance 4)
   merged.
 * **recycling** (``r_recycle``, 0.1): Bernoullis (PMBM: tracks in every
@@ -68,6 +69,16 @@ Approximations, each with its knob in :class:`~jointtrack.trackers.pmbm_config.P
   "Hybrid Poisson and multi-Bernoulli filters", *15th International
   Conference on Information Fusion*, 2012): clutter-born Bernoullis then cost
   no association work.
+* **work budgets** (``max_ranking_work``, 2^25): PMBM estimates each
+  cluster's ranking work before doing it; past the budget the cluster gets
+  fewer events per prior hypothesis (method ``"murty-truncated"``: still its
+  best ones, exactly), and when not even two fit it is merged into one
+  Bernoulli per track — its prior projected to one Bernoulli per track across
+  the global hypotheses, then the PMB update (method ``"pmb-<tier>"``). Both
+  filters solve a cluster whose dense approximation could take more than the
+  sparse LBP tier's work by the sparse tiers directly. A 2,000-return clutter
+  burst costs PMBM ~8 s CPU per scan instead of not finishing in 15 minutes
+  (``benchmarks/RESULTS.md``, "Issue 31").
 * **uniform birth** ignores the edges of ``birth_region`` (a measurement
   inside it gets the full density, one outside none).
 
@@ -84,11 +95,18 @@ from __future__ import annotations
 
 import heapq
 import math
+import time
+from typing import NamedTuple
 
 import numpy as np
 from scipy.sparse import coo_array
 from scipy.sparse.csgraph import connected_components
 
+from jointtrack.association.budget import (
+    EXACT_METHODS,
+    MAX_LBP_WORK,
+    fallback_pair_marginals,
+)
 from jointtrack.association.gating import likelihood_ratio_pairs
 from jointtrack.association.kbest import kbest_hypotheses
 from jointtrack.errors import InfeasibleAssignmentError
@@ -100,6 +118,10 @@ from jointtrack.trackers.poisson import moment_match, prune_and_merge
 from jointtrack.trackers.state_io import StateFileError, covariance_problem, validate_counters
 
 __all__ = ["PMBMConfig", "PMBMTracker", "PMBTracker"]
+
+#: Sweeps the dense approximation may take (``lbp_marginals``' default ``max_iter``):
+#: its work bound, against the sparse tier's budget (:meth:`_PoissonTracker._cluster_marginals`).
+_DENSE_SWEEPS = 1000
 
 
 class _PoissonTracker(ScanTracker):
@@ -257,6 +279,69 @@ class _PoissonTracker(ScanTracker):
         L, _ = likelihood_ratio_pairs(g, self._p_d * r, rho)
         return L, 1.0 - self._p_d * r
 
+    def _pmb_update(self, ids, r, x, P, z, rows, cols, L, miss, loud):
+        """PMB update of the Bernoullis ``(r, x, P)`` (ids ``ids``) by the returns ``z``.
+
+        ``rows``/``cols``: the gated pairs (Bernoulli, return), ``L`` their
+        likelihood ratios, ``miss`` the miss weights (:meth:`_pair_weights`).
+        The marginal association probabilities come from the one assignment-sum
+        core cluster by cluster under the package's budget
+        (:meth:`~jointtrack.trackers.base.ScanTracker._pair_marginals`); each
+        Bernoulli's mixture over its hypotheses is then merged to one Bernoulli
+        (Williams 2015 eq. (58)–(60)). Returns ``(r, x, P, taken, info)``:
+        the posterior Bernoullis, each return's probability of having come
+        from one of them, and the clusters' ``(sizes, seconds, methods,
+        fallbacks)``.
+        """
+        # loud=False for PMB: fallbacks are logged at debug level and reported in the result
+        pairs = _GatedPairs(len(r), len(z), rows, cols)
+        beta0, w, _, info = self._pair_marginals(ids, pairs, L, miss, loud)
+        taken = np.bincount(cols, w, minlength=len(z))
+        r_post, b0, wc = existence_update(r, beta0, w, rows, self._p_d)
+        x_post, P_post = pda_pairs_update(x, P, z, b0, rows, cols, wc, **self._measurement_model())
+        return r_post, x_post, P_post, taken, info
+
+    def _cluster_marginals(self, Lc, mc, loud):
+        """β of one multi-track cluster: the shared budget, with the dense approximation's
+        work bounded too.
+
+        Past the exact budget a cluster goes to the configured approximation on its
+        dense N × M matrix, which may take up to 1,000 sweeps of its gated entries
+        (the dense LBP's ``max_iter``): 177 s for the 2,000 × 2,000 clutter burst of
+        ``benchmarks/pmbm_burst.py``. A cluster whose sweeps could exceed
+        :meth:`_lbp_work` message updates goes straight to the sparse tiers on its
+        gated pairs (:func:`~jointtrack.association.budget.fallback_pair_marginals`:
+        sparse LBP within that work, then PDA), reason ``"dense_budget: …"``.
+        """
+        c = self.config
+        n, m = Lc.shape
+        method = c.association
+        if method in EXACT_METHODS and n > c.exact_max_tracks:
+            method = c.approximation
+        gated = int(np.count_nonzero(Lc))
+        work = self._lbp_work()
+        if method in EXACT_METHODS or method == "pda" or gated * _DENSE_SWEEPS <= work:
+            return super()._cluster_marginals(Lc, mc, loud)
+        t0 = time.perf_counter()
+        reason = (
+            f"dense_budget: {n} tracks × {m} measurements, {gated} gated pairs: {_DENSE_SWEEPS} "
+            f"sweeps of the dense {method} could take more than {work} message updates"
+        )
+        rows, cols = (a.astype(np.int64) for a in np.nonzero(Lc))
+        res = fallback_pair_marginals(
+            rows, cols, Lc[rows, cols], mc, m, reason=reason, max_work=work
+        )
+        beta = np.zeros((n, m + 1))
+        beta[:, 0] = res.beta0
+        beta[rows, cols + 1] = res.pair_beta
+        self._log_fallback(n, m, loud, res.reason, res.method)
+        return beta, res.method, res.reason, time.perf_counter() - t0
+
+    def _lbp_work(self) -> int:
+        """Message updates the sparse LBP tier may spend on one cluster
+        (:data:`~jointtrack.association.budget.MAX_LBP_WORK`)."""
+        return MAX_LBP_WORK
+
     # --------------------------------------------------------------- checks
     def _validate_common(self, path, arrays, spec, lengths):
         """Dtype/shape/finiteness of ``spec`` {name: (kind, shape with names)}."""
@@ -322,6 +407,12 @@ class PMBTracker(_PoissonTracker):
                 self.x, self.P = predict(self.x, self.P, F, Q)
             self.existence = c.p_survive * self.existence
             self._predict_poisson(F, Q)
+            # existence that underflowed to 0 is no Bernoulli (its L = r P_D g / ρ would be
+            # 0, a P_D of 0 to the association)
+            live = self.existence > 0
+            if not live.all():
+                self.x, self.P, self.existence = self.x[live], self.P[live], self.existence[live]
+                self.ids, self.reported = self.ids[live], self.reported[live]
         rho, e, x_new, P_new = self._poisson_detection(z)
         M, N = len(z), len(self.ids)
         taken = np.zeros(M)  # P(return j came from a prior Bernoulli)
@@ -330,13 +421,8 @@ class PMBTracker(_PoissonTracker):
         if N and M:
             g = self._gate(self.x, self.P, z)
             L, miss = self._pair_weights(self.existence, g, rho)
-            # loud=False: fallbacks are logged at debug level and reported in the result
-            beta0, w, _, info = self._pair_marginals(self.ids, g, L, miss, False)
-            taken = np.bincount(g.cols, w, minlength=M)
-            # Williams 2015 eq. (58)–(60): each Bernoulli's mixture, merged
-            self.existence, b0, wc = existence_update(self.existence, beta0, w, g.rows, self._p_d)
-            self.x, self.P = pda_pairs_update(
-                self.x, self.P, z, b0, g.rows, g.cols, wc, **self._measurement_model()
+            self.existence, self.x, self.P, taken, info = self._pmb_update(
+                self.ids, self.existence, self.x, self.P, z, g.rows, g.cols, L, miss, False
             )
             gated[g.cols] = True
         elif N:  # nothing measured: every Bernoulli missed
@@ -392,16 +478,19 @@ class PMBTracker(_PoissonTracker):
             "undetected_density": ("f", (1,)),
         }
         self._validate_common(path, arrays, spec, {})
-        r = arrays["existence"]
-        if ((r < 0) | (r > 1)).any():
-            raise StateFileError(f"{path}: field 'existence' has values outside [0, 1]")
+        _check_existence(path, "existence", arrays["existence"])
         validate_counters(path, arrays["ids"], scalars)
 
 
-def _ranked_options(log_w, k):
-    """Indices of the ``k`` largest ``log_w`` (best first) and their values."""
-    order = np.argsort(-log_w, kind="stable")[:k]
-    return order, log_w[order]
+def _check_existence(path, name, r) -> None:
+    """Existence probabilities of Bernoullis a state holds lie in (0, 1].
+
+    A Bernoulli of existence 0 is no Bernoulli: the trackers never keep one (its
+    likelihood ratio r P_D g / ρ would give the association a P_D of 0).
+    """
+    if ((r <= 0) | (r > 1)).any():
+        v = float(r[np.argmax((r <= 0) | (r > 1))])
+        raise StateFileError(f"{path}: field {name!r} has values outside (0, 1] ({v!r})")
 
 
 def _combine_ranked(a_w, a_idx, b_w, b_idx, k):
@@ -428,6 +517,89 @@ def _combine_ranked(a_w, a_idx, b_w, b_idx, k):
                     heapq.heappush(heap, (-(a_w[i1] + b_w[j1]), i1, j1))
         i, j = (np.array(v, np.int64) for v in zip(*out, strict=True))
     return a_w[i] + b_w[j], np.concatenate([a_idx[i], b_idx[j]], axis=1)
+
+
+class _GatedPairs(NamedTuple):
+    """Gated (Bernoulli, return) pairs in the form :func:`~jointtrack.association.clusters`
+    and :meth:`~jointtrack.trackers.base.ScanTracker._pair_marginals` read."""
+
+    n_tracks: int
+    n_measurements: int
+    rows: np.ndarray
+    cols: np.ndarray
+
+
+#: Work (in cost-matrix cells, ~15 ns each) of setting up one tuple's ranking: 0.2–0.4 ms
+#: of Python per tuple, measured on a cluster of 200,000 tuples (``_ranking_cap``).
+_TUPLE_WORK = 2**14
+
+#: Association tiers from the most exact to the cheapest (the merge tier names the last it used).
+_TIER_ORDER = ("exact", "enumerate", "kbest", "mcmc", "lbp", "lbp-sparse", "pda")
+
+
+class _TuplePairs:
+    """The gated pairs of the single-target hypotheses (STHs) one cluster tuple holds.
+
+    ``tup`` (n,): an STH index per track of the cluster (−1: no Bernoulli);
+    ``start`` the pair index of each STH's first gated pair (pairs sorted by STH).
+    ``here`` the tracks holding an STH, ``sths`` those STHs, ``pairs`` their gated
+    pairs, ``row_local`` each pair's position in ``sths``, ``ms`` the returns they
+    gate.
+    """
+
+    __slots__ = ("here", "sths", "pairs", "row_local", "ms")
+
+    def __init__(self, tup, rows, cols, start):
+        self.here = np.flatnonzero(tup >= 0)
+        self.sths = sths = tup[self.here]
+        lo = start[sths]
+        count = start[sths + 1] - lo
+        self.row_local = np.repeat(np.arange(len(sths)), count)
+        # the gated pairs of these hypotheses: lo[i] .. lo[i] + count[i] − 1 for each i
+        self.pairs = np.arange(len(self.row_local)) + np.repeat(
+            lo - (np.cumsum(count) - count), count
+        )
+        self.ms = np.unique(cols[self.pairs])
+
+
+def _tuple_costs(tuples, start, miss, m):
+    """What ranking each cluster tuple costs: ``(n, pairs, log_events, m)``.
+
+    ``tuples`` (U, n_c) STH indices (−1: none); per tuple the Bernoullis ranked
+    jointly ``n`` (0 when none gates anything), their gated pairs, the log of an
+    upper bound of its number of events (Π_i options_i: gated returns, and the
+    miss when it may miss), and its returns (at most the pairs and the cluster's
+    ``m``), for :meth:`PMBMTracker._ranking_cap`.
+    """
+    present = tuples >= 0
+    s = np.maximum(tuples, 0)
+    count = np.where(present, start[s + 1] - start[s], 0)
+    pairs = count.sum(axis=1)
+    options = np.where(present, count + (miss[s] > 0), 1)
+    with np.errstate(divide="ignore"):
+        log_events = np.log(options).sum(axis=1)
+    n = np.where(pairs > 0, present.sum(axis=1), 0)
+    return n, pairs, log_events, np.minimum(pairs, m)
+
+
+class _MergedChildren:
+    """Children made by merged clusters, numbered from ``first`` on: ``(r, x, P, track)``."""
+
+    def __init__(self, first: int, n: int):
+        self.first, self.n, self.size, self.parts = first, n, 0, []
+
+    def add(self, r, x, P, track) -> np.ndarray:
+        """Append children; returns their indices."""
+        idx = self.first + self.size + np.arange(len(r))
+        self.parts.append((r, x, P, np.asarray(track, np.int64)))
+        self.size += len(r)
+        return idx
+
+    def arrays(self):
+        if not self.parts:
+            n = self.n
+            return np.zeros(0), np.zeros((0, n)), np.zeros((0, n, n)), np.zeros(0, np.int64)
+        return tuple(np.concatenate(a) for a in zip(*self.parts, strict=True))
 
 
 class PMBMTracker(_PoissonTracker):
@@ -473,6 +645,12 @@ class PMBMTracker(_PoissonTracker):
         self.hyp = np.zeros((1, 0), np.int64)  # one global hypothesis with no track
         self.hyp_logw = np.zeros(1)
 
+    def _lbp_work(self) -> int:
+        """A merged cluster's sparse LBP works within ``max_ranking_work`` too (at most
+        :data:`~jointtrack.association.budget.MAX_LBP_WORK`)."""
+        budget = self.config.max_ranking_work
+        return MAX_LBP_WORK if budget is None else min(MAX_LBP_WORK, budget)
+
     @property
     def n_hypotheses(self) -> int:
         """Number of global hypotheses kept."""
@@ -492,42 +670,45 @@ class PMBMTracker(_PoissonTracker):
                 self.sth_x, self.sth_P = predict(self.sth_x, self.sth_P, F, Q)
             self.sth_r = c.p_survive * self.sth_r
             self._predict_poisson(F, Q)
+            self._drop_void_hypotheses()
         rho, e, x_new, P_new = self._poisson_detection(z)
         M, S, T = len(z), len(self.sth_r), len(self.track_ids)
         p_d = self._p_d
         # single-target hypotheses after the update (eq. (20)–(27)): children of STH s
         # are "missed" (index s) and "return j" (index S + pair); new track j is T + j
-        # with hypothesis S + P + j
+        # with hypothesis S + P + j; clusters merged past the ranking budget add
+        # theirs after that (_hypotheses_after)
         if S and M:
             g = self._gate(self.sth_x, self.sth_P, z)
             rows, cols = g.rows, g.cols
             L, miss = self._pair_weights(self.sth_r, g, rho)
-            x_det, P_det = self._pair_update(self.sth_x[rows], self.sth_P[rows], z[cols])
         else:
             rows = cols = np.zeros(0, np.int64)
             L, miss = np.zeros(0), 1.0 - p_d * self.sth_r
-            x_det, P_det = np.zeros((0, self.state_dim)), np.zeros((0,) + self.sth_P.shape[1:])
         n_pairs = len(rows)
         with np.errstate(divide="ignore"):
             log_L = np.log(L)
-        r_miss = self.sth_r * (1.0 - p_d) / (1.0 - p_d * self.sth_r)
-        r_new = e / rho
-        child_r = np.concatenate([r_miss, np.ones(n_pairs), r_new])
-        child_x = np.concatenate([self.sth_x, x_det, x_new])
-        child_P = np.concatenate([self.sth_P, P_det, P_new])
-        child_track = np.concatenate([self.sth_track, self.sth_track[rows], T + np.arange(M)])
         # pair index of (STH, return): pairs are sorted by STH, then return
         start = np.searchsorted(rows, np.arange(S + 1))
-        new_rows, new_logw = self._hypotheses_after(
-            z, rows, cols, L, log_L, miss, start, S, T, n_pairs
+        new_rows, new_logw, merged, clusters = self._hypotheses_after(
+            z, rows, cols, L, log_L, miss, start, S, T, n_pairs, (rho, e, x_new, P_new)
         )
-        # prune and cap the global hypotheses (by normalised weight)
+        # prune and cap the global hypotheses (by normalised weight, in log space); the
+        # most probable are kept whatever their weight: with many near-equal hypotheses
+        # every normalised weight may be below hypothesis_prune
         new_logw = new_logw - new_logw.max()
         w = np.exp(new_logw)
         w /= w.sum()
-        keep = np.flatnonzero(w >= c.hypothesis_prune)
+        keep = np.flatnonzero((w >= c.hypothesis_prune) | (new_logw == 0.0))
         keep = keep[np.argsort(-w[keep], kind="stable")][: c.max_hypotheses]
         hyp, logw = new_rows[keep], new_logw[keep]
+        # the children the kept hypotheses hold, and only those, are computed (a clutter
+        # burst gates millions of pairs; Kalman updates of them all would not be used)
+        ref = np.unique(hyp[hyp >= 0])
+        hyp = np.where(hyp >= 0, np.searchsorted(ref, np.maximum(hyp, 0)), -1)
+        child_r, child_x, child_P, child_track = self._children(
+            ref, S, T, z, rows, cols, (e / rho, x_new, P_new), merged
+        )
         # Bernoullis too unlikely to exist are dropped from every hypothesis (r = 0 always:
         # with r_prune = 0, a return outside birth_region would start a track that never goes)
         r_child = child_r[np.maximum(hyp, 0)]
@@ -577,6 +758,7 @@ class PMBMTracker(_PoissonTracker):
         self.track_reported[tracks] = True
         gated = np.zeros(M, bool)
         gated[cols] = True
+        sizes, seconds, methods, confirmed, fallbacks = clusters
         return ScanResult(
             time=t,
             ids=self.track_ids[tracks].copy(),
@@ -586,8 +768,68 @@ class PMBMTracker(_PoissonTracker):
             n_tentative=int(len(present) - len(s)),
             n_measurements=M,
             n_unassociated=int((~gated).sum()),
+            cluster_sizes=sizes,
+            cluster_seconds=seconds,
+            cluster_methods=methods,
+            cluster_confirmed=confirmed,
+            cluster_fallbacks=fallbacks,
             n_coincident=n_coincident,
         )
+
+    def _drop_void_hypotheses(self) -> None:
+        """Single-target hypotheses whose existence underflowed to 0 are no Bernoulli.
+
+        Survival over a long gap (P_S^Δt) or many missed scans with ``r_prune = 0``
+        can take r to 0; such an STH is removed from every global hypothesis (and from
+        the state) before the update, whose likelihood ratios r P_D g / ρ would
+        otherwise hand the association a P_D of 0.
+        """
+        live = self.sth_r > 0
+        if live.all():
+            return
+        renumber = np.cumsum(live) - 1
+        self.hyp = np.where(
+            self.hyp >= 0, np.where(live, renumber, -1)[np.maximum(self.hyp, 0)], -1
+        )
+        self.sth_r, self.sth_x, self.sth_P = self.sth_r[live], self.sth_x[live], self.sth_P[live]
+        self.sth_track = self.sth_track[live]
+
+    def _children(self, ref, S, T, z, rows, cols, born, merged):
+        """``(r, x, P, track)`` of the child single-target hypotheses ``ref`` (sorted indices).
+
+        Index space of :meth:`_step`: ``s < S`` the missed child of STH s, ``S + p``
+        the detection child of gated pair p (Kalman update of its STH with its
+        return), ``S + P + j`` the new track of return j (``born``: existence, mean
+        and covariance of each return's new Bernoulli), then the children of merged
+        clusters (``merged``: r, x, P, track).
+        """
+        p_d = self._p_d
+        n = self.state_dim
+        n_pairs, M = len(rows), len(z)
+        first_new, first_merged = S + n_pairs, S + n_pairs + M
+        r_new, x_new, P_new = born
+        m_r, m_x, m_P, m_track = merged
+        r = np.empty(len(ref))
+        x = np.empty((len(ref), n))
+        P = np.empty((len(ref), n, n))
+        track = np.empty(len(ref), np.int64)
+        miss = ref < S
+        s = ref[miss]
+        r_s = self.sth_r[s]
+        r[miss] = r_s * (1.0 - p_d) / (1.0 - p_d * r_s)
+        x[miss], P[miss], track[miss] = self.sth_x[s], self.sth_P[s], self.sth_track[s]
+        det = (ref >= S) & (ref < first_new)
+        p = ref[det] - S
+        r[det] = 1.0
+        x[det], P[det] = self._pair_update(self.sth_x[rows[p]], self.sth_P[rows[p]], z[cols[p]])
+        track[det] = self.sth_track[rows[p]]
+        new = (ref >= first_new) & (ref < first_merged)
+        j = ref[new] - first_new
+        r[new], x[new], P[new], track[new] = r_new[j], x_new[j], P_new[j], T + j
+        mer = ref >= first_merged
+        k = ref[mer] - first_merged
+        r[mer], x[mer], P[mer], track[mer] = m_r[k], m_x[k], m_P[k], m_track[k]
+        return r, x, P, track
 
     def _recycle(self, hyp, logw, child_r, child_x, child_P):
         """Never-reported tracks with existence below ``r_recycle`` everywhere go to the intensity.
@@ -620,8 +862,16 @@ class PMBMTracker(_PoissonTracker):
         hyp[:, weak] = -1
         return w, child_x[sths], child_P[sths]
 
-    def _hypotheses_after(self, z, rows, cols, L, log_L, miss, start, S, T, n_pairs):
-        """Rows (H', T + M) of child-hypothesis indices and log weights of the new hypotheses.
+    def _hypotheses_after(self, z, rows, cols, L, log_L, miss, start, S, T, n_pairs, born):
+        """Global hypotheses after the update, their log weights, merged children, clusters.
+
+        Returns ``(rows (H', T + M), log weights (H',), merged, clusters)``: the
+        child-hypothesis index of every track in every new global hypothesis,
+        ``merged`` the ``(r, x, P, track)`` of the children made by clusters merged
+        past the ranking budget (indices from S + n_pairs + M on), and
+        ``clusters`` the ``(sizes, seconds, methods, confirmed, fallbacks)`` lists
+        of :class:`~jointtrack.trackers.base.ScanResult` for every cluster with
+        two or more Bernoullis to rank.
 
         From each prior global hypothesis h the ⌈max_hypotheses · w_h⌉ best
         association events; event weight = prior weight × Π chosen
@@ -637,6 +887,10 @@ class PMBMTracker(_PoissonTracker):
         (:func:`~jointtrack.association.kbest_hypotheses`). Tracks that gate no
         return are missed in every event (their miss weight is a constant of
         the hypothesis).
+
+        The ranking is budgeted per cluster (``max_ranking_work``,
+        :meth:`_ranking_cap`): past it a cluster gets fewer events per
+        hypothesis, or is merged (:meth:`_merge_cluster`).
         """
         c = self.config
         M = len(z)
@@ -661,28 +915,88 @@ class PMBMTracker(_PoissonTracker):
         quiet[pair_tracks] = False
         hq = hyp[:, quiet]
         const = np.where(hq >= 0, log_miss[np.maximum(hq, 0)], 0.0).sum(axis=1)
+        merged = _MergedChildren(S + n_pairs + M, self.state_dim)
+        clusters = ([], [], [], [], [])  # sizes, seconds, methods, confirmed, fallbacks
+        born_as = []  # (returns, child index) of the new tracks of merged clusters
         ranked = []  # per cluster: (tracks, inverse (H,), [(w, child, taken) per tuple])
-        for lab in np.unique(label):
+        # each cluster's gated pairs, contiguous (for its returns)
+        pair_label = label[local] if len(pair_tracks) else np.zeros(0, np.int64)
+        by_cluster = np.argsort(pair_label, kind="stable")
+        labels = np.unique(label)
+        bounds = np.searchsorted(pair_label[by_cluster], np.append(labels, np.inf))
+        for lab, lo, hi in zip(labels, bounds[:-1], bounds[1:], strict=True):
             tracks = pair_tracks[label == lab]
             tuples, inv = np.unique(hyp[:, tracks], axis=0, return_inverse=True)
             inv = inv.reshape(-1)
             k_u = np.zeros(len(tuples), np.int64)
             np.maximum.at(k_u, inv, k_h)
-            lists = [
-                self._rank_cluster(tup, k, rows, cols, L, log_L, log_miss, start, S)
-                for tup, k in zip(tuples, k_u, strict=True)
-            ]
+            returns = np.unique(cols[by_cluster[lo:hi]])
+            cost = _tuple_costs(tuples, start, miss, len(returns))
+            cap, work = self._ranking_cap(cost, k_u)
+            multi = cost[0].max() >= 2  # Bernoullis ranked jointly (Murty)
+            if cap is None and not multi:  # one Bernoulli at a time: sorting
+                lists = [
+                    self._rank_cluster(tup, k, rows, cols, L, log_L, log_miss, start, S)
+                    for tup, k in zip(tuples, k_u, strict=True)
+                ]
+                ranked.append((tracks, inv, lists))
+                continue
+            t0 = time.perf_counter()
+            loud = bool(self.track_reported[tracks].any())
+            where = (
+                f"this cluster ({len(tracks)} tracks × {len(returns)} returns, "
+                f"{len(tuples)} distinct single-target hypothesis tuples)"
+            )
+            over = f"~{work:.3g} units of work > max_ranking_work = {c.max_ranking_work}"
+            if cap is None or (cap >= 2 and multi):
+                ks = k_u if cap is None else np.minimum(k_u, cap)
+                lists = [
+                    self._rank_cluster(tup, k, rows, cols, L, log_L, log_miss, start, S)
+                    for tup, k in zip(tuples, ks, strict=True)
+                ]
+                method, reason = "murty", ""
+                if cap is not None:
+                    method = "murty-truncated"
+                    reason = (
+                        f"ranking_truncated: ranking the ⌈max_hypotheses · w_h⌉ (up to "
+                        f"{int(k_u.max())}) best events of {where} would take {over}; "
+                        f"ranked at most {cap} per hypothesis"
+                    )
+            else:
+                lists, inv, born_idx, tier = self._merge_cluster(
+                    tracks, tuples, returns, z, rows, cols, L, miss, start, born, T, merged, loud
+                )
+                born_as.append((returns, born_idx))
+                method = f"pmb-{tier[0]}"
+                reason = (
+                    f"ranking_merged: ranking even the 2 best events per hypothesis of {where} "
+                    f"would take {over}; merged into one Bernoulli per track (PMB) with "
+                    f"marginals by {tier[0]}" + (f" ({tier[1]})" if tier[1] else "")
+                )
+            seconds = time.perf_counter() - t0
+            if reason:
+                self._log_fallback(len(tracks), len(returns), loud, reason, method)
+            record = ((len(tracks), len(returns)), seconds, method, loud, reason)
+            for out, value in zip(clusters, record, strict=True):
+                out.append(value)
             ranked.append((tracks, inv, lists))
         new_track_hyp = S + n_pairs + np.arange(M)
+        for returns, idx in born_as:
+            new_track_hyp[returns] = idx
         # each cluster's ranked list as (w, payload) with payload = [child | taken]
         ranked = [
             (tracks, inv, [(w, np.concatenate([ch, tk], axis=1)) for w, ch, tk in lists])
             for tracks, inv, lists in ranked
         ]
-        out_rows, out_logw = [], []
-        for h in range(H):
-            if not np.isfinite(const[h]):
-                continue  # a track that must be detected gated nothing
+        feasible = np.isfinite(const)  # else a track that must be detected gated nothing
+        # a hypothesis that keeps one event (⌈max_hypotheses · w_h⌉ = 1: the many light
+        # ones of a large mixture) gets each cluster's best: all of them at once
+        single = np.flatnonzero(feasible & (k_h == 1))
+        one_rows, one_logw, one_ok = self._best_events(ranked, single, const, new_track_hyp, T, M)
+        n_events = np.zeros(H, np.int64)
+        n_events[single[one_ok]] = 1
+        blocks = {}
+        for h in np.flatnonzero(feasible & (k_h > 1)):
             # clusters with one event are constants of the hypothesis; the others'
             # ranked lists are combined (payloads concatenated in that order)
             w_const = 0.0
@@ -720,14 +1034,149 @@ class PMBMTracker(_PoissonTracker):
                 e_idx, t_idx = np.nonzero(taken >= 0)
                 new[e_idx, T + taken[e_idx, t_idx]] = -1
                 off += 2 * n_c
-            out_rows.append(new)
-            out_logw.append(self.hyp_logw[h] + const[h] + w_const + w)
-        if not out_rows:
+            blocks[h] = (new, self.hyp_logw[h] + const[h] + w_const + w)
+            n_events[h] = E
+        if not n_events.any():
             raise InfeasibleAssignmentError(
                 "no global hypothesis has an association event of positive weight "
                 "(P_D = 1 and a track with existence 1 that gates no return?)"
             )
-        return np.concatenate(out_rows), np.concatenate(out_logw)
+        # the new hypotheses in the order of their prior ones (ties are ranked by it)
+        offset = np.cumsum(n_events) - n_events
+        out_rows = np.empty((int(n_events.sum()), T + M), np.int64)
+        out_logw = np.empty(len(out_rows))
+        at = offset[single[one_ok]]
+        out_rows[at], out_logw[at] = one_rows[one_ok], one_logw[one_ok]
+        for h, (new, logw) in blocks.items():
+            (
+                out_rows[offset[h] : offset[h] + len(new)],
+                out_logw[offset[h] : offset[h] + len(new)],
+            ) = (
+                new,
+                logw,
+            )
+        return out_rows, out_logw, merged.arrays(), clusters
+
+    def _best_events(self, ranked, hs, const, new_track_hyp, T, M):
+        """The best event of every prior hypothesis in ``hs``, at once.
+
+        The per-hypothesis combination of :meth:`_hypotheses_after` for k = 1, summed
+        in the same order (so with the same rounding). Returns ``(rows (len(hs),
+        T + M), log weights, ok)``; ``ok`` is False where a cluster has no event.
+        """
+        rows = np.empty((len(hs), T + M), np.int64)
+        rows[:, :T] = self.hyp[hs]
+        rows[:, T:] = new_track_hyp
+        w_fixed = np.zeros(len(hs))
+        w_varying = np.zeros(len(hs))
+        ok = np.ones(len(hs), bool)
+        for tracks, inv, lists in ranked:
+            n_c = len(tracks)
+            count = np.array([len(w) for w, _ in lists])
+            best = np.array([w[0] if len(w) else 0.0 for w, _ in lists])
+            none = np.full(2 * n_c, -1, np.int64)
+            payload = np.stack([p[0] if len(p) else none for _, p in lists])
+            u = inv[hs]
+            ok &= count[u] > 0
+            # adding 0.0 changes no sum: the fixed and the varying clusters' weights are
+            # accumulated each in cluster order, as the per-hypothesis loop does
+            w_fixed += np.where(count[u] == 1, best[u], 0.0)
+            w_varying += np.where(count[u] > 1, best[u], 0.0)
+            chosen = payload[u]
+            rows[:, tracks] = chosen[:, :n_c]
+            taken = chosen[:, n_c:]
+            e_idx, t_idx = np.nonzero(taken >= 0)
+            rows[e_idx, T + taken[e_idx, t_idx]] = -1
+        return rows, self.hyp_logw[hs] + const[hs] + w_fixed + w_varying, ok
+
+    def _ranking_cap(self, cost, k_u):
+        """``(cap, work)``: how many events per hypothesis one cluster's ranking may have.
+
+        ``cost``: :func:`_tuple_costs` of the cluster's distinct tuples, ``k_u``
+        the events each must rank. ``work`` estimates the ranking in cost-matrix
+        cells: Murty's algorithm solves at most 1 + (k − 1) n assignment
+        problems for k events of n Bernoullis (each popped event spawns at most
+        n subproblems), each scanning an n × (n + m) cost matrix (m gated
+        returns), k at most the tuple's number of events; a tuple of one
+        Bernoulli sorts its pairs; and every tuple costs :data:`_TUPLE_WORK`
+        for its set-up. Measured: 9–26 ns per cell on the clutter clusters and
+        blobs of ``benchmarks/pmbm_burst.py``. ``cap`` is None within
+        ``max_ranking_work``, else the largest cap on the events per tuple that
+        fits (0 when not even one event per tuple fits).
+        """
+        n, n_pairs, log_events, m = cost
+        events = np.rint(np.exp(np.minimum(log_events, 60.0)))
+
+        def work(cap):
+            k = np.maximum(1.0, np.minimum(np.minimum(k_u, cap), events))
+            murty = np.where(n >= 2, (1.0 + (k - 1.0) * n) * n * (n + m), n_pairs)
+            return float((murty + _TUPLE_WORK).sum())
+
+        k_max = int(k_u.max())
+        full = work(k_max)
+        budget = self.config.max_ranking_work
+        if budget is None or full <= budget:
+            return None, full
+        lo, hi = 0, k_max  # work(lo) fits (0: nothing does), work(hi) does not
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            lo, hi = (mid, hi) if work(mid) <= budget else (lo, mid)
+        return lo, full
+
+    def _merge_cluster(
+        self, tracks, tuples, returns, z, rows, cols, L, miss, start, born, T, merged, loud
+    ):
+        """One cluster past the ranking budget as one event: a PMB update of its tracks.
+
+        The cluster's prior is first made one tuple: each track's single-target
+        hypotheses across the global hypotheses are merged to one Bernoulli
+        (existence Σ_h w_h r_h, the moment-matched mixture of their densities;
+        the PMB projection of Williams 2015 eq. (58)–(60)) — nothing changes when
+        every hypothesis holds the same tuple. That Bernoulli set is updated by
+        the cluster's ``returns`` as :class:`PMBTracker` updates its own
+        (:meth:`_pmb_update`: marginals of the one assignment-sum core under the
+        package's budget, then each Bernoulli's mixture merged), and return j's
+        new track gets existence (1 − Σ_i β_ij) e_j / ρ_j. The event is the same
+        in every global hypothesis (so is the cluster's prior), so its weight is 0.
+
+        Returns ``(lists, inverse, born_idx, (tier, reasons))``: the cluster's
+        one-event ranked list for every hypothesis, the child index of the
+        returns' new tracks, and the cheapest association tier used with the
+        fallback reasons of the association.
+        """
+        rho, e, x_new, P_new = born
+        n_c = len(tracks)
+        if len(tuples) == 1:  # the Bernoullis as they are, with their gated pairs
+            part = _TuplePairs(tuples[0], rows, cols, start)
+            present, s = part.here, part.sths
+            r, x, P = self.sth_r[s], self.sth_x[s], self.sth_P[s]
+            local_rows = part.row_local
+            local_cols = np.searchsorted(returns, cols[part.pairs])
+            L_m, miss_m = L[part.pairs], miss[s]
+        else:
+            sub = self.hyp[:, tracks]
+            hh, tt = np.nonzero(sub >= 0)
+            s = sub[hh, tt]
+            w = self.hypothesis_weights()[hh] * self.sth_r[s]
+            r_m, x_m, P_m = moment_match(w, tt, self.sth_x[s], self.sth_P[s], n_c)
+            present = np.flatnonzero(r_m > 0)
+            r, x, P = np.minimum(r_m[present], 1.0), x_m[present], P_m[present]
+            g = self._gate(x, P, z[returns])
+            local_rows, local_cols = g.rows, g.cols
+            L_m, miss_m = self._pair_weights(r, g, rho[returns])
+        ids = self.track_ids[tracks[present]]
+        r_post, x_post, P_post, taken, info = self._pmb_update(
+            ids, r, x, P, z[returns], local_rows, local_cols, L_m, miss_m, loud
+        )
+        r_born = np.clip(1.0 - taken, 0.0, 1.0) * e[returns] / rho[returns]
+        child = np.full((1, n_c), -1, np.int64)
+        child[0, present] = merged.add(r_post, x_post, P_post, tracks[present])
+        born_idx = merged.add(r_born, x_new[returns], P_new[returns], T + returns)
+        _, _, methods, fallbacks = info
+        tier = max(methods, key=_TIER_ORDER.index, default="exact")
+        why = "; ".join(dict.fromkeys(f for f in fallbacks if f))
+        lists = [(np.zeros(1), child, np.full((1, n_c), -1, np.int64))]
+        return lists, np.zeros(len(self.hyp), np.int64), born_idx, (tier, why)
 
     @staticmethod
     def _rank_cluster(tup, k, rows, cols, L, log_L, log_miss, start, S):
@@ -740,13 +1189,8 @@ class PMBMTracker(_PoissonTracker):
         it takes a return) and the return it takes (−1 for none).
         """
         n = len(tup)
-        here = np.flatnonzero(tup >= 0)
-        sths = tup[here]
-        lo = start[sths]
-        count = start[sths + 1] - lo
-        row_local = np.repeat(np.arange(len(sths)), count)
-        # the gated pairs of these hypotheses: lo[i] .. lo[i] + count[i] − 1 for each i
-        pairs = np.arange(len(row_local)) + np.repeat(lo - (np.cumsum(count) - count), count)
+        part = _TuplePairs(tup, rows, cols, start)
+        here, sths, pairs, row_local = part.here, part.sths, part.pairs, part.row_local
         base_child = tup[None, :].copy()
         none = np.full((1, n), -1, np.int64)
         if len(pairs) == 0:
@@ -762,7 +1206,7 @@ class PMBMTracker(_PoissonTracker):
             child[det, here[0]] = S + pairs[order[det] - 1]
             taken[det, here[0]] = cols[pairs[order[det] - 1]]
             return opts[order], child, taken
-        ms = np.unique(cols[pairs])
+        ms = part.ms
         Lc = np.zeros((len(sths), len(ms)))
         col_local = np.searchsorted(ms, cols[pairs])
         Lc[row_local, col_local] = L[pairs]
@@ -806,12 +1250,17 @@ class PMBMTracker(_PoissonTracker):
             return StateFileError(f"{path}: {what}")
 
         r = arrays["sth_r"]
-        if ((r < 0) | (r > 1)).any():
-            raise bad("field 'sth_r' has values outside [0, 1]")
+        _check_existence(path, "sth_r", r)
         S, T = len(r), len(arrays["track_ids"])
         tr = arrays["sth_track"]
         if ((tr < 0) | (tr >= T)).any():
             raise bad("field 'sth_track' names a track that does not exist")
+        bare = np.bincount(tr, minlength=T) == 0
+        if bare.any():  # a track is its single-target hypotheses: none is no track
+            raise bad(
+                f"field 'sth_track': track {int(np.argmax(bare))} (id "
+                f"{int(arrays['track_ids'][np.argmax(bare)])}) has no single-target hypothesis"
+            )
         hyp = arrays["hyp"]
         if len(hyp) == 0:
             raise bad("field 'hyp' holds no global hypothesis")

@@ -29,6 +29,10 @@ __all__ = ["BIRTH_MODELS", "PMBMConfig"]
 #: Kinds of birth (and prior) intensity of undetected targets.
 BIRTH_MODELS = ("uniform", "gaussian")
 
+#: Settings added after PMBM state files were first written → the value under which an
+#: older state's run continues exactly as before (no ranking budget).
+_ADDED_SETTINGS = {"max_ranking_work": None}
+
 #: Fields shared with TrackerConfig, checked by its field checks.
 _SHARED = (
     "dim",
@@ -101,7 +105,28 @@ class PMBMConfig(ModelSettings):
     max_hypotheses : PMBM cap on global hypotheses (the k of Murty's algorithm
         is ⌈max_hypotheses · w_h⌉ for a prior hypothesis of weight w_h).
     hypothesis_prune : PMBM global hypotheses with a normalised weight below
-        this are dropped.
+        this are dropped (the most probable ones are always kept: a scan never
+        ends with no hypothesis).
+    max_ranking_work : PMBM work budget of one cluster's association (None =
+        no budget), in cost-matrix cells: the ranking of the cluster's
+        ⌈max_hypotheses · w_h⌉ best events by Murty's algorithm is estimated
+        before any work as Σ (1 + (k − 1) n) · n · (n + m) + 2^14 over the
+        cluster's distinct single-target-hypothesis tuples (n Bernoullis, m
+        returns, k events, at most the tuple's number of events; a tuple of
+        one Bernoulli counts its gated pairs; 2^14 is the set-up of a tuple).
+        Past it the cluster gets the most events per hypothesis that fit
+        (method ``"murty-truncated"``), and when not even two fit it is merged
+        into one Bernoulli per track, PMB style, its marginals from the
+        package's association tiers with the sparse LBP within this many
+        message updates (method ``"pmb-<tier>"``). Each such cluster is
+        named in ``ScanResult.cluster_methods`` / ``cluster_fallbacks``, counted
+        in ``fallback_counts`` and logged. The default 2^25 is about half a
+        second of ranking (measured 8–26 ns per cell, 0.24 ms per tuple) and
+        keeps a 2,000-return clutter burst at ~8 s CPU per scan; the clusters of
+        the built-in scenes are estimated at ≤ 3.5·10⁶ (≤ 1.7·10⁷ with
+        ``max_hypotheses = 1000``) and ranked in full (``benchmarks/pmbm_burst.py``,
+        ``benchmarks/RESULTS.md``, "Issue 31"). A state saved before this
+        setting existed loads with None: its run continues exactly as before.
 
     Every field is checked on construction; a bad value raises ValueError
     naming the field.
@@ -131,6 +156,7 @@ class PMBMConfig(ModelSettings):
     r_estimate: float = 0.4
     max_hypotheses: int = 200
     hypothesis_prune: float = 1e-4
+    max_ranking_work: int | None = 2**25
     seed: int | None = 0
 
     def __post_init__(self):
@@ -161,6 +187,8 @@ class PMBMConfig(ModelSettings):
         set_(self, "poisson_merge", _non_negative("poisson_merge", self.poisson_merge))
         for name in ("max_poisson_components", "max_hypotheses"):
             set_(self, name, _count(name, getattr(self, name)))
+        if self.max_ranking_work is not None:
+            set_(self, "max_ranking_work", _work("max_ranking_work", self.max_ranking_work))
         r = _non_negative("r_estimate", self.r_estimate)
         if not 0 < r <= 1:
             raise _fail("r_estimate", "a number in (0, 1]", r)
@@ -215,8 +243,12 @@ class PMBMConfig(ModelSettings):
         """Build from a (TOML) mapping; unknown keys are an error naming them.
 
         Missing keys take their defaults, unless ``complete=True`` (a saved
-        configuration): then they are an error.
+        configuration): then they are an error — except the settings added
+        after a state file could have been written, which get the value under
+        which its run continues exactly as before (``max_ranking_work``: None).
         """
+        if complete and isinstance(d, dict):
+            d = {**_ADDED_SETTINGS, **d}
         return config_from_dict(cls, d, "PMBM tracker", complete=complete)
 
     @classmethod
@@ -287,6 +319,12 @@ def _non_negative(name: str, v) -> float:
 def _count(name: str, v) -> int:
     if isinstance(v, bool | np.bool_) or not isinstance(v, numbers.Integral) or not 1 <= v <= 10**6:
         raise _fail(name, "an integer in [1, 1000000]", v)
+    return int(v)
+
+
+def _work(name: str, v) -> int:
+    if isinstance(v, bool | np.bool_) or not isinstance(v, numbers.Integral) or not 1 <= v <= 2**62:
+        raise _fail(name, "None or an integer in [1, 2**62]", v)
     return int(v)
 
 
