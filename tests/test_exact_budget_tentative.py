@@ -158,6 +158,26 @@ def test_fallbacks_name_count_sizes_kind_and_budget():
     assert "more than exact_max_tracks = 16" in association_line(m)
 
 
+def test_pmbm_budget_tiers_are_said_in_words():
+    m = _metrics(
+        [
+            ("confirmed", "murty", "", 2, 3),
+            ("confirmed", "murty-truncated", "ranking_truncated: ranking …", 30, 40),
+            ("confirmed", "pmb-lbp-sparse", "ranking_merged: ranking even …", 90, 2000),
+        ],
+        max_ranking_work=2**25,
+    )
+    m["tracker"] = {"kind": "pmbm"}
+    line = association_line(m)
+    assert "1 (2 tracks) solved exactly (ranked assignments)" in line
+    assert "1 (30 tracks) by fewer ranked assignments per hypothesis" in line
+    assert "1 (90 tracks) merged to one Bernoulli per track (PMB) and solved by sparse" in line
+    assert line.count(f"max_ranking_work = {2**25}") == 2
+    assert "pmb-" not in line and "murty" not in line
+    only_ranked = _metrics([("confirmed", "murty", "", 2, 3)])
+    assert association_line(only_ranked).startswith("association: all 1 multi-track")
+
+
 def test_older_metrics_have_no_sentence():
     assert association_line({"association": {"fallbacks": {"x": 1}}}) is None
 

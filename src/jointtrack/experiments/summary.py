@@ -105,7 +105,18 @@ _BY = {
     "pda": "by per-track PDA",
     "mcmc": "by MCMC sampling",
     "kbest": "by the k best hypotheses",
+    # PMBM (trackers.pmbm): Murty's ranked assignments, and its two budget tiers
+    "murty": "exactly (ranked assignments)",
+    "murty-truncated": "by fewer ranked assignments per hypothesis",
 }
+
+
+def _by(method: str) -> str:
+    """How ``method`` solved a cluster, in words (PMBM's ``pmb-<tier>``: merged, then ``tier``)."""
+    if method.startswith("pmb-"):
+        tier = _BY.get(method[4:], f"by {method[4:]}")
+        return f"merged to one Bernoulli per track (PMB) and solved {tier}"
+    return _BY.get(method, f"by {method}")
 
 
 def _span(lo: int, hi: int, noun: str) -> str:
@@ -124,6 +135,11 @@ def _why(reason: str, assoc: Mapping) -> str:
         )
     if reason == "refused":
         return "as their exact sum is beyond the exact engine's state or memory limit"
+    if reason in ("ranking_truncated", "ranking_merged"):
+        return (
+            "as ranking their assignments would exceed the PMBM work budget "
+            f"(max_ranking_work = {assoc.get('max_ranking_work', '?')})"
+        )
     if reason == "dense_budget":
         return "as they are too large for a tracks × measurements matrix"
     return f"({reason})"
@@ -138,7 +154,7 @@ def association_line(metrics: Mapping) -> str | None:
     exact sum needs more than 2^12 states (…)``, or
     ``association: all 141 multi-track clusters solved exactly …`` when no
     cluster needed the approximation. None for a metrics dict without the tally
-    (a particle or PMBM run, or one written by an older jointtrack).
+    (a particle run, or one written by an older jointtrack).
     """
     assoc = metrics.get("association") or {}
     rows = assoc.get("clusters")
@@ -147,7 +163,7 @@ def association_line(metrics: Mapping) -> str | None:
     if not rows:
         return "association: no multi-track clusters (every cluster was a single track)"
     poisson = (metrics.get("tracker") or {}).get("kind") in ("pmb", "pmbm")
-    exact = all(r["method"] in ("exact", "enumerate") and not r["reason"] for r in rows)
+    exact = all(r["method"] in ("exact", "enumerate", "murty") and not r["reason"] for r in rows)
 
     def tracks_of(kind):
         return "tracks" if poisson else f"{kind} tracks"
@@ -165,12 +181,12 @@ def association_line(metrics: Mapping) -> str | None:
             parts.append(
                 head
                 if exact
-                else f"{head} solved {_BY.get(mine[0]['method'], 'by ' + mine[0]['method'])}"
+                else f"{head} solved {_by(mine[0]['method'])}"
             )
             continue
         ways = []
         for r in sorted(mine, key=lambda r: (bool(r["reason"]), -r["count"])):
-            by = _BY.get(r["method"], f"by {r['method']}")
+            by = _by(r["method"])
             ways.append(
                 f"{r['count']} ({_span(*r['n_tracks'], 'tracks')}) "
                 f"{'solved ' if by.startswith('exactly') else ''}{by}"
