@@ -178,11 +178,7 @@ def association_line(metrics: Mapping) -> str | None:
         hi = max(r["n_tracks"][1] for r in mine)
         head = f"{n} cluster{'s' * (n != 1)} of {tracks_of(kind)} ({_span(lo, hi, 'tracks')})"
         if len(mine) == 1 and not mine[0]["reason"]:
-            parts.append(
-                head
-                if exact
-                else f"{head} solved {_by(mine[0]['method'])}"
-            )
+            parts.append(head if exact else f"{head} solved {_by(mine[0]['method'])}")
             continue
         ways = []
         for r in sorted(mine, key=lambda r: (bool(r["reason"]), -r["count"])):
