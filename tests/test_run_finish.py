@@ -161,7 +161,7 @@ CHAINS = {
         "done:0",
         "cleanup:1",
     ],
-    "detections": ["write:0", "output:2"],
+    "detections": ["write:0", "output:1:INT", "output:2"],  # INT: Ctrl-C
     "ais": ["output:0", "write:2", "recorded:3"],
 }
 
@@ -176,9 +176,14 @@ def test_a_kill_at_each_step_of_the_finishing_phase_resumes(runs, case, tmp_path
     for i, fault in enumerate(CHAINS[case]):
         cmd = _first(base, case) if i == 0 else ["run", "--no-progress", "--resume", "ck.npz"]
         killed = _cli(cmd, tmp_path, fault)
-        assert killed.returncode == -signal.SIGKILL, (fault, killed.stderr)
+        if fault.endswith(":INT"):  # one line saying how to continue, exit 130
+            assert killed.returncode == 130, killed.stderr
+            assert "interrupted" in killed.stderr and "--resume" in killed.stderr
+            assert "Traceback" not in killed.stderr
+        else:
+            assert killed.returncode == -signal.SIGKILL, (fault, killed.stderr)
         info = read_run(tmp_path / "ck.npz")
-        stage, n = fault.split(":")
+        stage, n = fault.split(":")[:2]
         assert info["phase"] == ("done" if stage in ("done", "cleanup") else "finishing")
         assert info["outputs"] == OUTPUTS[case]
         if stage == "recorded":
@@ -396,3 +401,20 @@ def test_a_report_run_writes_each_output_once_in_its_final_form(tmp_path, monkey
     assert [name for name, _ in renames] == OUTPUTS["ais"]
     assert renames[0][1].startswith(b"time,track_id,x,y,lat,lon,vx,vy,existence")
     assert sorted(p.name for p in out.iterdir()) == sorted(OUTPUTS["ais"])
+
+
+def test_a_checkpoint_with_a_malformed_phase_is_refused_naming_it(tmp_path):
+    from jointtrack.experiments.run import RunConfigError, load_tracker, run_scenario
+
+    ck = tmp_path / "ck.npz"
+    out = tmp_path / "o"
+    run_scenario(_small_scenario(), None, out, plots=False, checkpoint=ck, max_scans=4)
+    trk, info = load_tracker(ck), read_run(ck)
+    for key, value, needle in [
+        ("phase", "writing", "phase 'writing'"),
+        ("outputs_done", ["tracks.csv", "../x"], "outputs_done"),
+        ("stop", -1, "stop = -1"),
+    ]:
+        trk.save(ck, run={**info, key: value})
+        with pytest.raises(RunConfigError, match=needle):
+            run_scenario(_small_scenario(), None, out, plots=False, resume=ck)

@@ -590,7 +590,8 @@ def run_command(
     except KeyboardInterrupt:
         _fail(
             f"interrupted; the tracks so far are in {out}"
-            + (f"; continue with --resume {checkpoint}" if checkpoint else ""),
+            # a resumed run keeps checkpointing to the file it resumed
+            + (f"; continue with --resume {checkpoint or resume}" if checkpoint or resume else ""),
             code=130,
         )
     except RunAlreadyComplete as exc:
