@@ -27,7 +27,8 @@ clutter_per_scan = 4.0
 """
 
 
-def _cli(args, cwd, fault=None):
+def _cli_command(args, fault=None):
+    """``(argv, env)`` of the CLI in a subprocess, with the fault to inject (or None)."""
     env = dict(os.environ)
     env.pop("JOINTTRACK_FAULT", None)
     if fault:
@@ -38,14 +39,12 @@ def _cli(args, cwd, fault=None):
         "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
         "from jointtrack.cli import main; sys.argv[0] = 'jointtrack'; main()"
     )
-    return subprocess.run(
-        [sys.executable, "-c", code, *map(str, args)],
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    return [sys.executable, "-c", code, *map(str, args)], env
+
+
+def _cli(args, cwd, fault=None):
+    argv, env = _cli_command(args, fault)
+    return subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
 
 
 def _rows(out, fmt):

@@ -375,6 +375,7 @@ def run_command(
     --out and prints a summary.
     """
     from jointtrack._console import make_console
+    from jointtrack.experiments.writers import RunAlreadyComplete
     from jointtrack.io import DataFileError
 
     console = make_console()
@@ -589,9 +590,16 @@ def run_command(
     except KeyboardInterrupt:
         _fail(
             f"interrupted; the tracks so far are in {out}"
-            + (f"; continue with --resume {checkpoint}" if checkpoint else ""),
+            # a resumed run keeps checkpointing to the file it resumed
+            + (f"; continue with --resume {checkpoint or resume}" if checkpoint or resume else ""),
             code=130,
         )
+    except RunAlreadyComplete as exc:
+        # e.g. killed in its last instant: every output is there, nothing is wrong
+        console.print(
+            f"already complete, nothing to do: {exc}", markup=False, highlight=False, soft_wrap=True
+        )
+        metrics = exc.metrics
     except (DataFileError, ValueError, OSError) as exc:
         _fail(exc)
     runmod.print_summary(metrics, console)
@@ -831,7 +839,7 @@ def _existing_checkpoint(checkpoint, console) -> None:
     that is not a checkpoint at all; a completed run's checkpoint is replaced with a
     notice (nothing is lost: its tracks are complete)."""
     from jointtrack.experiments import run as runmod
-    from jointtrack.experiments.writers import PARTS_DIR
+    from jointtrack.experiments.writers import PARTS_DIR, run_is_complete
     from jointtrack.trackers.state_io import read_run
 
     path = Path(checkpoint)
@@ -847,10 +855,12 @@ def _existing_checkpoint(checkpoint, console) -> None:
             "the run would overwrite it: give another file name, or delete the file"
         )
     what = runmod._describe(runmod._run_inputs(info["inputs"]))
-    if (Path(info["out_dir"]) / PARTS_DIR).is_dir():
+    if not run_is_complete(info, Path(info["out_dir"]) / PARTS_DIR):
         raise runmod.RunConfigError(
             f"--checkpoint {path} holds an unfinished run ({what} into {info['out_dir']}, "
-            f"{info.get('n_scans', '?')} scans done); continue it with `jointtrack run "
+            f"{info.get('n_scans', '?')} scans done"
+            + (", writing its outputs" if info.get("phase") == "finishing" else "")
+            + "); continue it with `jointtrack run "
             f"--resume {path}`, or delete {path} to start over"
         )
     console.print(

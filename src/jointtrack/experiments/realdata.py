@@ -20,6 +20,10 @@ Besides the usual outputs the run writes
   tracks per identity, identity switches, purity, false tracks per hour);
 * ``map.png``: the tracks over the reports on lat/lon axes.
 
+Each is written once, in its final form (the tracks file with its ``lat, lon``
+columns from the start), by the run's finishing phase, which a checkpointed run
+resumes after a kill (:class:`~jointtrack.experiments.writers.ExtraOutputs`).
+
 The identities in the file (MMSI, icao24) are used as ``labels``:
 ``"associate"`` (default) — association given the label and scoring;
 ``"score"`` — hidden from the tracker, used for scoring only; ``"ignore"``.
@@ -34,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from jointtrack.experiments.config import RunConfigError, make_tracker_config
+from jointtrack.experiments.writers import ExtraOutputs
 
 __all__ = ["LABEL_MODES", "MAX_WINDOWS", "REALDATA_TRACKER", "run_reports"]
 
@@ -193,10 +198,7 @@ def run_reports(
     c = float(score_c or _SCORE_C[family])
     lat0, lon0, alt0 = frame.reference
 
-    def post(metrics: dict, tracks, out: Path, files: dict) -> None:
-        from jointtrack.experiments.map_plot import plot_track_map
-        from jointtrack.io.tracks import read_tracks, write_tracks
-
+    def add_metrics(metrics: dict, tracks) -> None:
         metrics["geo_reference"] = {
             "lat": lat0,
             "lon": lon0,
@@ -214,13 +216,10 @@ def run_reports(
                 f"{rep.skipped:,} report rows without a position left out (AIS lat 91 / "
                 "lon 181 'not available', ADS-B states without lat/lon)"
             )
-        path = Path(files["tracks"])
-        table = read_tracks(path)
-        write_tracks(table, path, frame=frame)
-        t, ids, xy = tracks
         if truth is not None:
             from jointtrack.metrics.selfreport import score_self_reports
 
+            t, ids, xy = tracks
             tt, ti, tp, _ = truth
             score = score_self_reports(
                 tt, ti, tp, t, ids, xy, window=swin, c=c, t0=float(rep.times[0])
@@ -234,19 +233,26 @@ def run_reports(
                 "ends (gaps up to max_gap); tracks: their latest estimate in the window",
             }
             metrics["notes"].append("self-reports: " + score.summary())
-        if options.get("plots", True):
-            track_lat, track_lon = frame.to_geodetic(xy)[:2] if len(xy) else ([], [])
-            plot_track_map(
-                out / "map.png",
-                rep.lat,
-                rep.lon,
-                np.asarray(track_lat),
-                np.asarray(track_lon),
-                ids,
-                title=f"{Path(rep.source or 'reports').name}: {len(np.unique(ids))} tracks",
-                track_times=t,
-            )
-            files["map"] = str(out / "map.png")
+
+    def draw_map(path: Path, tracks) -> None:
+        from jointtrack.experiments.map_plot import plot_track_map
+
+        t, ids, xy = tracks
+        track_lat, track_lon = frame.to_geodetic(xy)[:2] if len(xy) else ([], [])
+        plot_track_map(
+            path,
+            rep.lat,
+            rep.lon,
+            np.asarray(track_lat),
+            np.asarray(track_lon),
+            ids,
+            title=f"{Path(rep.source or 'reports').name}: {len(np.unique(ids))} tracks",
+            track_times=t,
+        )
+
+    # every output written once, in its final form, by the run's finishing phase (the
+    # tracks file with lat/lon columns): a run killed while writing them resumes
+    extra = ExtraOutputs(frame=frame, metrics=add_metrics, figures=(("map.png", "map", draw_map),))
 
     return run_detections(
         dets,
@@ -263,7 +269,7 @@ def run_reports(
                 "labels": labels,
             }
         },
-        post=post,
+        extra=extra,
         output_interval=options.pop("output_interval", swin),
         **options,
     )

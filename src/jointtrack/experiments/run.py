@@ -154,11 +154,19 @@ the checkpoint belongs to this run, drops whatever was written after it and
 continues with the next scan, so a run killed at any instant and resumed writes
 exactly the tracks and metrics of an uninterrupted one. ``jointtrack run
 --resume FILE`` needs no other flag: the inputs come from the checkpoint.
+After the last scan the outputs are written in a finishing phase that resumes
+too: each output once, in its final form, atomically, recorded in the
+checkpoint (:mod:`~jointtrack.experiments.writers`); a resume there writes the
+outputs not yet recorded. Resumed, the outputs equal an uninterrupted run's but
+for the wall-clock fields of ``timing`` and, after a kill while tracking,
+``n_scans_this_run`` (the scans of the last process that tracked any).
 The committed parts (``OUT/.tracks-parts/``) stay only while the checkpoint
 can continue the run (stopped early by ``max_scans``, killed, or failed after a
-checkpoint); a run that has processed every scan, and a run without a
-checkpoint that fails, removes them (resuming a completed run is then an error
-saying so).
+checkpoint); a run that has processed every scan and written every output, and
+a run without a checkpoint that fails, removes them. Resuming a run that has
+written every output raises :class:`~jointtrack.experiments.writers.RunAlreadyComplete`
+(``jointtrack run --resume``: "already complete, nothing to do", exit 0); one
+whose outputs were removed afterwards is an error naming them.
 
 Hints where the settings are surely wrong (a warning on the console and a note in
 ``metrics.json``): a clutter density that expects more than
@@ -179,6 +187,7 @@ here.
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import os
@@ -248,9 +257,13 @@ from jointtrack.experiments.summary import (  # noqa: F401 - re-exported
 from jointtrack.experiments.writers import (  # noqa: F401 - re-exported
     FORMATS,
     PARQUET_ROW_GROUP_SCANS,
+    ExtraOutputs,
+    RunAlreadyComplete,
     _save_checkpoint,
     _track_columns,
     _TrackWriter,
+    atomic_output,
+    check_run_phase,
     fault,
 )
 from jointtrack.io import Detections, to_jsonable, write_metrics
@@ -690,24 +703,28 @@ def _run(
     sensors: Mapping | None = None,
     particle=None,
     kind: str | None = None,
-    post=None,
+    extra: ExtraOutputs | None = None,
     output_interval: float | None = None,
 ) -> dict:
-    """The run loop (see the module docstring); ``post(metrics, tracks, out_dir,
-    files)``: called before ``metrics.json`` is written, to add outputs;
-    ``output_interval`` (seconds): write the tracks only at the last scan at or
-    before each multiple of it (one scan per report makes thousands of scans a
-    minute); ``particle``: a
+    """The run loop and its finishing phase (see the module docstring and
+    :mod:`~jointtrack.experiments.writers`); ``extra``: outputs a caller adds
+    (:class:`~jointtrack.experiments.writers.ExtraOutputs`: a report run's lat/lon
+    columns, metrics and map); ``output_interval`` (seconds): write the tracks only
+    at the last scan at or before each multiple of it (one scan per report makes
+    thousands of scans a minute); ``particle``: a
     :class:`~jointtrack.trackers.particle.ParticleConfig` to run the particle
     tracker instead of the Kalman JPDA tracker ``cfg``. ``kind``: ``"pmb"`` or
     ``"pmbm"`` with a :class:`PMBMConfig` ``cfg``; for a :class:`TrackerConfig`
     ``jpda``/``jipda`` (None: by its ``existence``). On resume the kind comes from
-    the checkpoint; a ``kind`` that differs is an error."""
+    the checkpoint; a ``kind`` that differs is an error. A resume of a run that has
+    written every output raises :class:`~jointtrack.experiments.writers.RunAlreadyComplete`.
+    """
     from rich.console import Console
 
     wall0 = time.perf_counter()
     console = console or Console(quiet=True)
     notes = list(src.notes) + list(src.tracker_notes)
+    extra = extra or ExtraOutputs()
 
     def warn(msg: str) -> None:
         notes.append(msg)
@@ -741,7 +758,16 @@ def _run(
     coincident = [0]  # returns dropped as exact repeats of another of their scan
     elapsed_before = 0.0
     start = 0
-    writer = _TrackWriter(out_dir, src.dim, fmt, scan_times=src.times)
+    K = len(src.times)
+    stop = K if max_scans is None else min(K, int(max_scans))
+    # the outputs of the finishing phase, in the order they are written (metrics.json,
+    # which names the others, last) and those already written in their final form
+    outputs = _output_names(fmt, plots, src.truth is not None, extra)
+    done: list = []
+    # scans tracked by the last process that tracked any (metrics n_scans_this_run): a
+    # resume that only finishes reports the count of the process that tracked
+    tracked_before = 0
+    writer = None
     # whether a checkpoint file refers to the parts (a resumed run's, or one saved below):
     # a failed run removes them otherwise, as they cannot be needed
     checkpointed = [resume is not None]
@@ -762,6 +788,13 @@ def _run(
                 src.tracker_notes = [str(n) for n in info.get("tracker_notes") or []]
                 notes[len(src.notes) :] = src.tracker_notes + notes[len(src.notes) :]
             _check_resume(resume, info, trk, src, identity, out_dir, fmt)
+            check_run_phase(resume, info)
+            given = info.get("out_dir_given")
+            if isinstance(given, str) and Path(given).resolve() == out_dir.resolve():
+                # the directory as the run was first given it (--resume passes the
+                # checkpoint's absolute one): metrics.json names the files as before
+                out_dir = Path(given)
+            writer = _TrackWriter(out_dir, src.dim, fmt, scan_times=src.times, frame=extra.frame)
             clusters = list(info.get("clusters", []))
             fallbacks.update(info.get("fallbacks", {}))
             tiers.update(info.get("fallback_tiers", {}))
@@ -771,6 +804,7 @@ def _run(
             solved.update(info.get("cluster_tally", {}))
             coincident[0] = int(info.get("coincident_returns", 0))
             elapsed_before = float(info.get("elapsed_seconds", 0.0))
+            tracked_before = int(info.get("n_scans_this_run", 0))
             if type(trk.config) is not type(cfg):
                 warn(f"{resume}: continuing with the checkpoint's {kind} tracker settings")
             elif trk.config != cfg:
@@ -782,16 +816,18 @@ def _run(
             cfg = trk.config
             if trk.time is not None:
                 start = int(np.searchsorted(src.times, trk.time, side="right"))
-            if start >= len(src.times) and not writer.parts_dir.is_dir():
-                # a completed run drops its parts (see writers): nothing is left to do
+            if start > stop:
                 raise RunConfigError(
-                    f"{resume}: the run is complete (all {len(src.times)} scans, tracks in "
-                    f"{writer.path}); there is nothing to resume"
+                    f"{resume}: the checkpoint has processed {start} scans, more than "
+                    f"--max-scans {max_scans}; resume without --max-scans or with one of at "
+                    f"least {start}"
                 )
-            writer.resume(int(info["parts"]))
+            done = _outputs_already_written(resume, info, writer, outputs, start, stop, K)
+            writer.resume(int(info["parts"]), keep=done)
             if checkpoint is None:
                 checkpoint = resume  # keep checkpointing where the run was checkpointed
         else:
+            writer = _TrackWriter(out_dir, src.dim, fmt, scan_times=src.times, frame=extra.frame)
             writer.start_fresh()
             dt = float(np.median(np.diff(src.times))) if len(src.times) > 1 else 1.0
             if particle is not None:
@@ -829,19 +865,19 @@ def _run(
         if hint:
             warn(hint)
         scan_weights: list = []  # particle tracker: per scan [coefficient s, derivative s, …]
-        K = len(src.times)
-        stop = K if max_scans is None else min(K, int(max_scans))
 
-        def run_info(n_parts: int, seconds: float) -> dict:
+        def run_info(n_parts: int, seconds: float, tracked: int, phase: str) -> dict:
             return {
                 "inputs": identity,
                 "out_dir": str(out_dir.resolve()),
+                "out_dir_given": str(out_dir),
                 "format": fmt,
                 "checkpoint_every": int(checkpoint_every),
                 "max_scans": None if max_scans is None else int(max_scans),
                 "metrics_opts": to_jsonable(metrics_opts, fallback="text"),
                 "parts": int(n_parts),
                 "n_scans": int(trk.n_scans),
+                "n_scans_this_run": int(tracked),
                 "clusters": clusters,
                 "fallbacks": dict(fallbacks),
                 "fallback_tiers": dict(tiers),
@@ -850,11 +886,19 @@ def _run(
                 "sensors": sensor_tables_to_run(sensor_tables),
                 "tracker_notes": list(src.tracker_notes),
                 "elapsed_seconds": seconds,
+                # the finishing phase (writers): how far the outputs are
+                "phase": phase,
+                "stop": int(stop),
+                "n_scans_total": int(K),
+                "outputs": list(outputs),
+                "outputs_done": list(done),
             }
 
         from jointtrack._console import progress_bar
 
-        if console.is_terminal or progress:
+        if start >= stop:
+            pass  # nothing to track (a resume that only finishes): no kernels to load
+        elif console.is_terminal or progress:
             with console.status(
                 # measured first runs (empty numba cache): 47 s (issue 25's busy machine),
                 # 342 s on 2 cores shared at load 10 (the same run compiled: 32 s)
@@ -930,19 +974,28 @@ def _run(
                             n_parts = writer.commit()
                             fault("part", k)
                             seconds = elapsed_before + time.perf_counter() - loop0
-                            _save_checkpoint(trk, checkpoint, run_info(n_parts, seconds))
+                            _save_checkpoint(
+                                trk, checkpoint, run_info(n_parts, seconds, n_done, "tracking")
+                            )
                             checkpointed[0] = True
                             fault("checkpoint", k)
                         bar.update(task, advance=1)
-                loop_seconds = time.perf_counter() - loop0
-                if checkpoint is not None and (n_done or resume is not None):
-                    n_parts = writer.commit() if writer._pending else writer.n_parts
+                # a resume that only finishes adds no time (the metrics keep the loop's)
+                loop_seconds = time.perf_counter() - loop0 if n_done else 0.0
+                tracked = n_done if n_done else tracked_before
+                total_loop = elapsed_before + loop_seconds
+                if checkpoint is None:
+                    # nothing can resume from the parts: the rows are in memory
+                    writer.discard_parts()
+                elif n_done or resume is not None:
+                    # every scan is committed: from here on the outputs are written, each
+                    # recorded in the checkpoint once it is in place (see writers)
+                    n_parts = writer.commit_pending()
                     _save_checkpoint(
-                        trk, checkpoint, run_info(n_parts, elapsed_before + loop_seconds)
+                        trk, checkpoint, run_info(n_parts, total_loop, tracked, "finishing")
                     )
                     checkpointed[0] = True
-                # the parts are kept only while a resume can extend the run (--max-scans)
-                writer.finish(keep_parts=checkpoint is not None and stop < K)
+                    fault("finishing", 0)
             except KeyboardInterrupt:
                 writer.snapshot()
                 raise
@@ -950,7 +1003,7 @@ def _run(
                 writer.close()
                 tracker_log.setLevel(saved_level)
     except BaseException:
-        if not checkpointed[0]:
+        if writer is not None and not checkpointed[0]:
             writer.discard_parts()
         raise
 
@@ -977,9 +1030,9 @@ def _run(
         tracks,
         writer.path,
         stop,
-        n_done,
+        tracked,
         clusters,
-        elapsed_before + loop_seconds,
+        total_loop,
         metrics_opts,
         notes,
         output_times=output_times,
@@ -1010,37 +1063,129 @@ def _run(
             "coincident_returns: returns dropped as exact repeats of another return of "
             "their scan",
         }
-    files = {"tracks": str(writer.path), "metrics": str(out_dir / "metrics.json")}
-    if plots:
+    if extra.metrics is not None:
+        extra.metrics(metrics, tracks)
+
+    # ------------------------------------------------------------ outputs
+    def draw_scene(path: Path) -> None:
         from jointtrack.experiments import plots as _plots
 
         scans, sensor = src.scans[:stop], None
         if src.kind == "range-bearing":
             sensor = cfg.sensor_position
             scans = _cartesian(scans, sensor)
-        files["scene"] = str(
-            _plots.plot_scene(
-                out_dir / "scene.png",
-                times=scan_times,
-                scans=scans,
-                origins=src.origins[:stop] if src.origins is not None else None,
-                truth=truth,
-                tracks=tracks,
-                region=src.region,
-                title=_describe(identity),
-                sensor=sensor,
-            )
+        _plots.plot_scene(
+            path,
+            times=scan_times,
+            scans=scans,
+            origins=src.origins[:stop] if src.origins is not None else None,
+            truth=truth,
+            tracks=tracks,
+            region=src.region,
+            title=_describe(identity),
+            sensor=sensor,
         )
-        if series is not None:
-            files["gospa"] = str(
-                _plots.plot_gospa(out_dir / "gospa.png", series, title=_describe(identity))
-            )
-    if post is not None:
-        post(metrics, tracks, out_dir, files)
+
+    def draw_gospa(path: Path) -> None:
+        from jointtrack.experiments import plots as _plots
+
+        _plots.plot_gospa(path, series, title=_describe(identity))
+
+    def write_metrics_file(path: Path) -> None:
+        metrics["timing"]["total_seconds"] = time.perf_counter() - wall0
+        write_metrics(metrics, path)
+
+    # file name → (metrics.json "files" key, write(temporary path)), in `outputs` order
+    steps = {
+        writer.path.name: ("tracks", None),
+        "scene.png": ("scene", draw_scene),
+        "gospa.png": ("gospa", draw_gospa),
+        **{name: (key, lambda p, d=draw: d(p, tracks)) for name, key, draw in extra.figures},
+        "metrics.json": ("metrics", write_metrics_file),
+    }
+    files = {"tracks": str(writer.path), "metrics": str(out_dir / "metrics.json")}
+    files.update((steps[n][0], str(out_dir / n)) for n in outputs[1:-1])
     metrics["files"] = files
-    metrics["timing"]["total_seconds"] = time.perf_counter() - wall0
-    write_metrics(metrics, out_dir / "metrics.json")
+    for i, name in enumerate(outputs):
+        if name in done:
+            continue  # written by the run this one resumes
+        if name == writer.path.name:
+            writer.write_tracks_file(stage=("write", i))
+        else:
+            with atomic_output(out_dir / name, ("write", i)) as tmp:
+                steps[name][1](tmp)
+        fault("output", i)
+        done.append(name)
+        if checkpoint is not None:
+            _save_checkpoint(
+                trk, checkpoint, run_info(writer.n_parts, total_loop, tracked, "finishing")
+            )
+            fault("recorded", i)
+    if checkpoint is not None:
+        _save_checkpoint(trk, checkpoint, run_info(writer.n_parts, total_loop, tracked, "done"))
+        fault("done", 0)
+    # the parts are kept only while a resume can extend the run (--max-scans)
+    if checkpoint is not None and stop >= K:
+        writer.remove_parts()
     return metrics
+
+
+def _output_names(fmt: str, plots: bool, scored: bool, extra: ExtraOutputs) -> list[str]:
+    """The files a run's finishing phase writes, in order: the tracks file first (the
+    figures and metrics are computed from its rows), metrics.json (which names the
+    others) last. ``scored``: the run has a truth (``gospa.png``)."""
+    names = [f"tracks.{'csv' if fmt == 'csv' else 'parquet'}"]
+    if plots:
+        names.append("scene.png")
+        if scored:
+            names.append("gospa.png")
+        names += [name for name, _, _ in extra.figures]
+    return [*names, "metrics.json"]
+
+
+def _outputs_already_written(resume, info, writer, outputs, start, stop, K) -> list[str]:
+    """The outputs a resume keeps: those the checkpoint records as written in their final
+    form and that are still there, when it resumes the finishing phase of the same
+    scans (else none: the run tracks further and writes them all).
+
+    Raises :class:`RunAlreadyComplete` when every output is there, and
+    :class:`RunConfigError` naming the missing ones when they cannot be written again
+    (a complete run removed its committed tracks).
+    """
+    phase = info.get("phase")
+    recorded = info.get("outputs_done", [])
+    saved_stop = info.get("stop")
+    if phase is None and start >= K and not writer.parts_dir.is_dir():
+        # a completed run of a jointtrack that did not record the phase
+        phase, recorded, saved_stop = "done", list(outputs), K
+    if start < stop or phase not in ("finishing", "done") or saved_stop != stop:
+        return []
+    done = [n for n in recorded if n in outputs and (writer.out_dir / n).is_file()]
+    missing = [n for n in outputs if n not in done]
+    scans = f"all {K} scans" if stop >= K else f"scans 1-{stop} of {K} (--max-scans {stop})"
+    if not missing and phase == "done":
+        if stop >= K:
+            writer.remove_parts()  # what a removal killed half-way left behind
+        path = writer.out_dir / "metrics.json"
+        try:
+            metrics = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise RunConfigError(f"{path} cannot be read ({exc}); start the run again") from None
+        more = "" if stop >= K else "; resume without --max-scans to continue it"
+        raise RunAlreadyComplete(
+            f"{resume}: the run is complete ({scans}; its outputs are in "
+            f"{writer.out_dir}): there is nothing to resume{more}",
+            metrics,
+        )
+    if missing and not writer.parts_complete(int(info["parts"])):
+        names = ", ".join(str(writer.out_dir / n) for n in missing)
+        raise RunConfigError(
+            f"{resume}: the run is complete ({scans}), but {names} "
+            f"{'is' if len(missing) == 1 else 'are'} missing (removed after the run?); its "
+            "committed tracks were removed when it completed, so the checkpoint cannot "
+            "write them again: start the run again (without --resume)"
+        )
+    return done
 
 
 def run_scenario(

@@ -1,32 +1,48 @@
-"""Run outputs that survive a kill at any instant: committed track parts and checkpoints.
+"""Run outputs that survive a kill at any instant: committed track parts, checkpoints
+and a finishing phase that resumes.
 
 Rows of the tracks table are written as *parts*: ``OUT/.tracks-parts/part-NNNNNN.csv``
 (or ``.parquet``), each holding the scans since the previous commit. A part is
-written to a temporary file, flushed to disk and renamed into place (atomic),
-and only then is the checkpoint saved — the tracker state and, in the same
-checksummed file, the run's bookkeeping (:func:`_save_checkpoint`: the inputs,
-the output directory and format, the number of committed parts, cluster timings).
-Between commits, CSV rows are also appended to ``part-NNNNNN.csv.partial`` and
-flushed every scan, so progress is visible.
+written to a temporary file, flushed to disk and renamed into place (atomic,
+:func:`atomic_output`), and only then is the checkpoint saved — the tracker state
+and, in the same checksummed file, the run's bookkeeping (:func:`_save_checkpoint`:
+the inputs, the output directory and format, the number of committed parts,
+cluster timings, the phase). Between commits, CSV rows are also appended to
+``part-NNNNNN.csv.partial`` and flushed every scan, so progress is visible.
 
 A killed run therefore leaves: committed parts (all of them ≤ the checkpoint's
 count are complete), possibly one part newer than the checkpoint, and possibly a
 partial or temporary file. Resuming (:meth:`_TrackWriter.resume`) deletes
-everything newer than the checkpoint and continues. When the run ends, the parts
-are concatenated into ``OUT/tracks.csv`` (or ``tracks.parquet``) — again a
-temporary file renamed into place; the parts directory is kept only while a
-checkpoint can continue the run (a checkpointed run stopped early by
-``--max-scans``, or killed or failed after a checkpoint) and removed otherwise:
-when the run has processed every scan, and when a run without a checkpoint
-ends in any way, error or Ctrl-C included. The final
-file equals an uninterrupted run's row for row, whatever was killed when. An
-interrupted run (Ctrl-C) also writes the rows so far to the tracks file.
+everything newer than the checkpoint and continues.
+
+The finishing phase. Once the run's last scan is committed, the checkpoint says
+``phase = "finishing"``; then every output — the tracks file (``tracks.csv`` or
+``tracks.parquet``, the parts concatenated, with a report run's ``lat, lon``
+columns), the figures, ``metrics.json`` last — is written once, in its final form,
+each to a temporary file that is flushed and renamed into place, and after each the
+checkpoint records it in ``outputs_done``. Then the checkpoint says ``phase =
+"done"`` and only after that are the parts removed (a run stopped early by
+``--max-scans`` keeps them: a resume can extend it). A resume in the finishing
+phase writes exactly the outputs not yet recorded (or no longer there); a resume of
+a done run whose outputs are all there has nothing to do
+(:class:`RunAlreadyComplete`). The parts directory is removed also when a run
+without a checkpoint ends in any way, error or Ctrl-C included. The final files
+equal an uninterrupted run's byte for byte, whatever was killed when. An
+interrupted run (Ctrl-C) while tracking also writes the rows so far to the tracks
+file.
 
 Fault injection for the kill tests: the environment variable
-``JOINTTRACK_FAULT=STAGE:SCAN[:SIGNAL]`` sends SIGNAL (default KILL) to the
-process at STAGE (``scan``: after that scan's rows were written; ``part``: after
-a part was committed, before its checkpoint; ``checkpoint``: after the
-checkpoint) of scan number SCAN.
+``JOINTTRACK_FAULT=STAGE:N[:SIGNAL]`` sends SIGNAL (default KILL) to the process at
+STAGE of scan or output number N. Tracking stages (N = the scan): ``scan`` (after
+that scan's rows were written), ``part`` (after a part was committed, before its
+checkpoint), ``checkpoint`` (after the checkpoint). Finishing stages:
+``finishing:0`` (after the checkpoint that starts the finishing phase), and for
+output N of the phase (in the order of ``outputs`` in the checkpoint: the tracks
+file first, metrics.json last) ``write`` (its temporary file complete, not yet
+renamed), ``output`` (renamed into place, not yet recorded) and ``recorded``
+(recorded in the checkpoint); ``done:0`` (after the checkpoint that says the run is
+done, before the parts are removed) and ``cleanup:N`` (after the N-th part was
+removed).
 """
 
 from __future__ import annotations
@@ -36,13 +52,30 @@ import io
 import os
 import shutil
 import signal
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from jointtrack.trackers import JPDATracker
+from jointtrack.experiments.config import RunConfigError
 
-__all__ = ["FORMATS", "PARQUET_ROW_GROUP_SCANS", "PARTS_DIR"]
+if TYPE_CHECKING:
+    from jointtrack.trackers import JPDATracker
+
+__all__ = [
+    "FORMATS",
+    "PARQUET_ROW_GROUP_SCANS",
+    "PARTS_DIR",
+    "PHASES",
+    "ExtraOutputs",
+    "RunAlreadyComplete",
+    "atomic_output",
+    "check_run_phase",
+    "run_is_complete",
+]
 
 FORMATS = ("csv", "parquet")
 #: Scans per row group of the final tracks.parquet (independent of the commits).
@@ -57,6 +90,43 @@ OUTPUT_NAMES = (
     "gospa.png",
     "map.png",  # report runs' (jointtrack.experiments.realdata)
 )
+#: A run's phases, as its checkpoint records them (``phase``; see the module docstring).
+#: Checkpoints written before the finishing phase was recorded have no ``phase``.
+PHASES = ("tracking", "finishing", "done")
+
+
+class RunAlreadyComplete(RunConfigError):
+    """``resume`` of a run that has written every output: there is nothing to do.
+
+    Not a failure: ``jointtrack run --resume`` reports it and exits 0. ``metrics``:
+    the run's ``metrics.json`` as it was written.
+    """
+
+    def __init__(self, message: str, metrics: dict):
+        super().__init__(message)
+        self.metrics = metrics
+
+
+@dataclass(frozen=True)
+class ExtraOutputs:
+    """What a caller adds to a run's outputs (report runs:
+    :func:`jointtrack.experiments.realdata.run_reports`).
+
+    Everything here is computed from the run's tracks alone, so a run resumed in
+    its finishing phase writes the same files.
+
+    ``frame``: a :class:`~jointtrack.io.geodetic.LocalFrame` that ``x, y`` are
+    metres in, or None; the tracks file then has ``lat, lon`` columns after ``y``
+    (:func:`jointtrack.io.tracks.with_geodetic_columns`), written once, in that form.
+    ``metrics(metrics, tracks)``: adds entries to the metrics dict in place (writes
+    no file). ``figures``: ``(file name, key of metrics.json "files", draw)`` drawn
+    when the run draws its plots, ``draw(path, tracks)`` writing the figure to the
+    (temporary) path given, whose suffix is the file name's.
+    """
+
+    frame: object | None = None
+    metrics: Callable[[dict, tuple], None] | None = None
+    figures: tuple[tuple[str, str, Callable[[Path, tuple], object]], ...] = field(default=())
 
 
 def _track_columns(dim: int) -> list[str]:
@@ -78,6 +148,34 @@ def _fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
+def _temporary_name(path: Path) -> Path:
+    """The temporary file beside ``path`` that :func:`atomic_output` renames into place:
+    hidden, and with ``path``'s suffix (matplotlib picks the image format by it)."""
+    return path.with_name(f".{path.stem}.tmp{path.suffix}")
+
+
+@contextmanager
+def atomic_output(path, stage: tuple[str, int] | None = None) -> Iterator[Path]:
+    """Write the file ``path`` atomically: the body writes the path yielded (a temporary
+    file beside ``path``), which is then flushed to disk and renamed over ``path``, and
+    the rename made durable. If the body fails, the temporary file is removed and
+    ``path`` is as it was. ``stage``: a fault-injection point (:func:`fault`) between
+    the complete temporary file and the rename."""
+    path = Path(path)
+    tmp = _temporary_name(path)
+    try:
+        yield tmp
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        if stage is not None:
+            fault(*stage)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    _fsync_dir(path.parent)
+
+
 def fault(stage: str, scan: int) -> None:
     """Fault-injection point (see the module docstring); a no-op unless requested."""
     spec = os.environ.get("JOINTTRACK_FAULT")
@@ -89,18 +187,54 @@ def fault(stage: str, scan: int) -> None:
         os.kill(os.getpid(), sig)
 
 
+def check_run_phase(path, info: dict) -> None:
+    """The finishing-phase bookkeeping of a checkpoint (``phase``, ``outputs``,
+    ``outputs_done``, ``stop``, ``n_scans_total``) is well formed, else a
+    :class:`RunConfigError` naming the file and the field (the checkpoint is
+    checksummed, so this guards against a writer's bug, not damage)."""
+
+    def bad(what: str) -> RunConfigError:
+        return RunConfigError(f"{path}: the checkpoint's run bookkeeping {what}")
+
+    phase = info.get("phase")
+    if phase is None:
+        return  # written before the phase was recorded: a tracking checkpoint
+    if phase not in PHASES:
+        raise bad(f"has phase {phase!r}, not one of {', '.join(PHASES)}")
+    for key in ("outputs", "outputs_done"):
+        names = info.get(key)
+        if not isinstance(names, list) or not all(n in OUTPUT_NAMES for n in names):
+            raise bad(f"{key} = {names!r} is not a list of output file names")
+    for key in ("stop", "n_scans_total"):
+        value = info.get(key)
+        if type(value) is not int or value < 0:
+            raise bad(f"{key} = {value!r} is not a number of scans")
+
+
+def run_is_complete(info: dict, parts_dir: Path) -> bool:
+    """Whether a checkpoint's run has processed every scan and written every output
+    (nothing can continue it). A checkpoint written before the phase was recorded:
+    complete when the parts are gone (its run removed them at the end)."""
+    if info.get("phase") is None:
+        return not parts_dir.is_dir()
+    return info["phase"] == "done" and info.get("stop") == info.get("n_scans_total")
+
+
 class _TrackWriter:
     """Tracks table written as committed parts (see the module docstring).
 
-    Keeps every row in memory as well (for the metrics and plots).
+    Keeps every row in memory as well (for the metrics and plots). ``frame``: a
+    :class:`~jointtrack.io.geodetic.LocalFrame` whose ``lat, lon`` the tracks file
+    holds next to ``x, y`` (report runs), or None.
     """
 
-    def __init__(self, out_dir: Path, dim: int, fmt: str, scan_times=None):
+    def __init__(self, out_dir: Path, dim: int, fmt: str, scan_times=None, frame=None):
         self.out_dir = Path(out_dir)
         # the run's scan times: Parquet row groups hold PARQUET_ROW_GROUP_SCANS scans each
         self.scan_times = None if scan_times is None else np.asarray(scan_times, float)
         self.dim = dim
         self.fmt = fmt
+        self.frame = frame
         self.columns = _track_columns(dim)
         self.parts_dir = self.out_dir / PARTS_DIR
         self.path = self.out_dir / f"tracks.{'csv' if fmt == 'csv' else 'parquet'}"
@@ -114,12 +248,29 @@ class _TrackWriter:
         """A new run: remove this tool's outputs and parts of an earlier run."""
         if self.parts_dir.exists():
             shutil.rmtree(self.parts_dir)
-        for name in OUTPUT_NAMES:
-            (self.out_dir / name).unlink(missing_ok=True)
+        self._remove_outputs(keep=())
         self.parts_dir.mkdir(parents=True)
 
-    def resume(self, n_parts: int) -> None:
-        """Continue after ``n_parts`` committed parts: drop everything newer, reload the rows."""
+    def _remove_outputs(self, keep) -> None:
+        """Remove the outputs (and temporary files of outputs) of an earlier or
+        interrupted run, except the names in ``keep``."""
+        for name in OUTPUT_NAMES:
+            path = self.out_dir / name
+            if name not in keep:
+                path.unlink(missing_ok=True)
+            _temporary_name(path).unlink(missing_ok=True)
+            path.with_name(name + ".tmp").unlink(missing_ok=True)  # older runs' name
+
+    def parts_complete(self, n_parts: int) -> bool:
+        """Whether the ``n_parts`` committed parts are all there (a resume can use them)."""
+        return self.parts_dir.is_dir() and all(self._part_path(k).is_file() for k in range(n_parts))
+
+    def resume(self, n_parts: int, keep=()) -> None:
+        """Continue after ``n_parts`` committed parts: drop everything newer, reload the rows.
+
+        ``keep``: outputs already written in their final form (a resume in the
+        finishing phase); every other output of the interrupted run is removed.
+        """
         if not self.parts_dir.is_dir():
             raise ValueError(
                 f"{self.parts_dir} is missing: the checkpoint's committed tracks are gone, "
@@ -135,8 +286,7 @@ class _TrackWriter:
                 raise ValueError(f"{p} is missing: the run cannot be resumed exactly")
             self._chunks.append(self._read_part(p))
         self.n_parts = n_parts
-        for name in OUTPUT_NAMES:  # stale outputs of the interrupted run
-            (self.out_dir / name).unlink(missing_ok=True)
+        self._remove_outputs(keep)  # stale outputs of the interrupted run
 
     @property
     def _ext(self) -> str:
@@ -180,53 +330,52 @@ class _TrackWriter:
             self._partial.write(self._csv_text(rows, header=False))
             self._partial.flush()
 
-    def _csv_text(self, rows: np.ndarray, header: bool) -> str:
+    def _csv_text(self, rows: np.ndarray, header: bool, columns=None) -> str:
+        columns = self.columns if columns is None else columns
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
         if header:
-            w.writerow(self.columns)
+            w.writerow(columns)
+        # track_id is the second column of every table written here
         w.writerows(
             [repr(float(r[0])), str(int(r[1])), *(repr(float(v)) for v in r[2:])] for r in rows
         )
         return buf.getvalue()
 
-    def _write_atomic(self, path: Path, rows: np.ndarray, header: bool = True) -> None:
-        tmp = path.with_name(path.name + ".tmp")
-        if self.fmt == "csv":
-            with open(tmp, "w", encoding="utf-8", newline="") as fh:
-                fh.write(self._csv_text(rows, header))
-                fh.flush()
-                os.fsync(fh.fileno())
-        else:
-            import pyarrow as pa
-            import pyarrow.parquet as pq
+    def _write_atomic(
+        self, path: Path, rows: np.ndarray, header: bool = True, columns=None, stage=None
+    ) -> None:
+        columns = self.columns if columns is None else columns
+        with atomic_output(path, stage) as tmp:
+            if self.fmt == "csv":
+                with open(tmp, "w", encoding="utf-8", newline="") as fh:
+                    fh.write(self._csv_text(rows, header, columns))
+            else:
+                import pyarrow as pa
+                import pyarrow.parquet as pq
 
-            schema = pa.schema(
-                [(n, pa.int64() if n == "track_id" else pa.float64()) for n in self.columns]
-            )
-            arrays = [
-                pa.array(rows[:, j].astype(np.int64) if n == "track_id" else rows[:, j])
-                for j, n in enumerate(self.columns)
-            ]
-            table = pa.Table.from_arrays(arrays, schema=schema)
-            # row groups of PARQUET_ROW_GROUP_SCANS scans, wherever the commits fell
-            step = PARQUET_ROW_GROUP_SCANS
-            bounds = (
-                self.scan_times[step::step]
-                if self.scan_times is not None
-                else np.unique(rows[:, 0])[step::step]
-            )
-            cuts = [*np.searchsorted(rows[:, 0], bounds, side="left"), len(rows)]
-            with open(tmp, "wb") as fh:
-                with pq.ParquetWriter(fh, schema) as pw:
-                    lo = 0
-                    for hi in cuts:
-                        pw.write_table(table.slice(lo, hi - lo))
-                        lo = hi
-                fh.flush()
-                os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        _fsync_dir(path.parent)
+                schema = pa.schema(
+                    [(n, pa.int64() if n == "track_id" else pa.float64()) for n in columns]
+                )
+                arrays = [
+                    pa.array(rows[:, j].astype(np.int64) if n == "track_id" else rows[:, j])
+                    for j, n in enumerate(columns)
+                ]
+                table = pa.Table.from_arrays(arrays, schema=schema)
+                # row groups of PARQUET_ROW_GROUP_SCANS scans, wherever the commits fell
+                step = PARQUET_ROW_GROUP_SCANS
+                bounds = (
+                    self.scan_times[step::step]
+                    if self.scan_times is not None
+                    else np.unique(rows[:, 0])[step::step]
+                )
+                cuts = [*np.searchsorted(rows[:, 0], bounds, side="left"), len(rows)]
+                with open(tmp, "wb") as fh:
+                    with pq.ParquetWriter(fh, schema) as pw:
+                        lo = 0
+                        for hi in cuts:
+                            pw.write_table(table.slice(lo, hi - lo))
+                            lo = hi
 
     def _read_part(self, p: Path) -> np.ndarray:
         width = len(self.columns)
@@ -264,17 +413,36 @@ class _TrackWriter:
         self.n_parts += 1
         return self.n_parts
 
-    def finish(self, keep_parts: bool) -> None:
-        """Commit what is pending and write the tracks file atomically.
+    def commit_pending(self) -> int:
+        """Commit the rows since the last commit, if any; returns the parts count."""
+        return self.commit() if self._pending else self.n_parts
 
-        ``keep_parts``: keep the committed parts (a checkpointed run can then be
-        continued, e.g. with a larger ``--max-scans``); otherwise remove them.
-        """
-        if self._pending or self.n_parts == 0:
-            self.commit()
-        self._write_atomic(self.path, self.rows())
-        if not keep_parts:
-            shutil.rmtree(self.parts_dir, ignore_errors=True)
+    def write_tracks_file(self, stage=None) -> Path:
+        """Write the tracks file atomically, in its final form: every row so far, with
+        ``lat, lon`` columns when the writer has a ``frame``. ``stage``: see
+        :func:`atomic_output`."""
+        rows, columns = self.rows(), self.columns
+        if self.frame is not None:
+            from jointtrack.io.tracks import with_geodetic_columns
+
+            table = with_geodetic_columns(
+                {n: rows[:, j] for j, n in enumerate(columns)}, self.frame
+            )
+            columns = list(table)
+            rows = np.column_stack([np.asarray(v, dtype=float) for v in table.values()])
+            rows = rows.reshape(-1, len(columns))
+        self._write_atomic(self.path, rows, columns=columns, stage=stage)
+        return self.path
+
+    def remove_parts(self) -> None:
+        """Remove the parts directory, part by part (``cleanup`` fault points): the run
+        is done, or it had no checkpoint that could need them."""
+        self.close()
+        if self.parts_dir.is_dir():
+            for k, p in enumerate(sorted(self.parts_dir.iterdir())):
+                p.unlink(missing_ok=True)
+                fault("cleanup", k)
+        shutil.rmtree(self.parts_dir, ignore_errors=True)
 
     def discard_parts(self) -> None:
         """Remove the parts directory (a failed run without a checkpoint: nothing can
@@ -285,7 +453,7 @@ class _TrackWriter:
     def snapshot(self) -> None:
         """Write every row so far to the tracks file (an interrupted run shows its progress);
         the parts are left as they are, so a resume continues from the checkpoint."""
-        self._write_atomic(self.path, self.rows())
+        self.write_tracks_file()
 
     def close(self) -> None:
         """Close the visible partial file (on any exit; committed parts stay)."""

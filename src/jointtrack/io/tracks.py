@@ -12,7 +12,7 @@ import numpy as np
 from jointtrack.io._files import as_columns, check_integer, load_columns, out_path, write_columns
 from jointtrack.io.errors import TrackFileError
 
-__all__ = ["read_tracks", "write_tracks"]
+__all__ = ["read_tracks", "with_geodetic_columns", "write_tracks"]
 
 _TRACK_REQUIRED_2D = ("time", "track_id", "x", "y", "vx", "vy")
 _TRACK_REQUIRED_3D = ("time", "track_id", "x", "y", "z", "vx", "vy", "vz")
@@ -57,16 +57,23 @@ def write_tracks(tracks_table, path, *, frame=None) -> Path:
         i = int(np.flatnonzero(tid != np.round(tid))[0])
         raise ValueError(f"tracks_table: track_id row {i} is not an integer ({tid[i]})")
     ordered = {c: cols[c] for c in required}
-    if frame is not None:
-        ordered = _with_geodetic(ordered, cols, frame, has_z)
     ordered.update({k: v for k, v in cols.items() if k not in ordered})
+    if frame is not None:
+        ordered = with_geodetic_columns(ordered, frame)
     path, kind = out_path(path)
     write_columns(path, kind, ordered, int_cols={"track_id"})
     return path
 
 
-def _with_geodetic(ordered: dict, cols: dict, frame, has_z: bool) -> dict:
-    """``ordered`` with ``lat, lon[, alt]`` of the local positions after ``x, y[, z]``."""
+def with_geodetic_columns(cols: dict, frame) -> dict:
+    """``cols`` (name → 1-D array, ``x, y[, z]`` among them) with ``lat, lon[, alt]`` of
+    the local positions inserted right after ``y`` (``z`` when there is one).
+
+    ``frame``: a :class:`~jointtrack.io.geodetic.LocalFrame` or ``(lat0, lon0[, alt0])``
+    that ``x, y[, z]`` are east/north(/up) metres in. The tracks file of
+    :func:`write_tracks` and of ``jointtrack run`` on report files (written once, in
+    this final form) both take their columns from here.
+    """
     from jointtrack.io.geodetic import GEO_COLUMNS, LocalFrame
 
     if not isinstance(frame, LocalFrame):
@@ -77,6 +84,7 @@ def _with_geodetic(ordered: dict, cols: dict, frame, has_z: bool) -> dict:
             frame = LocalFrame(*frame)
         except (TypeError, ValueError) as exc:
             raise type(exc)(f"frame: {exc}") from None
+    has_z = "z" in cols
     names = GEO_COLUMNS if has_z else GEO_COLUMNS[:2]
     clash = [c for c in names if c in cols]
     if clash:
@@ -85,11 +93,11 @@ def _with_geodetic(ordered: dict, cols: dict, frame, has_z: bool) -> dict:
             "computed from x, y"
         )
     local = np.column_stack(
-        [cols[c].astype(np.float64) for c in (("x", "y", "z") if has_z else ("x", "y"))]
+        [np.asarray(cols[c]).astype(np.float64) for c in (("x", "y", "z") if has_z else ("x", "y"))]
     )
     geo = frame.to_geodetic(local)
     out = {}
-    for k, v in ordered.items():
+    for k, v in cols.items():
         out[k] = v
         if k == ("z" if has_z else "y"):
             out.update(zip(names, geo, strict=True))
