@@ -1049,12 +1049,14 @@ def _run(
             "fallback_tiers": dict(sorted(tiers.items())),
             "exact_max_tracks": getattr(cfg, "exact_max_tracks", None),
             "exact_max_bits_tentative": getattr(cfg, "exact_max_bits_tentative", None),
+            "max_ranking_work": getattr(cfg, "max_ranking_work", None),
             **({"clusters": cluster_rows(solved)} if tally_complete else {}),
             "coincident_returns": coincident[0],
             "fallbacks_note": "clusters solved by the approximation instead of the configured "
             "method, by reason (exact_max_tracks, exact_max_bits_tentative, refused by the exact "
             "engine's own limits, or "
-            "dense_budget: too large for an N × M matrix), and in fallback_tiers by the "
+            "dense_budget: too large for an N × M matrix; PMBM: ranking_truncated / "
+            "ranking_merged past max_ranking_work), and in fallback_tiers by the "
             "method that solved them (the approximation, else lbp-sparse, else per-track "
             "pda); ', tentative tracks' marks clusters of tentative tracks. "
             "clusters: every multi-track cluster by kind of track, method and reason "
