@@ -1,8 +1,16 @@
-"""Issue 31, the JPDA/JIPDA tracker and the shared tracker layer (defects 9, 13).
+"""Issue 31, the JPDA/JIPDA tracker and the shared tracker layer (defects 4, 9, 13).
 
+* 4 — "detected" was 1 − β₀: for a track of existence ~1e-12 the association's β
+  kept only the first digits of it, β₀ and the weights given existence summed to
+  1 ± 1e-5 and the PDA update refused them ("association probabilities sum to
+  1.0000035…"); existence was floored at 1e-12, so with r_delete ≤ 1e-12 a track
+  never died by it. Now: Σw, no floor, existence-0 tracks dropped and refused.
 * 9 — ``max_speed = 1e200`` was accepted and the first step overflowed; every
   setting squared into a covariance is bounded now (``MAX_STD``, ``MAX_VARIANCE``).
 * 13 — ``save(<directory>)`` raised a raw IsADirectoryError and left ``<dir>.tmp``.
+
+Expected values are independent: exact rationals (fractions) for the existence
+update, 30-digit mpmath for a tracker's posterior.
 """
 
 from __future__ import annotations
@@ -11,19 +19,186 @@ import errno
 import math
 import os
 import warnings
+from fractions import Fraction
 
+import mpmath
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 from jointtrack.io.detections import MAX_COORDINATE
 from jointtrack.trackers import JPDATracker, StateFileError, TrackerConfig, state_io
+from jointtrack.trackers import existence as existence_module
 from jointtrack.trackers.config import MAX_STD, MAX_VARIANCE
+from jointtrack.trackers.existence import existence_update
 from jointtrack.trackers.pmbm import PMBMTracker, PMBTracker
 from jointtrack.trackers.pmbm_config import PMBMConfig
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+TINY = 5e-324  # the smallest positive float: existence that is not 0
+
+
+# ------------------------------------------------------------- 4. detected = Σw
+def _probabilities():
+    """Existences from subnormal to 1 (the ends drawn often)."""
+    return st.one_of(
+        st.sampled_from([TINY, 1e-300, 1e-12, 3e-12, 1e-11, 0.5, 1.0 - 2**-53, 1.0]),
+        st.floats(TINY, 1.0),
+        st.floats(1e-320, 1e-9),
+    )
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    r=_probabilities(),
+    pdg=st.one_of(st.sampled_from([0.0, 0.5, 0.891, 1 - 1e-12]), st.floats(0.0, 0.999999)),
+    ratios=st.lists(
+        st.one_of(st.sampled_from([0.0, TINY, 1.0, 1e300]), st.floats(0.0, 1e300)), max_size=5
+    ),
+)
+def test_existence_update_is_exact_for_any_existence(r, pdg, ratios):
+    """One track: r' = r(1 − P_DG + Σℓ)/(1 − r P_DG + r Σℓ) (IPDA), exactly in rationals,
+    from the β an association forms in floats; the β given existence sum to one."""
+    miss = (1.0 - r) + r * (1.0 - pdg)
+    lr = np.array(ratios) * r  # the pairs' weights before normalisation
+    total = miss + lr.sum()
+    beta0 = np.array([miss / total])
+    weights = lr / total
+    rows = np.zeros(len(lr), np.int64)
+    r_post, b0, w = existence_update(np.array([r]), beta0, weights, rows, pdg)
+    R, G = Fraction(r), Fraction(pdg)
+    S = sum((Fraction(v) for v in ratios), Fraction(0))
+    exact = R * (1 - G + S) / (1 - R * G + R * S)
+    got = Fraction(float(r_post[0]))
+    # a few roundings of the β and the update; subnormal results round absolutely
+    assert abs(got - exact) <= Fraction(1e-14) * exact + Fraction(1e-320)
+    if total > 0 and r_post[0] > 0:
+        assert abs(b0[0] + w.sum() - 1.0) <= 8 * 2.0**-53
+
+
+def _async_config(**kw):
+    base = dict(
+        reporting="async",
+        clutter_density=1e-4,
+        p_survive_per="second",
+        p_survive=1.0,
+        measurement_noise=100.0,
+        r_delete=TINY,
+        r_init=0.01,
+        merge_threshold=0.0,
+    )
+    base.update(kw)
+    return TrackerConfig(**base)
+
+
+@SETTINGS
+@given(
+    r0=st.one_of(st.floats(1e-300, 1e-6), st.sampled_from([1e-300, 1e-100, 3e-12, 1e-11])),
+    clutter=st.sampled_from([1e-5, 1e-4, 1e-3, 1e-2]),
+    offset=st.floats(0.0, 12.0),
+)
+@example(r0=3e-12, clutter=1e-5, offset=3.6)  # "sum to 1.00001258184, not 1" at ef50439
+@example(r0=1e-11, clutter=1e-4, offset=3.6)
+def test_a_track_of_tiny_existence_takes_a_return(r0, clutter, offset):
+    """A report in the gate of a track of existence down to 1e-300: the step succeeds and
+    the existence is the IPDA posterior (mpmath), not 1e-12 and not an error."""
+    cfg = _async_config(clutter_density=clutter)
+    trk = JPDATracker(cfg)
+    P0 = np.diag([100.0, 100.0, 1.0, 1.0])
+    trk.start_tracks(np.zeros(4), P0, existence=r0, time=0.0)
+    z = np.array([[offset, 0.0]])
+    trk.step(1.0, z)
+    # by hand: one track, one report, Δt = 1, n = 0 reports, born at 0, p_survive = 1
+    F = trk._motion.transition(1.0)
+    P = F @ P0 @ F.T + trk._motion.noise(1.0)
+    S = P[:2, :2] + 100.0 * np.eye(2)
+    d2 = float(z[0] @ np.linalg.solve(S, z[0]))
+    gamma = -2.0 * math.log(1.0 - cfg.p_g)
+    assume(d2 < 0.999 * gamma)  # inside the gate, clearly
+    m = mpmath.mpf
+    g = mpmath.exp(-m(d2) / 2) / (2 * mpmath.pi * mpmath.sqrt(m(np.linalg.det(S))))
+    miss = (m(cfg.report_interval) / (m(cfg.report_interval) + 1)) ** m(cfg.p_d)
+    p_det = 1 - miss
+    p_dg = 1 - miss ** m(cfg.p_g)
+    L = p_det / 1 * g / m(clutter)
+    r = m(r0)
+    expected = r * (1 - p_dg + L) / (1 - r * p_dg + r * L)
+    row = np.flatnonzero(trk.ids == 1)
+    assert len(row) == 1
+    assert abs(m(trk.existence[row[0]]) - expected) <= 1e-11 * expected
+
+
+def test_a_fading_track_among_other_reports_runs_to_its_deletion():
+    """The issue's JIPDA case (async, r_delete = 1e-12): a track not heard again while
+    another target reports every 2 s fades through 1e-9 … 1e-12 (at ef50439 a step died
+    with "association probabilities sum to 1.0000…, not 1", and existence stopped at the
+    1e-12 floor); its existence falls at every scan until it is deleted below 1e-12."""
+    cfg = TrackerConfig(
+        reporting="async",
+        report_interval=60.0,
+        clutter_density=1e-11,
+        p_survive=0.9999,
+        p_survive_per="second",
+        measurement_noise=225.0,
+        process_noise=0.005,
+        max_coast=1e9,
+        r_delete=1e-12,
+        merge_threshold=0.0,
+    )
+    trk = JPDATracker(cfg)
+    rng = np.random.default_rng(0)
+    for k in range(30):  # vessel A reports every 10 s, then falls silent
+        trk.step(10.0 * k, np.array([[3.0 * 10.0 * k, 0.0]]) + rng.normal(0, 15, 2))
+    ida = int(trk.ids[np.argmax(trk.existence)])
+    history = []
+    t = 290.0
+    while ida in trk.ids:  # vessel B, 5 km away, every 2 s; A's track in B's gates too
+        t += 2.0
+        trk.step(t, np.array([[5000.0, 0.0]]) + rng.normal(0, 15, 2))
+        if ida in trk.ids:
+            history.append(float(trk.existence[trk.ids == ida][0]))
+        assert t < 5000.0, "the silent track was never deleted"
+    assert min(history) < 1e-11  # it went through the range that failed
+    assert all(b < a for a, b in zip(history, history[1:], strict=False))
+
+
+def test_existence_zero_is_refused_and_never_passed_on(tmp_path, monkeypatch):
+    """start_tracks(existence=0) and a JIPDA state holding existence 0 are refused; a
+    track whose existence underflows to 0 is dropped before any stage sees it."""
+    trk = JPDATracker(TrackerConfig(clutter_density=1e-4))
+    with pytest.raises(ValueError, match="existence"):
+        trk.start_tracks(np.zeros(4), np.eye(4), existence=0.0)
+    assert len(trk.ids) == 0
+    # a state file with existence 0 and a valid checksum
+    trk.start_tracks(np.zeros(4), np.eye(4), existence=0.5, time=0.0)
+    arrays = {name: getattr(trk, trk._attr(name)) for name in trk._ARRAYS}
+    arrays["existence"] = np.zeros(1)
+    path = state_io.write_state(
+        tmp_path / "zero.npz",
+        arrays,
+        trk.config.to_dict(),
+        trk._saved_scalars(),
+        trk.rng.bit_generator.state,
+    )
+    with pytest.raises(StateFileError, match="existence 0"):
+        JPDATracker.load(path)
+    # survival per second over a long gap underflows: 0.5 ** 1e4 = 0
+    cfg = TrackerConfig(clutter_density=1e-4, p_survive=0.5, p_survive_per="second")
+    trk = JPDATracker(cfg)
+    trk.start_tracks(np.zeros(4), np.eye(4), existence=0.9, time=0.0)
+    seen = []
+    real_update = existence_module.existence_update
+
+    def spy(r, *args, **kwargs):
+        seen.append(np.array(r, copy=True))
+        return real_update(r, *args, **kwargs)
+
+    monkeypatch.setattr("jointtrack.trackers.jpda.existence_update", spy)
+    result = trk.step(1e4, np.array([[0.0, 0.0]]))
+    assert all((r > 0).all() for r in seen)
+    assert 1 not in trk.ids.tolist()  # gone; the return starts a track of its own
+    assert len(trk.ids) == 1 and len(result.ids) == 0
 
 
 # ------------------------------------------------------------- 9. bounded settings

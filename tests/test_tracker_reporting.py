@@ -143,8 +143,8 @@ def test_missed_async_track_odds_follow_closed_form(
 )
 def test_async_pd_and_its_zero_dt_limit(p_d, interval, count, age, dt):
     """P_D,i = 1 − (β₀/β₁)^(p_d(1+n)) per scan; at Δt = 0 nothing is missed."""
-    cfg = _async(p_d=p_d, p_g=1.0, report_interval=interval, r_delete=1e-13)
-    trk = _one_track(cfg, r0=0.5, count=count, age=age)  # kept: r ≥ 1e-12 (the floor)
+    cfg = _async(p_d=p_d, p_g=1.0, report_interval=interval, r_delete=5e-324)
+    trk = _one_track(cfg, r0=0.5, count=count, age=age)
     trk.step(dt, np.zeros((0, 2)))
     expected_pd = 1 - _miss_probability(cfg, count, -age, 0.0, dt)
     assert abs(mpmath.mpf(trk._scan_pd[0]) - expected_pd) <= 1e-12 * expected_pd
@@ -152,6 +152,8 @@ def test_async_pd_and_its_zero_dt_limit(p_d, interval, count, age, dt):
     lam = (1 + count) / (interval + age)
     if dt <= 1e-6:
         assert trk._scan_pd[0] == pytest.approx(p_d * lam * dt, rel=1e-5)
+    # the existence is not floored: a miss this certain (odds × 1e-400) leaves 0, deleted
+    assume(len(trk.ids) == 1)
     # Δt = 0 (a second sensor at the same time): P_D = 0, existence unchanged exactly
     trk.add_sensor("b", trk.default_sensor)
     before = trk.existence.copy()
@@ -469,7 +471,10 @@ def test_p_survive_per_second(dt, p_s, r0, p_d):
     pdg = mpmath.mpf(p_d) * mpmath.mpf(0.99)
     for trk, survival in ((per_second, mpmath.mpf(p_s) ** mpmath.mpf(dt)), (per_scan, p_s)):
         r = mpmath.mpf(r0) * survival
-        expected = max(r * (1 - pdg) / (1 - r * pdg), mpmath.mpf(1e-12))  # clipped at 1e-12
+        expected = r * (1 - pdg) / (1 - r * pdg)  # never floored (it was, at 1e-12)
+        if expected < 1e-300:  # below r_delete, or underflowed to 0: deleted
+            assert len(trk.ids) == 0
+            continue
         assert abs(mpmath.mpf(trk.existence[0]) - expected) <= 1e-12 * expected
 
 

@@ -80,14 +80,20 @@ def existence_update(r, beta0, weights, rows, pdg):
     association marginals of the joint events (a track's "no return" includes
     "does not exist"), ``rows`` the track of each pair, ``pdg`` the P_D·P_G
     of the miss weight. Returns ``(r_post, beta0_given_exists,
-    weights_given_exists)``.
+    weights_given_exists)``; the β given existence of each track sum to one to
+    rounding. ``r_post`` is never raised to a floor: a track whose existence
+    underflows to 0 has none, and its owner deletes it (``r_delete > 0``).
     """
     # P(exists, no return) = β₀ · r(1 − P_D P_G) / (1 − r P_D P_G): the share of
     # "no return" in which the target exists but was missed
     exists_missed = beta0 * r * (1.0 - pdg) / (1.0 - r * pdg)
-    detected = 1.0 - beta0
+    # P(a return is the track's) from the pair weights themselves, not as 1 − β₀:
+    # for a track of existence ~1e-12 the weights are ~1e-12 and 1 − β₀ keeps only
+    # their first few digits, so β₀ and the weights given existence summed to
+    # 1 ± 1e-5 (a JIPDA run with r_delete = 1e-12 died on it at report 513)
+    detected = np.bincount(rows, weights, minlength=len(beta0))
     total = exists_missed + detected
-    r_post = np.clip(total, 1e-12, 1.0)
+    r_post = np.minimum(total, 1.0)
     # r = 0 (survival per second over a long gap underflows) and no return taken:
     # total = 0; given existence, such a track took nothing (β₀ = 1), never 0/0 = NaN
     none = total <= 0.0

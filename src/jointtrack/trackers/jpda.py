@@ -31,7 +31,11 @@ from jointtrack.trackers.config import TrackerConfig
 from jointtrack.trackers.existence import existence_update, merge_duplicates
 from jointtrack.trackers.history import TrackHistory, is_datetime
 from jointtrack.trackers.initiation import pair_returns
-from jointtrack.trackers.state_io import covariance_problem, validate_tracker_arrays
+from jointtrack.trackers.state_io import (
+    StateFileError,
+    covariance_problem,
+    validate_tracker_arrays,
+)
 
 __all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackHistory", "TrackerConfig"]
 
@@ -140,6 +144,9 @@ class JPDATracker(ScanTracker):
                 self.existence = self.existence * c.p_survive ** (
                     dt if c.p_survive_per == "second" else 1.0
                 )
+                alive = self.existence > 0.0
+                if not alive.all():  # underflowed: no target left to associate or report
+                    self._keep(alive)
         self._scan_detection(t, 0.0 if dt is None else dt)
         N, M = len(self.ids), len(z)
         beta0 = np.ones(N)
@@ -209,7 +216,7 @@ class JPDATracker(ScanTracker):
             cols = np.concatenate(pair_cols) if pair_cols else np.zeros(0, np.int64)
             w = np.concatenate(pair_w) if pair_w else np.zeros(0)
             if c.reporting == "async":  # reports seen: the track's own reporting rate
-                self.report_count += 1.0 - beta0
+                self.report_count += np.bincount(rows, w, minlength=N)
             # Only tracks with a pair change: β₀ = 1 leaves x and P as they are (bit
             # for bit), and with one report per scan most tracks have no pair.
             touched = np.flatnonzero(beta0 < 1.0)
@@ -676,7 +683,7 @@ class JPDATracker(ScanTracker):
         Raises ValueError (TypeError for a non-bool ``confirmed``) naming the
         argument for anything a saved state could not hold — complex, boolean,
         string or non-finite ``x0``/``P0``, a ``P0`` that is not symmetric
-        positive definite, ``existence`` outside [0, 1] — so every state this
+        positive definite, ``existence`` outside (0, 1] — so every state this
         accepts can be saved and loaded; nothing is changed then.
         """
         t0 = None
@@ -709,7 +716,8 @@ class JPDATracker(ScanTracker):
         if problem:
             raise ValueError(f"P0 {problem}; every P0 must be symmetric positive definite")
         P0 = 0.5 * (P0 + P0.transpose(0, 2, 1))  # exactly symmetric, as the filters keep it
-        existence = as_float(existence, "existence", minimum=0.0, maximum=1.0)
+        # existence 0: no target at all, nothing a track could stand for
+        existence = as_float(existence, "existence", minimum=0.0, maximum=1.0, open_min=True)
         if not isinstance(confirmed, bool | np.bool_):
             raise TypeError(f"confirmed must be True or False, got {confirmed!r}")
         clock = t0 if t0 is not None else (self.time if self.time is not None else 0.0)
@@ -745,6 +753,9 @@ class JPDATracker(ScanTracker):
 
     def _validate_state(self, path, arrays: dict, scalars: dict) -> None:
         validate_tracker_arrays(path, arrays, scalars, self.state_dim, self.config.dim)
+        if self.config.existence and (arrays["existence"] <= 0.0).any():
+            # a JIPDA track of existence 0 is deleted before any state is saved
+            raise StateFileError(f"{path}: field 'existence' holds a track of existence 0")
 
 
 def _rows(values, index):
