@@ -1,16 +1,19 @@
-"""Issue 31, the JPDA/JIPDA tracker and the shared tracker layer (defects 4, 9, 13).
+"""Issue 31, the JPDA/JIPDA tracker and the shared tracker layer (defects 4, 6, 9, 13).
 
 * 4 — "detected" was 1 − β₀: for a track of existence ~1e-12 the association's β
   kept only the first digits of it, β₀ and the weights given existence summed to
   1 ± 1e-5 and the PDA update refused them ("association probabilities sum to
   1.0000035…"); existence was floored at 1e-12, so with r_delete ≤ 1e-12 a track
   never died by it. Now: Σw, no floor, existence-0 tracks dropped and refused.
+* 6 — a silence cost less existence cut into many scans than as one (p_survive^Δt
+  applied before each miss): now each scan applies the continuous-time outcome of
+  its interval (``existence.silence_outcomes``), so the cuts do not matter.
 * 9 — ``max_speed = 1e200`` was accepted and the first step overflowed; every
   setting squared into a covariance is bounded now (``MAX_STD``, ``MAX_VARIANCE``).
 * 13 — ``save(<directory>)`` raised a raw IsADirectoryError and left ``<dir>.tmp``.
 
 Expected values are independent: exact rationals (fractions) for the existence
-update, 30-digit mpmath for a tracker's posterior.
+update, 30–80-digit mpmath for the silence integrals.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from jointtrack.io.detections import MAX_COORDINATE
 from jointtrack.trackers import JPDATracker, StateFileError, TrackerConfig, state_io
 from jointtrack.trackers import existence as existence_module
 from jointtrack.trackers.config import MAX_STD, MAX_VARIANCE
-from jointtrack.trackers.existence import existence_update
+from jointtrack.trackers.existence import existence_update, silence_outcomes
 from jointtrack.trackers.pmbm import PMBMTracker, PMBTracker
 from jointtrack.trackers.pmbm_config import PMBMConfig
 
@@ -199,6 +202,122 @@ def test_existence_zero_is_refused_and_never_passed_on(tmp_path, monkeypatch):
     assert all((r > 0).all() for r in seen)
     assert 1 not in trk.ids.tolist()  # gone; the return starts a track of its own
     assert len(trk.ids) == 1 and len(result.ids) == 0
+
+
+# ------------------------------------------------------------- 6. silences
+def _silence_reference(k, b, S, mu):
+    """(silent, reported, died) of the continuous-time model by their definitions,
+    ∫₀^S μ q(u) du and ∫₀^S k/(b + u) q(u) du, q(u) = e^(−μu) (1 + u/b)^(−k), with
+    mpmath's quadrature at 30 digits over subintervals doubling from a 64th of the
+    decay time 1/(μ + k/b) (until q < e^−250: the rest is below e^−200 of either)."""
+    k, b, S, mu = (mpmath.mpf(v) for v in (k, b, S, mu))
+    with mpmath.workdps(30):
+        silent = mpmath.exp(-mu * S - k * mpmath.log1p(S / b))
+        log_q = lambda u: -mu * u - k * mpmath.log1p(u / b)  # noqa: E731
+        points, u = [mpmath.mpf(0)], 1 / (mu + k / b) / 64
+        while u < S and log_q(u) > -250:
+            points.append(u)
+            u *= 2
+        points.append(S if u >= S or log_q(u) > -250 else u)
+        died = mpmath.quad(lambda u: mu * mpmath.exp(log_q(u)), points)
+        reported = mpmath.quad(lambda u: k / (b + u) * mpmath.exp(log_q(u)), points)
+        assert abs(silent + reported + died - 1) < mpmath.mpf(10) ** -25  # checks itself
+    return silent, reported, died
+
+
+def _log_uniform(lo, hi):
+    return st.floats(math.log10(lo), math.log10(hi)).map(lambda e: 10.0**e)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    k=_log_uniform(1e-2, 3e3),
+    b=_log_uniform(1e-2, 1e6),
+    S=_log_uniform(1e-9, 1e6),
+    mu=_log_uniform(1e-12, 1.0),
+)
+@example(k=0.891, b=100.0, S=300.0, mu=-math.log(0.9999))
+@example(k=2000.0, b=1e5, S=1e6, mu=1e-4)  # a track of 2000 reports silent for days
+@example(k=0.05, b=0.01, S=1e6, mu=1e-12)  # a long flat stretch: c = μb tiny
+def test_silence_outcomes_are_the_continuous_time_integrals(k, b, S, mu):
+    silent, reported, died = silence_outcomes(k, b, S, mu)
+    ref = _silence_reference(k, b, S, mu)
+    names = ("silent", "reported", "died")
+    for got, want, name in zip((silent, reported, died), ref, names, strict=True):
+        assert np.isfinite(got), name
+        if want < 1e-290:  # below the float range's accurate part
+            assert got <= 1e-280, name
+            continue
+        # silent = exp(−x) carries x's rounding (|x| ε); the integrals 1e-13
+        tol = 2.0**-52 * (8 + float(-mpmath.log(ref[0]))) if name == "silent" else 1e-13
+        assert abs(mpmath.mpf(float(got)) - want) <= tol * want, name
+    assert float(silent) + float(reported) + float(died) == pytest.approx(1.0, abs=4e-16)
+
+
+def test_silence_outcomes_without_deaths_are_the_closed_forms():
+    k, b, S = np.array([0.5, 3.0, 900.0]), np.array([60.0, 1.0, 1e4]), np.array([1.0, 1e3, 5.0])
+    silent, reported, died = silence_outcomes(k, b, S, 0.0)
+    q = (b / (b + S)) ** k
+    np.testing.assert_allclose(silent, q, rtol=1e-14)
+    np.testing.assert_allclose(reported, 1 - q, rtol=1e-13)
+    np.testing.assert_array_equal(died, 0.0)
+
+
+def _readme_config(**kw):
+    """The README's reporting-targets settings (p_survive = 0.9999 per second)."""
+    base = dict(
+        reporting="async",
+        report_interval=60.0,
+        clutter_density=1e-11,
+        p_survive=0.9999,
+        p_survive_per="second",
+        max_coast=1e9,
+        measurement_noise=225.0,
+        process_noise=0.005,
+        r_delete=1e-9,
+        merge_threshold=0.0,
+    )
+    base.update(kw)
+    return TrackerConfig(**base)
+
+
+def _silent_track(cfg, *, count, age, r0, labelled):
+    trk = JPDATracker(cfg)
+    if labelled:
+        trk.step(0.0, np.array([[0.0, 0.0]]), labels=["A"])
+        trk.existence[:] = r0
+    else:
+        trk.start_tracks(np.zeros(4), np.diag([225.0, 225.0, 1.0, 1.0]), existence=r0, time=0.0)
+    trk.report_count[:] = count
+    trk.born[:] = -age
+    return trk
+
+
+@pytest.mark.parametrize("labelled", [False, True])
+@pytest.mark.parametrize("silence", [100.0, 300.0])
+@pytest.mark.parametrize(("count", "age"), [(10.0, 100.0), (30.0, 300.0), (100.0, 1000.0)])
+def test_the_issues_silence_costs_the_same_in_one_scan_or_five_hundred(
+    labelled, silence, count, age
+):
+    """Issue 31, defect 6: 300 s of silence at the README's p_survive = 0.9999 per second
+    left 10–14 times the existence when other vessels' reports cut it into 500 scans as
+    in one scan (100 s: 1.7–4.5 times); both are now the continuous-time posterior."""
+    cfg = _readme_config()
+    whole = _silent_track(cfg, count=count, age=age, r0=0.999, labelled=labelled)
+    cut = _silent_track(cfg, count=count, age=age, r0=0.999, labelled=labelled)
+    whole.step(silence, np.zeros((0, 2)))
+    for k, t in enumerate(np.linspace(0.0, silence, 501)[1:-1]):
+        cut.step(t, np.array([[1e7, 1e7 + 100.0 * k]]))  # another vessel, far away
+    cut.step(silence, np.zeros((0, 2)))
+    r1 = whole.existence[whole.ids == 1][0]
+    r500 = cut.existence[cut.ids == 1][0]
+    q = cfg.p_g if not labelled else 1.0  # a labelled track has no gate
+    a, e, _ = _silence_reference(
+        cfg.p_d * q * (1 + count), cfg.report_interval + age, silence, -math.log(cfg.p_survive)
+    )
+    expected = mpmath.mpf(0.999) * a / (1 - mpmath.mpf(0.999) * e)
+    assert abs(mpmath.mpf(r1) - expected) <= 1e-12 * expected
+    assert r500 == pytest.approx(r1, rel=1e-9)
 
 
 # ------------------------------------------------------------- 9. bounded settings

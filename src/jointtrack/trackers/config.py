@@ -155,7 +155,8 @@ class TrackerConfig(ModelSettings):
     existence : use JIPDA existence probabilities (default) instead of M-of-N
         logic; M-of-N confirms nearly every clutter-born track once gates hold
         about one false return each.
-    p_survive : probability that a target survives one scan (JIPDA).
+    p_survive : probability that a target survives one scan, or one second with
+        ``p_survive_per = "second"`` (JIPDA).
     r_init, r_confirm, r_delete : initial, confirmation and deletion thresholds
         of the existence probability (JIPDA); 0 < r_delete < r_init ≤ r_confirm ≤ 1.
         logit(r_confirm) − logit(r_init) is the sequential test's threshold:
@@ -189,7 +190,9 @@ class TrackerConfig(ModelSettings):
         = 1 − (β₀/β₁)^(p_d(1 + reports)), β = report_interval + seconds
         tracked at the interval's start and end — so a silence costs the same
         existence however many other targets' reports cut it into scans
-        (exactly, without deaths; see ``JPDATracker._scan_detection``): a
+        (deaths included — the target dies at the rate −log p_survive per second
+        at any moment, and each scan applies the continuous-time outcome of its
+        interval; see ``JPDATracker._scan_detection``): a
         vessel not heard for 30 s is not "missed" once per other vessel's
         report. ``clutter_density`` is then false reports per unit area **per
         second** (it is required), and the likelihood ratio of a pair is
@@ -199,7 +202,9 @@ class TrackerConfig(ModelSettings):
     report_interval : prior mean interval between one target's reports, s
         (``reporting = "async"``).
     p_survive_per : ``"scan"`` (default) — ``p_survive`` is per scan — or
-        ``"second"``: per second of elapsed time (existence × p_survive^Δt).
+        ``"second"``: per second of elapsed time (a scanning sensor: existence ×
+        p_survive^Δt before each scan; reporting targets: deaths at the rate
+        −log p_survive per second within the interval, see ``reporting``).
     max_coast : a track without a hit for longer than this many seconds is
         deleted (time-based deletion; default ∞: never by time).
     velocity_std : σ of reported velocities (m/s, per axis) when ``step`` is
