@@ -239,6 +239,7 @@ def _log_uniform(lo, hi):
 @example(k=0.891, b=100.0, S=300.0, mu=-math.log(0.9999))
 @example(k=2000.0, b=1e5, S=1e6, mu=1e-4)  # a track of 2000 reports silent for days
 @example(k=0.05, b=0.01, S=1e6, mu=1e-12)  # a long flat stretch: c = μb tiny
+@example(k=1.0, b=1.0, S=10.0, mu=0.001)  # one long, nearly flat panel (too long for 6 points)
 def test_silence_outcomes_are_the_continuous_time_integrals(k, b, S, mu):
     silent, reported, died = silence_outcomes(k, b, S, mu)
     ref = _silence_reference(k, b, S, mu)
