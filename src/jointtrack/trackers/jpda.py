@@ -376,7 +376,7 @@ class JPDATracker(ScanTracker):
         silence, so a silence costs the same existence however many other
         targets' reports cut it into scans (applying p_survive^Δt before a miss
         at each scan, as before, did not: 300 s of silence at p_survive = 0.9999
-        per second left 12 times the existence when cut into 500 scans as in
+        per second left 10–14 times the existence when cut into 500 scans as in
         one). Without deaths (p_survive = 1) d = 0 and the miss probabilities
         themselves telescope.
         """
