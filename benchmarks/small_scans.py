@@ -7,6 +7,11 @@ workload: ``--targets`` targets moving at constant velocity; each scan holds
 one report (σ = 10 m) of a random target, 0.3 s after the previous scan.
 ``p_survive = 0.9999`` keeps tracks alive between their sparse reports.
 
+``--reporting async`` runs the same reports through the reporting-targets model
+(``reporting = "async"``, survival per second, P_D from each track's own rate),
+whose per-scan cost includes each track's continuous-time silence outcome
+(:func:`jointtrack.trackers.existence.silence_outcomes`).
+
 Prints scans per second (CPU time) and the number of live tracks at the end.
 ``--against DIR [DIR ...]`` times other source trees (``PYTHONPATH=DIR``) in
 fresh interpreters, interleaved with this one over ``--repeats`` rounds, and
@@ -27,21 +32,26 @@ from pathlib import Path
 import numpy as np
 
 
-def run_once(n_scans: int, n_targets: int, seed: int = 0) -> dict:
+def run_once(n_scans: int, n_targets: int, seed: int = 0, reporting: str = "scan") -> dict:
     """Step a fresh tracker through the workload; scans/s (CPU time) and live tracks."""
-    # each scan reports one target out of n_targets: that is each track's P_D per scan
-    p_d = 1.0 / n_targets
     from jointtrack.trackers.jpda import JPDATracker, TrackerConfig
 
     rng = np.random.default_rng(seed)
     pos = rng.uniform(0, 50_000, (n_targets, 2))
     vel = rng.normal(0, 5, (n_targets, 2))
+    if reporting == "scan":
+        # each scan reports one target out of n_targets: that is each track's P_D per scan
+        model = dict(p_survive=0.9999, p_d=1.0 / n_targets)
+    else:  # each target reports every 0.3·n_targets s on average: its own learnt rate
+        model = dict(
+            reporting="async",
+            p_survive=0.9999,
+            p_survive_per="second",
+            p_d=0.99,
+            report_interval=0.3 * n_targets,
+        )
     config = TrackerConfig(
-        clutter_density=1e-12,
-        p_survive=0.9999,
-        p_d=p_d,
-        measurement_noise=100.0,
-        process_noise=0.01,
+        clutter_density=1e-12, measurement_noise=100.0, process_noise=0.01, **model
     )
     trk = JPDATracker(config)
     scans = []
@@ -72,14 +82,15 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--json", action="store_true", help="one JSON line (used by --against)")
     parser.add_argument("--against", nargs="+", default=[], metavar="DIR")
+    parser.add_argument("--reporting", choices=["scan", "async"], default="scan")
     args = parser.parse_args()
     if args.json:
-        print(json.dumps(run_once(args.scans, args.targets)))
+        print(json.dumps(run_once(args.scans, args.targets, reporting=args.reporting)))
         return
     here = str(Path(__import__("jointtrack").__file__).parents[1])
     trees = [here, *args.against]
     cmd = [sys.executable, __file__, "--json", "--scans", str(args.scans)]
-    cmd += ["--targets", str(args.targets)]
+    cmd += ["--targets", str(args.targets), "--reporting", args.reporting]
     rates: dict[str, list[float]] = {tree: [] for tree in trees}
     tracks: dict[str, int] = {}
     for _ in range(args.repeats):

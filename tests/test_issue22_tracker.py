@@ -206,6 +206,7 @@ _P_ASYM[0, 1] = 0.5
         (dict(x0=[[True, False, True, False]]), ValueError, "x0 is boolean"),
         (dict(x0=[[10**400, 0, 0, 0]]), ValueError, "x0 holds an integer too large"),
         (dict(confirmed="yes"), TypeError, "confirmed"),
+        (dict(existence=0.0), ValueError, "existence must be > 0"),  # issue 31: no target
     ],
 )
 def test_start_tracks_refuses_what_load_would_refuse(kwargs, exc, match):
@@ -220,7 +221,7 @@ def test_start_tracks_refuses_what_load_would_refuse(kwargs, exc, match):
 
 @settings(max_examples=25, deadline=None)
 @given(
-    existence=st.one_of(st.floats(0.0, 1.0), st.sampled_from([0, 1])),
+    existence=st.one_of(st.floats(5e-324, 1.0), st.sampled_from([5e-324, 1])),
     P0=_covariance(4, min_log_ridge=-3.0),
     x0=st.lists(st.floats(-1e300, 1e300), min_size=4, max_size=4),
     confirmed=st.booleans(),

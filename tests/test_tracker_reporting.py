@@ -6,10 +6,14 @@ The closed forms the tracker must reproduce (see ``TrackerConfig.reporting``):
   reports, I = ``report_interval``; over a scan interval (t₀, t₁] nothing of it
   is received (and gated) with probability exp(−p_d q ∫λ) = (β₀/β₁)^(p_d q (1+n)),
   β = I + seconds tracked, q = P_G for ``miss_model = "1-pd*pg"`` else 1;
-* a missed scan multiplies the existence odds by that probability (after the
-  survival p_survive^Δt), so a silence costs the same however it is cut;
-* one report: the JIPDA (IPDA) posterior r' = r(1 − P_DG + L)/(1 − r P_DG + r L),
-  L = (P_D/Δt) g / λ_c (→ p_d λ g / λ_c as Δt → 0).
+* the target dies at the rate μ = −log p_survive per second, at any moment: an
+  interval ends with the target alive and unheard (a), heard before dying (e) or
+  dead unheard (d = 1 − a − e), and a missed scan leaves r' = r a / (1 − r e) —
+  the continuous-time posterior, so a silence costs the same however it is cut
+  (μ = 0: a is the miss probability above, e = 1 − a);
+* one report: the JIPDA (IPDA) posterior r' = r̃(1 − P_DG + L)/(1 − r̃ P_DG + r̃ L)
+  with r̃ = r(a + e) and P_DG = e/(a + e) (gated), L = (P_D/Δt) g / λ_c
+  (→ p_d λ g / λ_c as Δt → 0).
 
 Expected values are computed here independently, with mpmath at 50 digits.
 """
@@ -68,6 +72,39 @@ def _miss_probability(cfg, count, born, t_prev, t, gated=True):
     return (b0 / b1) ** (mpmath.mpf(cfg.p_d) * q * (1 + mpmath.mpf(count)))
 
 
+def _outcomes(cfg, count, born, t_prev, t, gated=True):
+    """(a, e, d) over (t_prev, t]: alive and unheard at t, heard (received, in the gate
+    if ``gated``) before dying, dead unheard — the continuous-time model (mpmath).
+
+    With hazard k/(b + u), k = p_d q (1 + n), b = I + seconds tracked at t_prev, and
+    deaths at μ = −log p_survive: d = ∫₀^S μ e^(−μu) (1 + u/b)^(−k) du and e =
+    ∫₀^S k/(b + u) e^(−μu) (1 + u/b)^(−k) du — by quadrature over a short interval,
+    else as differences of upper incomplete gamma functions, d = c^k e^c (Γ(1 − k, c)
+    − Γ(1 − k, c + μS)), c = μb, and e = k c^k e^c (Γ(−k, c) − Γ(−k, c + μS)), at 80
+    digits (mpmath's three-argument Γ returns 0 over a narrow interval).
+    """
+    q = cfg.p_g if gated and cfg.miss_model == "1-pd*pg" else 1.0
+    k = mpmath.mpf(cfg.p_d) * q * (1 + mpmath.mpf(count))
+    b = mpmath.mpf(cfg.report_interval) + (mpmath.mpf(t_prev) - mpmath.mpf(born))
+    S = mpmath.mpf(t) - mpmath.mpf(t_prev)
+    mu = -mpmath.log(mpmath.mpf(cfg.p_survive))
+    a = mpmath.exp(-mu * S) * (b / (b + S)) ** k
+    if mu == 0:
+        return a, 1 - a, mpmath.mpf(0)
+    with mpmath.workdps(80):
+        if S < 1e-3 * b and mu * S < 1e-3:  # a short interval: the defining integrals
+            hazard = lambda u: mpmath.exp(-mu * u) * (1 + u / b) ** -k  # noqa: E731
+            d = mpmath.quad(lambda u: mu * hazard(u), [0, S])
+            e = mpmath.quad(lambda u: k / (b + u) * hazard(u), [0, S])
+        else:  # c^k e^c ∫ v^(−k) e^(−v) dv over [c, c + μS], c = μb; e likewise
+            c, c1 = mu * b, mu * (b + S)
+            front = mpmath.exp(k * mpmath.log(c) + c)
+            d = front * (mpmath.gammainc(1 - k, c) - mpmath.gammainc(1 - k, c1))
+            e = k * front * (mpmath.gammainc(-k, c) - mpmath.gammainc(-k, c1))
+    assert abs(a + e + d - 1) < mpmath.mpf(10) ** -25  # the reference checks itself
+    return a, e, d
+
+
 def _state_arrays_equal(a: dict, b: dict) -> None:
     assert a.keys() == b.keys()
     for k in a:
@@ -116,12 +153,14 @@ def test_missed_async_track_odds_follow_closed_form(
     relerr_budget = mpmath.mpf(1e-12)
     for dt in steps:
         t = t_prev + dt
-        r = r * mpmath.mpf(p_survive) ** mpmath.mpf(t - t_prev)
-        miss = _miss_probability(cfg, count, born, t_prev, t)
-        odds = r / (1 - r) * miss
-        r = odds / (1 + odds)
-        # the tracker forms 1 − P_DG from P_DG: relative rounding ~ε / (1 − P_DG)
-        relerr_budget += mpmath.mpf(2.0**-52) / miss
+        a, e, _ = _outcomes(cfg, count, born, t_prev, t)
+        r_new = r * a / (1 - r * e)  # r(a + e) predicted, missed with 1 − P_DG = a/(a + e)
+        # a = exp(−x) carries x's rounding, |x|·ε; the quadrature of e (1e-14 relative)
+        # moves r a/(1 − r e) by ≤ 1e-14 r e/(1 − r e); a few ε besides
+        relerr_budget += mpmath.mpf(2.0**-52) * (8 - mpmath.log(a)) + mpmath.mpf(1e-14) * (
+            r * e / (1 - r * e)
+        )
+        r = r_new
         trk.step(t, np.zeros((0, 2)))
         t_prev = t
     assume(abs(r - cfg.r_delete) > 1e-6 * cfg.r_delete)
@@ -143,8 +182,8 @@ def test_missed_async_track_odds_follow_closed_form(
 )
 def test_async_pd_and_its_zero_dt_limit(p_d, interval, count, age, dt):
     """P_D,i = 1 − (β₀/β₁)^(p_d(1+n)) per scan; at Δt = 0 nothing is missed."""
-    cfg = _async(p_d=p_d, p_g=1.0, report_interval=interval, r_delete=1e-13)
-    trk = _one_track(cfg, r0=0.5, count=count, age=age)  # kept: r ≥ 1e-12 (the floor)
+    cfg = _async(p_d=p_d, p_g=1.0, report_interval=interval, r_delete=5e-324)
+    trk = _one_track(cfg, r0=0.5, count=count, age=age)
     trk.step(dt, np.zeros((0, 2)))
     expected_pd = 1 - _miss_probability(cfg, count, -age, 0.0, dt)
     assert abs(mpmath.mpf(trk._scan_pd[0]) - expected_pd) <= 1e-12 * expected_pd
@@ -152,6 +191,8 @@ def test_async_pd_and_its_zero_dt_limit(p_d, interval, count, age, dt):
     lam = (1 + count) / (interval + age)
     if dt <= 1e-6:
         assert trk._scan_pd[0] == pytest.approx(p_d * lam * dt, rel=1e-5)
+    # the existence is not floored: a miss this certain (odds × 1e-400) leaves 0, deleted
+    assume(len(trk.ids) == 1)
     # Δt = 0 (a second sensor at the same time): P_D = 0, existence unchanged exactly
     trk.add_sensor("b", trk.default_sensor)
     before = trk.existence.copy()
@@ -180,13 +221,15 @@ def _hand_posterior(cfg, trk_before, t_prev, t, z, sensor_dt_zero=False):
     g = mpmath.exp(-d2 / 2) / (2 * mpmath.pi * mpmath.sqrt(mpmath.det(Sm)))
     count = trk_before.report_count[0]
     born = trk_before.born[0]
-    r = mpmath.mpf(trk_before.existence[0]) * mpmath.mpf(cfg.p_survive) ** mpmath.mpf(dt)
+    r = mpmath.mpf(trk_before.existence[0])
     lam = (1 + mpmath.mpf(count)) / (cfg.report_interval + (mpmath.mpf(t_prev) - born))
     if dt == 0:
         p_det, p_dg, ratio = 0, 0, cfg.p_d * lam
     else:
+        # existence predicted to the report (or to t), r(a + e); P_DG = e / (a + e)
+        a, e, _ = _outcomes(cfg, count, born, t_prev, t)
+        r, p_dg = r * (a + e), e / (a + e)
         p_det = 1 - _miss_probability(cfg, count, born, t_prev, t, gated=False)
-        p_dg = 1 - _miss_probability(cfg, count, born, t_prev, t)
         ratio = p_det / mpmath.mpf(dt)
     L = ratio * g / mpmath.mpf(cfg.clutter_density)
     r_post = r * (1 - p_dg + L) / (1 - r * p_dg + r * L)
@@ -278,16 +321,16 @@ def test_report_at_zero_dt_uses_the_rate_limit(p_d, count, r0, u):
     count=st.floats(0.0, 30.0),
     silence=st.floats(1.0, 3600.0),
     cuts=st.lists(st.floats(1e-6, 1.0, exclude_max=True), max_size=99),
-    p_survive=st.sampled_from([1.0, 0.9999]),
+    p_survive=st.sampled_from([1.0, 1.0 - 1e-9, 0.9999, 0.99, 0.5]),
     others=st.booleans(),
 )
 def test_silence_costs_the_same_however_it_is_cut(
     p_d, p_g, miss_model, interval, count, silence, cuts, p_survive, others
 ):
-    """Exactly (to rounding) without deaths; with p_survive < 1 cutting finer moves the
-    deaths' timing from the interval's start towards the continuous-time answer, and
-    can only raise the existence (survival and the odds' miss factor do not commute:
-    s·M(x, m) ≥ M(s·x, m) for s ≤ 1, M(x, m) = xm/(1 − x + xm))."""
+    """One scan or up to 100 (other targets' reports): the same existence, to rounding —
+    the continuous-time posterior r a / (1 − r e) of the whole silence, deaths included
+    (issue 31: at p_survive = 0.9999 per second, 300 s cut into 500 scans left 12 times
+    the existence of one 300 s scan)."""
     cfg = _async(
         p_d=p_d,
         p_g=p_g,
@@ -297,9 +340,8 @@ def test_silence_costs_the_same_however_it_is_cut(
         process_noise=1e-6,
         r_delete=1e-9,
     )
-    q = p_g if miss_model == "1-pd*pg" else 1.0
-    miss = ((interval + 10.0) / (interval + 10.0 + silence)) ** (p_d * q * (1 + count))
-    r_whole = 0.9 * p_survive**silence * miss / (1 - 0.9 * p_survive**silence * (1 - miss))
+    a, e, _ = _outcomes(cfg, count, -10.0, 0.0, silence)
+    r_whole = 0.9 * a / (1 - 0.9 * e)
     assume(r_whole > 1e-6)
     whole = _one_track(cfg, r0=0.9, count=count, age=10.0)
     cut = _one_track(cfg, r0=0.9, count=count, age=10.0)
@@ -311,12 +353,9 @@ def test_silence_costs_the_same_however_it_is_cut(
     cut.step(silence, np.zeros((0, 2)))
     r1, r100 = whole.existence[whole.ids == 1], cut.existence[cut.ids == 1]
     assert len(r1) == len(r100) == 1
-    assert r1[0] == pytest.approx(r_whole, rel=1e-12)
-    if p_survive == 1.0:
-        assert r100[0] == pytest.approx(r1[0], rel=1e-9)
-    else:
-        assert r100[0] >= r1[0] * (1 - 1e-12)
-    # and it is a real cost: a silence lowers the existence
+    assert abs(mpmath.mpf(r1[0]) - r_whole) <= 1e-12 * r_whole
+    assert r100[0] == pytest.approx(r1[0], rel=1e-9)
+    # and it is a real cost: a silence lowers the existence below survival alone
     assert r1[0] < 0.9 * p_survive**silence
 
 
@@ -469,7 +508,10 @@ def test_p_survive_per_second(dt, p_s, r0, p_d):
     pdg = mpmath.mpf(p_d) * mpmath.mpf(0.99)
     for trk, survival in ((per_second, mpmath.mpf(p_s) ** mpmath.mpf(dt)), (per_scan, p_s)):
         r = mpmath.mpf(r0) * survival
-        expected = max(r * (1 - pdg) / (1 - r * pdg), mpmath.mpf(1e-12))  # clipped at 1e-12
+        expected = r * (1 - pdg) / (1 - r * pdg)  # never floored (it was, at 1e-12)
+        if expected < 1e-300:  # below r_delete, or underflowed to 0: deleted
+            assert len(trk.ids) == 0
+            continue
         assert abs(mpmath.mpf(trk.existence[0]) - expected) <= 1e-12 * expected
 
 

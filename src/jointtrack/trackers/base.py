@@ -658,7 +658,10 @@ class ScanTracker:
         A versioned, checksummed ``.npz`` archive of plain arrays with a JSON
         header, written atomically (temporary file, fsync, rename); never pickle.
         ``time_origin`` (datetime scans) is saved with the state; the track
-        history (:meth:`history`) is not.
+        history (:meth:`history`) is not. A path that cannot be written (a
+        directory, a missing or read-only directory, a full disk) raises
+        :class:`~jointtrack.trackers.state_io.StateFileError` naming it; the file
+        already there, if any, is then left as it was and no temporary file remains.
         """
         arrays = {name: getattr(self, self._attr(name)) for name in self._ARRAYS}
         # ``run``: a caller's JSON-able bookkeeping, saved atomically with the state

@@ -9,6 +9,8 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 __all__ = [
+    "MAX_STD",
+    "MAX_VARIANCE",
     "MISS_MODELS",
     "REPORTING",
     "ModelSettings",
@@ -21,6 +23,19 @@ __all__ = [
 MISS_MODELS = ("1-pd*pg", "1-pd")
 #: How targets are detected (see ``TrackerConfig.reporting``).
 REPORTING = ("scan", "async")
+#: Largest standard-deviation-like setting: ``max_speed``, ``max_acceleration``
+#: (each halved into a per-axis σ) and ``velocity_std``, which the tracker squares
+#: into covariances. Equal to the coordinate limit
+#: :data:`jointtrack.io.detections.MAX_COORDINATE` (a test keeps them equal;
+#: ``jointtrack.io`` is not imported for it): squares of 10¹⁵⁰ stay below 10³⁰¹,
+#: leaving float64 (maximum 1.8·10³⁰⁸) room for the filter's sums and products,
+#: whereas (max_speed/2)² overflowed for max_speed > 1.3·10¹⁵⁴.
+MAX_STD = 1e150
+#: Largest variance-like setting: ``process_noise``, ``measurement_noise`` (each
+#: entry), ``range_noise`` and ``bearing_noise`` — MAX_STD², for the same reason
+#: (10³⁰⁸ made the model's own noise matrix overflow into a refusal that named no
+#: setting).
+MAX_VARIANCE = 1e300
 
 
 def config_from_dict(cls, d: dict, noun: str, *, complete: bool = False):
@@ -70,7 +85,8 @@ class TrackerConfig(ModelSettings):
     ----------
     dim : 2 or 3, spatial dimension; measurements are positions ``[x, y(, z)]``.
     motion : ``"cv"`` (nearly constant velocity) or ``"ca"`` (constant acceleration).
-    process_noise : q of the motion model (m²/s³ for CV, m²/s⁵ for CA).
+    process_noise : q of the motion model (m²/s³ for CV, m²/s⁵ for CA); at most
+        ``MAX_VARIANCE`` (1e300), like every variance-like setting.
     measurement_noise : measurement noise R of ``sensor="position"``: a number
         σ² (R = σ² I), a per-axis σ² vector of length ``dim`` (R = diag), or a
         full ``dim × dim`` symmetric positive definite covariance (TOML: a list
@@ -83,6 +99,10 @@ class TrackerConfig(ModelSettings):
     sensor_position : position of the range–bearing sensor.
     range_noise, bearing_noise : σ_r² (m²) and σ_θ² (rad²) of the range–bearing
         sensor; ``clutter_density`` is then per unit of range × bearing.
+        Every measurement noise covariance the tracker will use (also
+        diag(R, velocity_std² I) with ``measure_velocity``) must pass the filters'
+        own test — Cholesky with a reciprocal condition above m·ε, i.e. variances
+        within ~1e15 of each other — or the configuration is refused naming them.
     p_d : detection probability P_D.
     p_g : gate probability P_G in (0, 1] (chi-square gate γ = χ²_d⁻¹(P_G)).
         ``p_g = 1`` means an infinite gate, γ = ∞: every measurement is gated
@@ -121,9 +141,11 @@ class TrackerConfig(ModelSettings):
         from two unassociated returns of consecutive scans no further apart
         than ``max_speed·dt``; its velocity spread √2·σ/dt is wide when the
         measurement noise σ exceeds speed·dt).
-    max_speed : largest target speed, m/s.
+    max_speed : largest target speed, m/s; at most ``MAX_STD`` (1e150, the
+        coordinate limit), since (max_speed/2)² is a covariance entry.
     max_acceleration : largest target acceleration, m/s² (initial acceleration
-        uncertainty σ_a = max_acceleration/2 of constant-acceleration tracks).
+        uncertainty σ_a = max_acceleration/2 of constant-acceleration tracks);
+        at most ``MAX_STD``.
     confirm_m, confirm_n : M-of-N confirmation (hits = scans with a gated return);
         1 ≤ confirm_m ≤ confirm_n ≤ 30.
     delete_misses : consecutive scans without a gated return that delete a
@@ -133,7 +155,8 @@ class TrackerConfig(ModelSettings):
     existence : use JIPDA existence probabilities (default) instead of M-of-N
         logic; M-of-N confirms nearly every clutter-born track once gates hold
         about one false return each.
-    p_survive : probability that a target survives one scan (JIPDA).
+    p_survive : probability that a target survives one scan, or one second with
+        ``p_survive_per = "second"`` (JIPDA).
     r_init, r_confirm, r_delete : initial, confirmation and deletion thresholds
         of the existence probability (JIPDA); 0 < r_delete < r_init ≤ r_confirm ≤ 1.
         logit(r_confirm) − logit(r_init) is the sequential test's threshold:
@@ -167,7 +190,9 @@ class TrackerConfig(ModelSettings):
         = 1 − (β₀/β₁)^(p_d(1 + reports)), β = report_interval + seconds
         tracked at the interval's start and end — so a silence costs the same
         existence however many other targets' reports cut it into scans
-        (exactly, without deaths; see ``JPDATracker._scan_detection``): a
+        (deaths included — the target dies at the rate −log p_survive per second
+        at any moment, and each scan applies the continuous-time outcome of its
+        interval; see ``JPDATracker._scan_detection``): a
         vessel not heard for 30 s is not "missed" once per other vessel's
         report. ``clutter_density`` is then false reports per unit area **per
         second** (it is required), and the likelihood ratio of a pair is
@@ -177,13 +202,15 @@ class TrackerConfig(ModelSettings):
     report_interval : prior mean interval between one target's reports, s
         (``reporting = "async"``).
     p_survive_per : ``"scan"`` (default) — ``p_survive`` is per scan — or
-        ``"second"``: per second of elapsed time (existence × p_survive^Δt).
+        ``"second"``: per second of elapsed time (a scanning sensor: existence ×
+        p_survive^Δt before each scan; reporting targets: deaths at the rate
+        −log p_survive per second within the interval, see ``reporting``).
     max_coast : a track without a hit for longer than this many seconds is
         deleted (time-based deletion; default ∞: never by time).
     velocity_std : σ of reported velocities (m/s, per axis) when ``step`` is
         given ``velocities`` (e.g. AIS speed and course): a track started on
         such a report takes it as its initial velocity with this spread,
-        instead of zero mean and σ = max_speed/2.
+        instead of zero mean and σ = max_speed/2; at most ``MAX_STD``.
     measure_velocity : with ``step(…, velocities=)``, measure the reported
         velocity as well as the position (z = [p, v], σ = velocity_std per
         component; :class:`~jointtrack.models.LinearPositionVelocity`) in scans
@@ -277,6 +304,7 @@ class TrackerConfig(ModelSettings):
             not self.measure_velocity or self.sensor == "position",
             "measure_velocity needs the position sensor (sensor = 'position')",
         )
+        self._check_noise_conditioning()
         if self.reporting == "async":
             need(self.existence, "reporting = 'async' needs existence = true (JIPDA)")
             need(
@@ -289,6 +317,35 @@ class TrackerConfig(ModelSettings):
                 "reporting = 'async' needs p_survive_per = 'second' (a scan per report: "
                 "survival per scan would depend on how often other targets report)",
             )
+
+    def _check_noise_conditioning(self) -> None:
+        """The measurement noise covariances the tracker will filter with, as the
+        filters test them (``jointtrack.filters.kalman``: Cholesky, reciprocal condition
+        above m·ε): refused here, naming the settings, rather than at the first update.
+        """
+        from jointtrack.filters.kalman import _chol_pd
+
+        d = self.dim
+        if self.sensor == "range-bearing":
+            matrices = [
+                ("range_noise and bearing_noise", np.diag([self.range_noise, self.bearing_noise]))
+            ]
+        else:
+            matrices = [("measurement_noise", self.measurement_covariance())]
+            if self.measure_velocity:  # z = [p, v]: R = diag(R_position, velocity_std² I)
+                R = np.zeros((2 * d, 2 * d))
+                R[:d, :d] = matrices[0][1]
+                R[d:, d:] = self.velocity_std**2 * np.eye(d)
+                matrices.append(("measurement_noise and velocity_std (measure_velocity)", R))
+        for names, R in matrices:
+            try:
+                _chol_pd(R[None], "R", False)
+            except ValueError as exc:
+                problem = str(exc).removeprefix("R ")
+                raise ValueError(
+                    f"TrackerConfig: {names}: the measurement noise covariance {problem}; "
+                    "the filters need its variances within ~1e15 of each other"
+                ) from None
 
     def measurement_covariance(self) -> np.ndarray:
         """R of the position sensor as a (dim, dim) array (from ``measurement_noise``)."""
@@ -352,6 +409,28 @@ def _positive(name, v):
     if not (math.isfinite(v) and v > 0):
         raise _fail(name, want, v)
     return v
+
+
+def _bounded(limit: float, why: str):
+    """A positive finite number ≤ ``limit``; beyond it the message says ``why``."""
+
+    def check(name, v):
+        v = _positive(name, v)
+        if v > limit:
+            raise _fail(
+                name,
+                f"a positive finite number ≤ {limit:g} ({why}; beyond it float64 overflows)",
+                v,
+            )
+        return v
+
+    return check
+
+
+_std = _bounded(MAX_STD, "it is squared into the tracks' covariances")
+_variance = _bounded(
+    MAX_VARIANCE, "it enters the tracks' covariances, which are added and multiplied"
+)
 
 
 def _non_negative(name, v):
@@ -494,10 +573,17 @@ def _check_noise(v, dim: int):
     if isinstance(v, float):
         if not (math.isfinite(v) and v > 0):
             raise _fail(name, "positive and finite (σ²)", v)
-        return v
+        return _variance(name, v)
     a = np.asarray(v, dtype=np.float64)
     if not np.all(np.isfinite(a)):
         raise _fail(name, "finite", v)
+    if np.abs(a).max() > MAX_VARIANCE:
+        raise _fail(
+            name,
+            f"a covariance with entries ≤ {MAX_VARIANCE:g} in magnitude (it is added and "
+            "multiplied in the filter; beyond that float64 overflows)",
+            v,
+        )
     if a.ndim == 1:
         if a.size != dim:
             raise _fail(name, f"a number or a list of {dim} per-axis variances (dim = {dim})", v)
@@ -518,12 +604,12 @@ def _check_noise(v, dim: int):
 _CHECKS = {
     "dim": _dim,
     "motion": _choice(("cv", "ca")),
-    "process_noise": _positive,
+    "process_noise": _variance,
     "measurement_noise": _noise_shape,
     "sensor": _choice(("position", "range-bearing")),
     "sensor_position": _sensor_position,
-    "range_noise": _positive,
-    "bearing_noise": _positive,
+    "range_noise": _variance,
+    "bearing_noise": _variance,
     "p_d": _probability,
     "p_g": _probability,
     "clutter_density": _clutter,
@@ -532,8 +618,8 @@ _CHECKS = {
     "exact_max_bits_tentative": _bits_or_none,
     "approximation": _choice(("lbp", "mcmc", "kbest", "pda")),
     "initiation": _choice(("two-point", "one-point")),
-    "max_speed": _positive,
-    "max_acceleration": _positive,
+    "max_speed": _std,
+    "max_acceleration": _std,
     "confirm_m": _int_range(1, 30),
     "confirm_n": _int_range(1, 30),
     "delete_misses": _int_range(1),
@@ -551,7 +637,7 @@ _CHECKS = {
     "report_interval": _positive,
     "p_survive_per": _choice(("scan", "second")),
     "max_coast": _positive_or_inf,
-    "velocity_std": _positive,
+    "velocity_std": _std,
     "measure_velocity": _bool,
     "r_labelled": _open_probability,
 }

@@ -18,6 +18,7 @@ one association call per multi-track cluster — no per-track Python objects.
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 
@@ -28,10 +29,14 @@ from jointtrack.association.gating import likelihood_ratio_pairs
 from jointtrack.filters import pda_pairs_update, predict
 from jointtrack.trackers.base import ClusterRecord, ScanResult, ScanTracker
 from jointtrack.trackers.config import TrackerConfig
-from jointtrack.trackers.existence import existence_update, merge_duplicates
+from jointtrack.trackers.existence import existence_update, merge_duplicates, silence_outcomes
 from jointtrack.trackers.history import TrackHistory, is_datetime
 from jointtrack.trackers.initiation import pair_returns
-from jointtrack.trackers.state_io import covariance_problem, validate_tracker_arrays
+from jointtrack.trackers.state_io import (
+    StateFileError,
+    covariance_problem,
+    validate_tracker_arrays,
+)
 
 __all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackHistory", "TrackerConfig"]
 
@@ -135,12 +140,15 @@ class JPDATracker(ScanTracker):
             self.x, self.P = predict(
                 self.x, self.P, self._motion.transition(dt), self._motion.noise(dt)
             )
-            if c.existence:
-                # p_survive per scan, or per second of elapsed time
-                self.existence = self.existence * c.p_survive ** (
-                    dt if c.p_survive_per == "second" else 1.0
-                )
         self._scan_detection(t, 0.0 if dt is None else dt)
+        if c.existence and len(self.ids):
+            # survival to the time this scan's evidence is about (see _scan_detection)
+            self.existence = self.existence * self._scan_survival
+            alive = self.existence > 0.0
+            if not alive.all():  # underflowed: no target left to associate or report
+                self._keep(alive)
+                for name in self._SCAN_ARRAYS:
+                    setattr(self, name, getattr(self, name)[alive])
         N, M = len(self.ids), len(z)
         beta0 = np.ones(N)
         pair_rows, pair_cols, pair_w = [], [], []
@@ -209,7 +217,7 @@ class JPDATracker(ScanTracker):
             cols = np.concatenate(pair_cols) if pair_cols else np.zeros(0, np.int64)
             w = np.concatenate(pair_w) if pair_w else np.zeros(0)
             if c.reporting == "async":  # reports seen: the track's own reporting rate
-                self.report_count += 1.0 - beta0
+                self.report_count += np.bincount(rows, w, minlength=N)
             # Only tracks with a pair change: β₀ = 1 leaves x and P as they are (bit
             # for bit), and with one report per scan most tracks have no pair.
             touched = np.flatnonzero(beta0 < 1.0)
@@ -235,8 +243,8 @@ class JPDATracker(ScanTracker):
                 # a labelled track is detected with P_D,i (no gate: the label decides)
                 unheard = labelled.copy()
                 unheard[lab_rows] = False
-                r, pd = self.existence[unheard], self._scan_pd[unheard]
-                self.existence[unheard] = r * (1.0 - pd) / (1.0 - r * pd)
+                r, missed = self.existence[unheard], self._scan_missed[unheard]
+                self.existence[unheard] = r * missed / ((1.0 - r) + r * missed)
             self._track_logic(hit, t)
             if not self.confirmed.all():  # only a tentative track can be a duplicate
                 keep, self.existence = merge_duplicates(
@@ -340,32 +348,51 @@ class JPDATracker(ScanTracker):
         return labels, (repeated if labels is not None else None), velocities, n_coincident
 
     def _scan_detection(self, t, dt):
-        """Per-track P_D of this scan (``_scan_pd``), the P_D·P_G of its miss weight
-        (``_scan_pdg``) and its pair factor ``_scan_pd_ratio``.
+        """Per-track detection and survival of this scan.
 
-        Scanning sensor: P_D = p_d for every track. Reporting targets
-        (``reporting = "async"``): the track's rate estimate at time s is
-        λ_i(s) = (1 + reports) / (report_interval + (s − born)); its reports
-        are received with probability p_d (and fall in the gate with P_G, for
-        ``miss_model = "1-pd*pg"``), so nothing is received in (t − Δt, t]
-        with probability exp(−p_d ∫λ_i) = (β₀/β₁)^(p_d(1 + reports)), β₀, β₁
-        = report_interval + seconds tracked at the interval's ends, and
-        P_D,i = 1 − (β₀/β₁)^(p_d(1 + reports)). The product of these miss
-        probabilities telescopes: a silence costs the same whether it is cut
-        into one scan or a hundred (with P_D,i = p_d(1 − e^(−λΔt)) it did
-        not: 30 s of silence cut at every other vessel's report cost far more
-        than one 30 s scan; with p_survive < 1 the deaths applied before each
-        scan make finer cuts slightly kinder, towards the continuous-time
-        answer). For p_d = 1 it is the Gamma–Poisson predictive
-        (negative binomial) of the track's own rate. The pairs' likelihood
-        ratios use P_D,i/Δt (→ p_d·λ_i as Δt → 0) against a clutter density
-        per second.
+        Sets ``_scan_pd`` (P_D,i), ``_scan_pdg`` (the P_D·P_G of the miss weight;
+        P_D,i for a labelled track, which has no gate) and ``_scan_missed`` = 1 −
+        ``_scan_pdg`` (formed without that subtraction, which keeps only the first
+        digits of a miss probability of 1e-10 after a long silence), the pair factor
+        ``_scan_pd_ratio`` and ``_scan_survival``, the factor that takes each
+        existence from the previous scan to this one.
+
+        Scanning sensor: P_D = p_d for every track, survival p_survive per scan or
+        p_survive^Δt per second. Reporting targets (``reporting = "async"``): the
+        track's rate estimate at time s is λ_i(s) = (1 + reports) /
+        (report_interval + (s − born)); its reports are received with probability
+        p_d (and fall in the gate with P_G, for ``miss_model = "1-pd*pg"``), so
+        nothing is received in (t − Δt, t] with probability exp(−p_d ∫λ_i) =
+        (β₀/β₁)^(p_d(1 + reports)), β₀, β₁ = report_interval + seconds tracked at
+        the interval's ends, and P_D,i = 1 − (β₀/β₁)^(p_d(1 + reports)). For p_d = 1
+        it is the Gamma–Poisson predictive (negative binomial) of the track's own
+        rate. The pairs' likelihood ratios use P_D,i/Δt (→ p_d·λ_i as Δt → 0)
+        against a clutter density per second.
+
+        The target also dies at the rate μ = −log p_survive per second, at any
+        moment of the interval, so the interval ends in one of three ways
+        (:func:`~jointtrack.trackers.existence.silence_outcomes`): the target is
+        alive and unheard (probability a), was heard before dying (e), or died
+        unheard (d = 1 − a − e). The existence is predicted to r(1 − d) (alive
+        when it is heard, or at t) and the miss weight's P_D·P_G is e/(a + e): a
+        missed scan then leaves exactly the continuous-time posterior ra / (1 − re)
+        — which composes, scan after scan, into the posterior of the whole
+        silence, so a silence costs the same existence however many other
+        targets' reports cut it into scans (applying p_survive^Δt before a miss
+        at each scan, as before, did not: 300 s of silence at p_survive = 0.9999
+        per second left 10–14 times the existence when cut into 500 scans as in
+        one). Without deaths (p_survive = 1) d = 0 and the miss probabilities
+        themselves telescope.
         """
         c = self.config
+        labelled = self.labels != ""
         if c.reporting == "scan":
             self._scan_pd = np.full(len(self.ids), self._p_d)
-            self._scan_pdg = c.detection_in_gate(self._scan_pd)
+            self._scan_pdg = np.where(labelled, self._scan_pd, c.detection_in_gate(self._p_d))
+            self._scan_missed = 1.0 - self._scan_pdg
             self._scan_pd_ratio = self._scan_pd
+            survive = c.p_survive ** (dt if c.p_survive_per == "second" else 1.0)
+            self._scan_survival = np.full(len(self.ids), survive if dt > 0 else 1.0)
             return
         alpha = 1.0 + self.report_count
         t_prev = t - dt if self.time is None else self.time
@@ -375,8 +402,20 @@ class JPDATracker(ScanTracker):
         elapsed = np.minimum(dt, np.maximum(t - self.born, 0.0))
         hazard = alpha * np.log1p(elapsed / beta0)  # ∫ λ_i(s) ds over the interval
         self._scan_pd = -np.expm1(-self._p_d * hazard)
-        gate = c.p_g if c.miss_model == "1-pd*pg" else 1.0
-        self._scan_pdg = -np.expm1(-self._p_d * gate * hazard)
+        gate = np.where(labelled, 1.0, c.p_g if c.miss_model == "1-pd*pg" else 1.0)
+        death_rate = -math.log(c.p_survive)
+        if death_rate > 0.0 and dt > 0:
+            silent, heard, _ = silence_outcomes(
+                self._p_d * gate * alpha, beta0, elapsed, death_rate
+            )
+            self._scan_survival = alive = silent + heard  # = 1 − died, without cancellation
+            # a track whose survival underflowed to 0 is dropped before it is used
+            self._scan_pdg = np.divide(heard, alive, out=np.zeros_like(heard), where=alive > 0)
+            self._scan_missed = np.divide(silent, alive, out=np.ones_like(heard), where=alive > 0)
+        else:
+            self._scan_survival = np.ones(len(self.ids))
+            self._scan_pdg = -np.expm1(-self._p_d * gate * hazard)
+            self._scan_missed = np.exp(-self._p_d * gate * hazard)
         self._scan_pd_ratio = self._p_d * alpha / beta0 if dt == 0 else self._scan_pd / dt
 
     def _match_labels(self, labels, repeated):
@@ -476,8 +515,8 @@ class JPDATracker(ScanTracker):
         L_pairs, _ = likelihood_ratio_pairs(g, pd_r, lam / scale)
         if available is not None:  # a return taken by an earlier pass is less likely ours
             L_pairs = L_pairs * available[g.cols]
-        pdg = self._scan_pdg[tracks]
-        miss = 1.0 - r * pdg
+        missed = self._scan_missed[tracks]
+        miss = (1.0 - r) + r * missed  # 1 − r P_D P_G
         rows, cols = g.rows, g.cols
         beta0, weights, groups, info = self._pair_marginals(
             self.ids[tracks], g, L_pairs, miss, loud, groups
@@ -485,7 +524,9 @@ class JPDATracker(ScanTracker):
         used = None
         if c.existence:
             used = weights.copy()  # unconditional: how much each pair explains its return
-            self.existence[tracks], beta0, weights = existence_update(r, beta0, weights, rows, pdg)
+            self.existence[tracks], beta0, weights = existence_update(
+                r, beta0, weights, rows, self._scan_pdg[tracks], missed=missed
+            )
         return (
             beta0,
             (rows, cols, weights),
@@ -516,6 +557,9 @@ class JPDATracker(ScanTracker):
         # time-based deletion: coasted longer than max_coast seconds
         coasted = (t - self.last_hit) > c.max_coast
         self._keep(~(dead | blown | coasted))
+
+    #: per-track quantities of the current scan (``_scan_detection``)
+    _SCAN_ARRAYS = ("_scan_pd", "_scan_pdg", "_scan_missed", "_scan_pd_ratio", "_scan_survival")
 
     _TRACK_ARRAYS = (
         "x",
@@ -680,7 +724,7 @@ class JPDATracker(ScanTracker):
         Raises ValueError (TypeError for a non-bool ``confirmed``) naming the
         argument for anything a saved state could not hold — complex, boolean,
         string or non-finite ``x0``/``P0``, a ``P0`` that is not symmetric
-        positive definite, ``existence`` outside [0, 1] — so every state this
+        positive definite, ``existence`` outside (0, 1] — so every state this
         accepts can be saved and loaded; nothing is changed then.
         """
         t0 = None
@@ -713,7 +757,8 @@ class JPDATracker(ScanTracker):
         if problem:
             raise ValueError(f"P0 {problem}; every P0 must be symmetric positive definite")
         P0 = 0.5 * (P0 + P0.transpose(0, 2, 1))  # exactly symmetric, as the filters keep it
-        existence = as_float(existence, "existence", minimum=0.0, maximum=1.0)
+        # existence 0: no target at all, nothing a track could stand for
+        existence = as_float(existence, "existence", minimum=0.0, maximum=1.0, open_min=True)
         if not isinstance(confirmed, bool | np.bool_):
             raise TypeError(f"confirmed must be True or False, got {confirmed!r}")
         clock = t0 if t0 is not None else (self.time if self.time is not None else 0.0)
@@ -749,6 +794,9 @@ class JPDATracker(ScanTracker):
 
     def _validate_state(self, path, arrays: dict, scalars: dict) -> None:
         validate_tracker_arrays(path, arrays, scalars, self.state_dim, self.config.dim)
+        if self.config.existence and (arrays["existence"] <= 0.0).any():
+            # a JIPDA track of existence 0 is deleted before any state is saved
+            raise StateFileError(f"{path}: field 'existence' holds a track of existence 0")
 
 
 def _rows(values, index):

@@ -16,11 +16,14 @@ says why. Every damaged, truncated, foreign or wrong-version file gives one
 :class:`ValueError` naming the file and what is wrong, and the values are
 checked (shapes, finiteness, symmetric positive-definite covariances,
 probabilities in [0, 1], unique ids). Saving writes a temporary file beside the
-target, flushes it to disk and renames it over the target (atomic on POSIX).
+target, flushes it to disk and renames it over the target (atomic on POSIX); a
+save that fails removes the temporary file, leaves the target as it was and raises
+:class:`StateFileError` naming the target.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -54,7 +57,8 @@ MAX_ID = 2**62
 
 
 class StateFileError(ValueError):
-    """A tracker state file that cannot be used (the message names the file)."""
+    """A tracker state file that cannot be read, used or written (the message names
+    the file)."""
 
 
 def _digest(header: dict, arrays: dict[str, np.ndarray]) -> str:
@@ -71,6 +75,11 @@ def write_state(
     path, arrays: dict[str, np.ndarray], config: dict, scalars: dict, rng: dict, run=None
 ):
     """Write a state file atomically; returns the path.
+
+    Raises :class:`StateFileError` naming ``path`` when it cannot be written (a
+    directory, a missing or read-only directory, a full disk); the temporary file
+    is removed and a state file already at ``path`` is left as it was, whatever
+    fails (an interrupt too).
 
     ``run`` (optional, JSON-able) is stored in the same checksummed header — a
     caller's bookkeeping that must change together with the state (e.g. the
@@ -94,12 +103,30 @@ def write_state(
     }
     header["sha256"] = _digest(header, arrays)
     blob = np.frombuffer(json.dumps(header).encode("utf-8"), dtype=np.uint8)
+    if path.is_dir():  # else the rename fails after the whole state was written
+        raise StateFileError(f"{path}: cannot write the tracker state there: it is a directory")
     tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as fh:
-        np.savez(fh, __header__=blob, **arrays)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    created = False
+    try:
+        with open(tmp, "wb") as fh:
+            created = True
+            np.savez(fh, __header__=blob, **arrays)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+        created = False  # renamed: the temporary file is the state file now
+    except BaseException as exc:
+        # whatever failed (a full disk, a read-only directory, an interrupt), the
+        # temporary file goes and an existing state file at ``path`` is untouched
+        if created:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        if isinstance(exc, OSError):
+            what = exc.strerror or str(exc)
+            if not path.parent.is_dir():
+                what = f"its directory {path.parent} does not exist"
+            raise StateFileError(f"{path}: cannot write the tracker state ({what})") from None
+        raise
     try:  # make the rename itself durable
         fd = os.open(path.parent, os.O_RDONLY)
         try:
