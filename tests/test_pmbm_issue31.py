@@ -36,6 +36,25 @@ from test_pmbm_pmb_exact import _enumerate as pmb_enumerate
 from test_pmbm_pmb_exact import _log_uniform, pmb_scene
 from test_pmbm_pmb_exact import _tracker as pmb_tracker
 
+# ---------------------------------------------- birth density at the noise settings' bound
+
+
+@pytest.mark.parametrize("kind", [PMBTracker, PMBMTracker])
+@pytest.mark.parametrize("variance", [1.0, 1e154, 1e300])
+def test_birth_density_is_finite_up_to_the_noise_bound(kind, variance):
+    # |det J| = sqrt(det C / det R) overflowed to inf / inf = NaN birth existence once the
+    # 2-D measurement variance reached ~1e154 (the settings allow up to MAX_VARIANCE = 1e300)
+    trk = kind(PMBMConfig(clutter_density=1e-4, birth_density=1e-6, measurement_noise=variance))
+    z = np.array([[0.0, 0.0], [3.0, -1.0]])
+    u = float(trk.undetected_density[0])
+    with np.errstate(all="raise"):
+        e, _, _ = trk._uniform_births(z)
+        trk.step(0.0, z)
+    # a position sensor: the return's covariance is R itself, so |det J| = 1 and the
+    # density is P_D times the undetected intensity's uniform density
+    np.testing.assert_allclose(e, trk._p_d * u, rtol=1e-12)
+
+
 # ------------------------------------------------------------------ 3: pruning to nothing
 
 

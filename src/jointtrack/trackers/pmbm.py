@@ -214,7 +214,11 @@ class _PoissonTracker(ScanTracker):
         if n > 2 * d:
             a = np.arange(2 * d, min(3 * d, n))
             P[:, a, a] = (c.max_acceleration / 2.0) ** 2
-        jac = np.sqrt(np.linalg.det(cov) / np.linalg.det(self._sensor.R))
+        # in log space: det of a 2-D covariance of σ² ~ 1e154 and more overflows to inf
+        # (inf / inf = NaN birth existence), within the settings' bound MAX_VARIANCE
+        log_det_cov = np.linalg.slogdet(cov)[1]
+        log_det_R = np.linalg.slogdet(self._sensor.R)[1]
+        jac = np.exp(0.5 * (log_det_cov - log_det_R))
         e = self._p_d * u * jac
         if c.birth_region is not None:
             box = np.asarray(c.birth_region)
