@@ -30,6 +30,7 @@ import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
+import jointtrack._atomic as atomic_module
 from jointtrack.io.detections import MAX_COORDINATE
 from jointtrack.trackers import JPDATracker, StateFileError, TrackerConfig, state_io
 from jointtrack.trackers import existence as existence_module
@@ -483,8 +484,9 @@ def test_a_failing_save_leaves_the_old_state_and_no_temporary_file(
 
     target = {
         "savez": (state_io.np, "savez"),
-        "fsync": (state_io.os, "fsync"),
-        "replace": (state_io.os, "replace"),
+        # the one atomic write of the package (jointtrack._atomic) syncs and renames
+        "fsync": (atomic_module.os, "fsync"),
+        "replace": (atomic_module.os, "replace"),
     }[stage]
     monkeypatch.setattr(*target, boom)
     expected = StateFileError if isinstance(fault, OSError) else KeyboardInterrupt

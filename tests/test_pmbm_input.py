@@ -16,6 +16,7 @@ import pytest
 
 from jointtrack.trackers import JPDATracker, TrackerConfig
 from jointtrack.trackers.pmbm import PMBMConfig, PMBMTracker, PMBTracker
+from state_checks import assert_same_state
 
 EYE4 = tuple(tuple(float(v) for v in row) for row in np.eye(4))
 MEAN = (0.0, 0.0, 0.0, 0.0)
@@ -166,11 +167,7 @@ def test_bad_scans_are_refused_and_leave_the_tracker_unchanged(kind, args, exc, 
     with pytest.raises(exc, match=match):
         trk.step(*args)
     after = trk.state_dict()
-    for key, value in before.items():
-        if isinstance(value, np.ndarray):
-            np.testing.assert_array_equal(after[key], value, err_msg=key)
-        else:
-            assert after[key] == value, key
+    assert_same_state(after, before)
     trk.step(2.0, [[2.0, 0.0]])  # and it carries on
     assert trk.n_scans == 3
 

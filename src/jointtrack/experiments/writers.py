@@ -60,6 +60,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from jointtrack._atomic import atomic_file
 from jointtrack.experiments.config import RunConfigError
 
 if TYPE_CHECKING:
@@ -135,19 +136,6 @@ def _track_columns(dim: int) -> list[str]:
     return ["time", "track_id", *c, *(f"v{a}" for a in c), "existence", *cov]
 
 
-def _fsync_dir(path: Path) -> None:
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
 def _temporary_name(path: Path) -> Path:
     """The temporary file beside ``path`` that :func:`atomic_output` renames into place:
     hidden, and with ``path``'s suffix (matplotlib picks the image format by it)."""
@@ -162,18 +150,9 @@ def atomic_output(path, stage: tuple[str, int] | None = None) -> Iterator[Path]:
     ``path`` is as it was. ``stage``: a fault-injection point (:func:`fault`) between
     the complete temporary file and the rename."""
     path = Path(path)
-    tmp = _temporary_name(path)
-    try:
+    hook = None if stage is None else (lambda: fault(*stage))
+    with atomic_file(path, _temporary_name(path), before_rename=hook) as tmp:
         yield tmp
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        if stage is not None:
-            fault(*stage)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    _fsync_dir(path.parent)
 
 
 def fault(stage: str, scan: int) -> None:

@@ -35,18 +35,23 @@ def file_kind(path: Path, err) -> str:
     )
 
 
-def read_csv(path: Path, err) -> tuple[list[str], list[list[str]], np.ndarray]:
+def open_input(path: Path, err, opener):
+    """``opener()`` (a file handle of ``path``), with the usual failures as ``err(path, why)``."""
     try:
-        if path.name.lower().endswith(".gz"):
-            fh = gzip.open(path, "rt", newline="", encoding="utf-8-sig")
-        else:
-            fh = open(path, newline="", encoding="utf-8-sig")  # noqa: SIM115
+        return opener()
     except FileNotFoundError:
         raise err(path, "file not found") from None
     except IsADirectoryError:
         raise err(path, "is a directory, not a file") from None
     except OSError as exc:
         raise err(path, f"cannot open file: {exc.strerror or exc}") from None
+
+
+def read_csv(path: Path, err) -> tuple[list[str], list[list[str]], np.ndarray]:
+    if path.name.lower().endswith(".gz"):
+        fh = open_input(path, err, lambda: gzip.open(path, "rt", newline="", encoding="utf-8-sig"))
+    else:
+        fh = open_input(path, err, lambda: open(path, newline="", encoding="utf-8-sig"))
     header = None
     rows: list[list[str]] = []
     lines: list[int] = []

@@ -44,6 +44,7 @@ import numpy as np
 from jointtrack.io._files import (
     CsvRecords,
     load_columns,
+    open_input,
     row_error,
     string_array,
     text_array,
@@ -854,14 +855,7 @@ def _json_bytes(path: Path, err) -> bytes:
     """The bytes of a JSON file, inflated if it is gzip, refused past :data:`MAX_JSON_BYTES`."""
     import zlib
 
-    try:
-        fh = open(path, "rb")  # noqa: SIM115 - closed below, after the gzip reader
-    except FileNotFoundError:
-        raise err(path, "file not found") from None
-    except IsADirectoryError:
-        raise err(path, "is a directory, not a file") from None
-    except OSError as exc:
-        raise err(path, f"cannot open file: {exc.strerror or exc}") from None
+    fh = open_input(path, err, lambda: open(path, "rb"))  # closed below, after the gzip reader
     limit = MAX_JSON_BYTES
     with fh:
         zipped = fh.read(2) == b"\x1f\x8b"

@@ -17,6 +17,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from jointtrack._atomic import atomic_file
+
 __all__ = ["ResultStore"]
 
 _SUFFIX = ".parquet"
@@ -95,11 +97,8 @@ class ResultStore:
         table = pa.Table.from_pylist([row], schema=pa.schema(fields))
         final = self._file(run_id)
         tmp = self.path / f".{run_id}.{os.getpid()}.tmp"
-        with open(tmp, "wb") as fh:
+        with atomic_file(final, tmp) as part, open(part, "wb") as fh:
             pq.write_table(table, fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, final)
         return final
 
     def run_ids(self, status: str | None = None) -> set[str]:

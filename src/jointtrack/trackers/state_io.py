@@ -23,15 +23,15 @@ save that fails removes the temporary file, leaves the target as it was and rais
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import math
-import os
 import zipfile
 from pathlib import Path
 
 import numpy as np
+
+from jointtrack._atomic import atomic_file
 
 __all__ = [
     "FORMAT",
@@ -105,36 +105,16 @@ def write_state(
     blob = np.frombuffer(json.dumps(header).encode("utf-8"), dtype=np.uint8)
     if path.is_dir():  # else the rename fails after the whole state was written
         raise StateFileError(f"{path}: cannot write the tracker state there: it is a directory")
-    tmp = path.with_name(path.name + ".tmp")
-    created = False
     try:
-        with open(tmp, "wb") as fh:
-            created = True
+        with atomic_file(path) as tmp, open(tmp, "wb") as fh:
             np.savez(fh, __header__=blob, **arrays)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        created = False  # renamed: the temporary file is the state file now
-    except BaseException as exc:
-        # whatever failed (a full disk, a read-only directory, an interrupt), the
-        # temporary file goes and an existing state file at ``path`` is untouched
-        if created:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-        if isinstance(exc, OSError):
-            what = exc.strerror or str(exc)
-            if not path.parent.is_dir():
-                what = f"its directory {path.parent} does not exist"
-            raise StateFileError(f"{path}: cannot write the tracker state ({what})") from None
-        raise
-    try:  # make the rename itself durable
-        fd = os.open(path.parent, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-    except OSError:
-        pass
+    except OSError as exc:
+        # whatever failed (a full disk, a read-only or missing directory), the temporary
+        # file is gone and an existing state file at ``path`` is untouched (atomic_file)
+        what = exc.strerror or str(exc)
+        if not path.parent.is_dir():
+            what = f"its directory {path.parent} does not exist"
+        raise StateFileError(f"{path}: cannot write the tracker state ({what})") from None
     return path
 
 
