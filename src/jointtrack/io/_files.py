@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from jointtrack._atomic import atomic_file
 from jointtrack.io.errors import DataFileError
 
 CSV_SUFFIXES = (".csv", ".csv.gz")
@@ -501,8 +502,9 @@ def as_columns(table, what: str) -> dict[str, np.ndarray]:
 def write_columns(
     path: Path, kind: str, cols: dict, int_cols, text_cols: Mapping | None = None
 ) -> None:
-    """Write columns to CSV/Parquet. ``text_cols``: name → ``(strings, pyarrow array)``
-    for columns written as given (CSV text / Parquet array) instead of as numbers."""
+    """Write columns to CSV/Parquet, atomically (a kill leaves the old file or the new
+    one). ``text_cols``: name → ``(strings, pyarrow array)`` for columns written as
+    given (CSV text / Parquet array) instead of as numbers."""
     text_cols = dict(text_cols or {})
     names = list(cols)
     if kind == "parquet":
@@ -515,7 +517,8 @@ def write_columns(
             else pa.array(cols[n].astype(np.int64 if n in int_cols else np.float64))
             for n in names
         ]
-        pq.write_table(pa.Table.from_arrays(arrays, names=names), path)
+        with atomic_file(path) as tmp:
+            pq.write_table(pa.Table.from_arrays(arrays, names=names), tmp)
         return
     n = len(next(iter(cols.values()))) if cols else 0
     txt = []
@@ -531,12 +534,14 @@ def write_columns(
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(names)
     w.writerows(zip(*txt, strict=True) if n else [])
-    data = buf.getvalue()
-    if path.name.lower().endswith(".gz"):
-        with gzip.open(path, "wt", encoding="utf-8", newline="") as fh:
+    data = buf.getvalue().encode("utf-8")
+    with atomic_file(path) as tmp, open(tmp, "wb") as fh:
+        if path.name.lower().endswith(".gz"):
+            # the gzip header names the file being written, not its temporary name
+            with gzip.GzipFile(filename=path.name[:-3], mode="wb", fileobj=fh) as gz:
+                gz.write(data)
+        else:
             fh.write(data)
-    else:
-        path.write_text(data, encoding="utf-8", newline="")
 
 
 #: why a label or identity with a NUL character is refused

@@ -7,6 +7,7 @@ import os
 from collections.abc import Mapping
 from pathlib import Path
 
+from jointtrack._atomic import atomic_file
 from jointtrack.io.jsonify import to_jsonable
 
 __all__ = ["write_metrics"]
@@ -17,12 +18,14 @@ def write_metrics(metrics: Mapping, path) -> Path:
 
     numpy scalars/arrays → numbers/lists, dataclasses → objects, tuples/sets →
     lists, paths → strings, NaN/±inf → ``null`` (:func:`jointtrack.io.to_jsonable`).
-    Parent directories are created.
+    Parent directories are created; the file is written atomically.
     """
     if not isinstance(metrics, Mapping):
         raise ValueError(f"metrics must be a mapping (dict), got {type(metrics).__name__}")
     data = to_jsonable(metrics)
     path = Path(os.fspath(path))
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    with atomic_file(path) as tmp:  # a kill leaves the old file or the new one
+        tmp.write_text(text, encoding="utf-8")
     return path
