@@ -8,7 +8,9 @@
    solved the blob (``ScanResult.cluster_methods``), and in the same run PMB on
    the same scans and — up to ``--unbudgeted-max`` returns — PMBM without the
    budget (``max_ranking_work=None``: the ranking of every earlier jointtrack),
-   with the ratios.
+   with the ratios; and JIPDA (``TrackerConfig(existence=True)``, the same
+   clutter, noise and process noise) on the same scans, whose tentative tracks
+   make the second scan one cluster of 2,000 tracks.
 2. **Murty's cost per cell**: :func:`~jointtrack.association.kbest_hypotheses`
    on dense random clusters of n tracks × n returns (80 % gated), k events,
    against the budget's estimate (1 + (k − 1) n) · n · (n + m) cost-matrix cells
@@ -29,6 +31,7 @@ import time
 import numpy as np
 
 from jointtrack.association.kbest import kbest_hypotheses
+from jointtrack.trackers import JPDATracker, TrackerConfig
 from jointtrack.trackers.pmbm import PMBMConfig, PMBMTracker, PMBTracker
 
 BURST = dict(clutter_density=1e-5, measurement_noise=1.0, process_noise=1.0, birth_density=1e-6)
@@ -36,7 +39,11 @@ BURST = dict(clutter_density=1e-5, measurement_noise=1.0, process_noise=1.0, bir
 
 def burst(kind, K: int, **config) -> tuple[float, str, int]:
     """``(worst scan CPU seconds, blob tier, hypotheses)`` of three burst scans of K returns."""
-    trk = kind(PMBMConfig(**BURST, **config))
+    if kind is JPDATracker:
+        jipda = {k: v for k, v in BURST.items() if k != "birth_density"}
+        trk = JPDATracker(TrackerConfig(existence=True, **jipda, **config))
+    else:
+        trk = kind(PMBMConfig(**BURST, **config))
     rng = np.random.default_rng(0)
     worst, tier = 0.0, ""
     for t in range(3):
@@ -95,15 +102,20 @@ def main() -> None:
     args = ap.parse_args()
     burst(PMBMTracker, 30)  # numba kernels compiled or loaded before any timing
     burst(PMBTracker, 30)
+    burst(JPDATracker, 30)
     budget = PMBMConfig().max_ranking_work
     print(f"1. burst: worst of 3 scans, CPU s (PMBM max_ranking_work = {budget})")
-    print("| returns | PMBM | PMBM tier | hypotheses | PMB | PMB tier | PMBM/PMB | unbudgeted PMBM "
-          "| unbudgeted/PMBM |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| returns | PMBM | PMBM tier | hypotheses | PMB | PMB tier | PMBM/PMB | JIPDA "
+          "| JIPDA tier | unbudgeted PMBM | unbudgeted/PMBM |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for K in args.sizes:
         s, tier, H = burst(PMBMTracker, K)
         s_pmb, tier_pmb, _ = burst(PMBTracker, K)
-        line = f"| {K} | {s:.2f} | {tier} | {H} | {s_pmb:.2f} | {tier_pmb} | {s / s_pmb:.2f} |"
+        s_jipda, tier_jipda, _ = burst(JPDATracker, K)
+        line = (
+            f"| {K} | {s:.2f} | {tier} | {H} | {s_pmb:.2f} | {tier_pmb} | {s / s_pmb:.2f} "
+            f"| {s_jipda:.2f} | {tier_jipda} |"
+        )
         if K <= args.unbudgeted_max:
             s_old, tier_old, _ = burst(PMBMTracker, K, max_ranking_work=None)
             line += f" {s_old:.2f} ({tier_old}) | {s_old / s:.1f} |"

@@ -48,6 +48,28 @@ def test_mcmc_gets_the_generator_and_approximations_are_not_budgeted():
     assert (res.method, res.reason) == ("lbp", "")
 
 
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"max_tracks": 5},  # past the track limit
+        {"exact_options": {"max_bits": 3}},  # refused by the exact engine
+        {"method": "lbp"},  # the approximation asked for
+    ],
+)
+def test_a_dense_approximation_past_max_work_goes_to_the_sparse_tiers(kwargs):
+    L, miss = _cluster()  # 48 gated entries: 1,000 dense sweeps could take 48,000 updates
+    dense = budgeted_marginals(L, miss, max_work=48_000, **kwargs)
+    assert dense.method == "lbp"
+    res = budgeted_marginals(L, miss, max_work=47_999, **kwargs)
+    assert res.method == "lbp-sparse" and res.reason.startswith("dense_budget: ")
+    assert "48 gated pairs" in res.reason and "47999 message updates" in res.reason
+    # the same Williams-Lau BP on the pairs: β equal where both converged
+    np.testing.assert_allclose(res.beta, dense.beta, atol=1e-6)
+    unbounded = budgeted_marginals(L, miss, max_work=None, **kwargs)
+    np.testing.assert_array_equal(unbounded.beta, dense.beta)
+    assert budgeted_marginals(L, miss, max_work=10).method == "exact"  # exact: own budget
+
+
 def test_bad_approximation_is_named():
     L, miss = _cluster(2, 2)
     with pytest.raises(ValueError, match="approximation"):

@@ -34,6 +34,7 @@ from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
+import jointtrack.association.budget as budget_module
 import jointtrack.trackers.pmbm as pmbm_module
 from jointtrack.cli import app
 from jointtrack.trackers.pmbm import PMBMConfig, PMBMTracker, PMBTracker
@@ -234,7 +235,7 @@ def test_a_burst_is_ranked_within_the_budget(monkeypatch, caplog, K, budget, tie
     budget = budget or PMBMConfig.max_ranking_work
     calls, lbp = [], []
     kbest = pmbm_module.kbest_hypotheses
-    fallback = pmbm_module.fallback_pair_marginals
+    fallback = budget_module.fallback_pair_marginals
 
     def counted_kbest(L, miss, *, k):
         calls.append(_estimate(L.shape[0], L.shape[1], k))
@@ -245,7 +246,7 @@ def test_a_burst_is_ranked_within_the_budget(monkeypatch, caplog, K, budget, tie
         return fallback(*args, max_work=max_work, **kw)
 
     monkeypatch.setattr(pmbm_module, "kbest_hypotheses", counted_kbest)
-    monkeypatch.setattr(pmbm_module, "fallback_pair_marginals", counted_fallback)
+    monkeypatch.setattr(budget_module, "fallback_pair_marginals", counted_fallback)
     caplog.set_level(logging.DEBUG, logger="jointtrack.tracker")
     trk, results = _blob(PMBMTracker, K, **config)
     assert max(calls, default=0) <= budget
@@ -265,23 +266,34 @@ def test_a_burst_is_ranked_within_the_budget(monkeypatch, caplog, K, budget, tie
         assert np.isfinite(trk.sth_x).all() and ((trk.sth_r > 0) & (trk.sth_r <= 1)).all()
 
 
-def test_pmb_bounds_the_dense_approximation_of_a_burst(monkeypatch):
-    """PMB's 2,000-return burst went to the dense LBP (1,000 sweeps, 177 s); a cluster
-    whose dense sweeps could exceed the sparse tier's work goes to the sparse tiers."""
+@pytest.mark.parametrize("kind", ["jipda", "pmb"])
+def test_a_burst_never_starts_an_unbounded_dense_approximation(monkeypatch, kind):
+    """A 2,000-return burst went to the dense LBP (1,000 sweeps: PMB 177 s, JIPDA 85 s
+    per scan); a cluster whose dense sweeps could exceed the sparse tier's work goes
+    to the sparse tiers within it (budgeted_marginals, shared by every tracker)."""
     from jointtrack.association.budget import MAX_LBP_WORK
+    from jointtrack.trackers import JPDATracker, TrackerConfig
 
     seen = []
-    fallback = pmbm_module.fallback_pair_marginals
+    fallback = budget_module.fallback_pair_marginals
 
     def counted(*args, max_work, **kw):
         seen.append(max_work)
         return fallback(*args, max_work=max_work, **kw)
 
-    monkeypatch.setattr(pmbm_module, "fallback_pair_marginals", counted)
-    trk, results = _blob(PMBTracker, 300)
-    assert results[-1].cluster_methods == ["lbp-sparse"]
-    assert results[-1].cluster_fallbacks[0].startswith("dense_budget: ")
-    assert seen == [MAX_LBP_WORK]
+    monkeypatch.setattr(budget_module, "fallback_pair_marginals", counted)
+    if kind == "pmb":
+        trk, results = _blob(PMBTracker, 300)
+    else:
+        trk = JPDATracker(TrackerConfig(**{k: v for k, v in BURST.items() if k != "birth_density"}))
+        rng = np.random.default_rng(0)
+        results = [trk.step(float(t), rng.normal(0, 3, (300, 2))) for t in range(3)]
+    big = [i for i, (n, _) in enumerate(results[-1].cluster_sizes) if n >= 100]
+    assert big, results[-1].cluster_sizes
+    for i in big:
+        assert results[-1].cluster_methods[i] == "lbp-sparse"
+        assert results[-1].cluster_fallbacks[i].startswith("dense_budget: ")
+    assert seen and set(seen) == {MAX_LBP_WORK}
 
 
 def test_the_run_tallies_the_ranking_tiers(tmp_path):
@@ -333,7 +345,8 @@ def test_a_failing_stage_past_the_budget_leaves_the_state_unchanged(monkeypatch,
     before = trk.state_dict()
     z = np.random.default_rng(9).normal(0, 3, (K, 2))
 
-    owner = PMBMTracker if hasattr(PMBMTracker, stage) else pmbm_module
+    # the sparse tiers are the shared budget's (association.budget), the rest PMBM's
+    owner = next(o for o in (PMBMTracker, pmbm_module, budget_module) if hasattr(o, stage))
     real = getattr(owner, stage)
 
     def boom(*args, **kwargs):

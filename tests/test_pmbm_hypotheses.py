@@ -305,11 +305,17 @@ def _check_against(trk, sc, exact):
     the smaller ones. Hypotheses below e^FLOOR (≈ 1e-290) are exempt: the
     tracker's likelihood ratios are float64 numbers (Murty's algorithm takes
     them, not their logs), subnormal below 2.2e-308 and 0 below 5e-324, so
-    such hypotheses may be missing or imprecise.
+    such hypotheses may be missing or imprecise — and in a truncated list, replaced:
+    an event whose float ratio underflowed is invisible to the ranking, so the K-th
+    place may go to one further down (found: e^−967.6 kept for e^−745.8, whose
+    ratio e^−745.8 is below 5e-324, the two detections of the kept one each within
+    range and their product taken in logs).
     """
     got = _tracker_hypotheses(trk, sc)
     total = sum(exact.values())
     for key, lw in got.items():
+        if lw < FLOOR and key not in exact:
+            continue
         assert key in exact, key
         want = log_fraction(exact[key] / total)
         if want >= FLOOR:

@@ -161,19 +161,22 @@ def _frontier_block(W, u, v, marginals, max_bits, max_memory, parallel):
     """
     G = W > 0.0
     R, C = G.shape
-    plan_a = frontier_plan(G)
-    plan_b = frontier_plan(np.ascontiguousarray(G.T))
-    # cost ≈ layers · 2^K (layers = rows for plan_a, columns for plan_b)
-    # Python ints: exact, and 2^K cannot overflow for a frontier of 1024+ items
-    transpose = C << int(plan_b[1]) < R << int(plan_a[1])
+    # a plan stops at the first layer past max_bits (its K is then a lower bound)
+    plan_a = frontier_plan(G, max_bits)
+    plan_b = frontier_plan(np.ascontiguousarray(G.T), max_bits)
+    ka, kb = int(plan_a[1]), int(plan_b[1])
+    if ka > max_bits and kb > max_bits:
+        raise ExactLimitError(
+            f"the exact DP needs a state of at least 2^{min(ka, kb)} subsets for a block of "
+            f"{R}×{C} that does not separate further, above max_bits = {max_bits}; use an "
+            "approximation"
+        )
+    # the cheaper orientation within the budget; cost ≈ layers · 2^K (layers = rows for
+    # plan_a, columns for plan_b), Python ints: exact, no overflow at 1024+ items
+    transpose = ka > max_bits or (kb <= max_bits and C << kb < R << ka)
     if transpose:
         W, u, v = np.ascontiguousarray(W.T), v, u
     _, K, op_kind, op_arg, slot_of, lay_slot, term = plan_b if transpose else plan_a
-    if K > max_bits:
-        raise ExactLimitError(
-            f"the exact DP needs a state of 2^{K} subsets for a block of {R}×{C} that does "
-            f"not separate further, above max_bits = {max_bits}; use an approximation"
-        )
     per = 8 * (1 << K)
     nops = op_kind.size
     stride = 1

@@ -38,6 +38,7 @@ from scipy.sparse import csr_array
 from jointtrack.assignment._checks import _as_real_array, as_float
 from jointtrack.association.budget import (
     DENSE_MAX_ENTRIES,
+    MAX_LBP_WORK,
     budgeted_marginals,
     fallback_pair_marginals,
     reason_kind,
@@ -519,6 +520,7 @@ class ScanTracker:
             max_tracks=max_tracks,
             rng=self.rng,
             exact_options=None if max_bits is None else {"max_bits": max_bits},
+            max_work=self._lbp_work(),
         )
         reason = res.reason
         if (
@@ -532,6 +534,12 @@ class ScanTracker:
         if reason:
             self._log_fallback(len(Lc), Lc.shape[1], loud, reason, res.method)
         return res.beta, res.method, reason, _time.perf_counter() - t0
+
+    def _lbp_work(self) -> int:
+        """Message updates an approximation may spend on one cluster: a dense one whose
+        sweeps could take more goes to the sparse tiers, which work within it
+        (:func:`~jointtrack.association.budget.budgeted_marginals`)."""
+        return MAX_LBP_WORK
 
     def _exact_budget(self, loud):
         """``(max_tracks, max_bits, label)``: the exact budget of a cluster of this kind.

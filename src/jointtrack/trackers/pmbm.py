@@ -103,9 +103,7 @@ from scipy.sparse import coo_array
 from scipy.sparse.csgraph import connected_components
 
 from jointtrack.association.budget import (
-    EXACT_METHODS,
     MAX_LBP_WORK,
-    fallback_pair_marginals,
 )
 from jointtrack.association.gating import likelihood_ratio_pairs
 from jointtrack.association.kbest import kbest_hypotheses
@@ -118,10 +116,6 @@ from jointtrack.trackers.poisson import moment_match, prune_and_merge
 from jointtrack.trackers.state_io import StateFileError, covariance_problem, validate_counters
 
 __all__ = ["PMBMConfig", "PMBMTracker", "PMBTracker"]
-
-#: Sweeps the dense approximation may take (``lbp_marginals``' default ``max_iter``):
-#: its work bound, against the sparse tier's budget (:meth:`_PoissonTracker._cluster_marginals`).
-_DENSE_SWEEPS = 1000
 
 
 class _PoissonTracker(ScanTracker):
@@ -247,7 +241,8 @@ class _PoissonTracker(ScanTracker):
         weights, groups, xs, Ps = [e_u], [np.arange(M)], [x_u], [P_u]
         if len(self.poisson_w) and M:
             g = self._gate(self.poisson_m, self.poisson_P, z)
-            w = np.exp(np.log(self.poisson_w[g.rows]) + math.log(self._p_d) + g.log_g)
+            with np.errstate(divide="ignore"):  # a component of weight 0 (a loaded state) adds 0
+                w = np.exp(np.log(self.poisson_w[g.rows]) + math.log(self._p_d) + g.log_g)
             xu, Pu = self._pair_update(self.poisson_m[g.rows], self.poisson_P[g.rows], z[g.cols])
             weights.append(w)
             groups.append(g.cols)
@@ -304,47 +299,6 @@ class _PoissonTracker(ScanTracker):
         r_post, b0, wc = existence_update(r, beta0, w, rows, self._p_d)
         x_post, P_post = pda_pairs_update(x, P, z, b0, rows, cols, wc, **self._measurement_model())
         return r_post, x_post, P_post, taken, info
-
-    def _cluster_marginals(self, Lc, mc, loud):
-        """β of one multi-track cluster: the shared budget, with the dense approximation's
-        work bounded too.
-
-        Past the exact budget a cluster goes to the configured approximation on its
-        dense N × M matrix, which may take up to 1,000 sweeps of its gated entries
-        (the dense LBP's ``max_iter``): 177 s for the 2,000 × 2,000 clutter burst of
-        ``benchmarks/pmbm_burst.py``. A cluster whose sweeps could exceed
-        :meth:`_lbp_work` message updates goes straight to the sparse tiers on its
-        gated pairs (:func:`~jointtrack.association.budget.fallback_pair_marginals`:
-        sparse LBP within that work, then PDA), reason ``"dense_budget: …"``.
-        """
-        c = self.config
-        n, m = Lc.shape
-        method = c.association
-        if method in EXACT_METHODS and n > c.exact_max_tracks:
-            method = c.approximation
-        gated = int(np.count_nonzero(Lc))
-        work = self._lbp_work()
-        if method in EXACT_METHODS or method == "pda" or gated * _DENSE_SWEEPS <= work:
-            return super()._cluster_marginals(Lc, mc, loud)
-        t0 = time.perf_counter()
-        reason = (
-            f"dense_budget: {n} tracks × {m} measurements, {gated} gated pairs: {_DENSE_SWEEPS} "
-            f"sweeps of the dense {method} could take more than {work} message updates"
-        )
-        rows, cols = (a.astype(np.int64) for a in np.nonzero(Lc))
-        res = fallback_pair_marginals(
-            rows, cols, Lc[rows, cols], mc, m, reason=reason, max_work=work
-        )
-        beta = np.zeros((n, m + 1))
-        beta[:, 0] = res.beta0
-        beta[rows, cols + 1] = res.pair_beta
-        self._log_fallback(n, m, loud, res.reason, res.method)
-        return beta, res.method, res.reason, time.perf_counter() - t0
-
-    def _lbp_work(self) -> int:
-        """Message updates the sparse LBP tier may spend on one cluster
-        (:data:`~jointtrack.association.budget.MAX_LBP_WORK`)."""
-        return MAX_LBP_WORK
 
     # --------------------------------------------------------------- checks
     def _validate_common(self, path, arrays, spec, lengths):
