@@ -11,9 +11,10 @@ if os.environ.get("CI"):
     settings.load_profile("ci")
 
 #: The files that take longest (worker seconds, ``--durations=0`` of the full suite),
-#: run first: pytest-xdist's ``--dist loadfile`` hands files out in collection order,
-#: and one of these started last keeps one core busy alone at the end (≈ 8 % of CI's
-#: wall time was such a tail). Order only; nothing is skipped.
+#: run first: with ``--no-loadscope-reorder`` (pyproject's addopts) pytest-xdist's
+#: ``--dist loadfile`` hands files out in collection order — by default it sorts them by
+#: their number of tests, which put these few-test, slow files last, one core busy
+#: alone at the end (≈ 8 % of CI's wall time). Order only; nothing is skipped.
 SLOWEST_FIRST = (
     "test_run_finish.py",
     "test_run_durable.py",

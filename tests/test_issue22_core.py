@@ -28,7 +28,7 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from brute import log_fraction
@@ -430,6 +430,7 @@ def test_sinkhorn_does_not_warn_on_an_overshooting_newton_step():
         )
     )
 )
+@example(problem=(2, [[1e285, 0.0, 1e7], [5e-324, 2.3444855318705343e21, 0.0]]))  # subnormal d
 def test_sinkhorn_never_warns(problem):
     """Valid input: a scaling or a clear exception, and no RuntimeWarning either way."""
     _, rows = problem

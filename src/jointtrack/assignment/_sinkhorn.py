@@ -367,10 +367,14 @@ def sinkhorn(A, *, tol: float = 1e-12, max_iter: int = 10_000, row_counts=None, 
     )
     with np.errstate(over="ignore", under="ignore"):
         d1, d2 = np.exp(lr), np.exp(lc)
-    if not (np.all(np.isfinite(d1) & (d1 > 0)) and np.all(np.isfinite(d2) & (d2 > 0))):
+    # a subnormal factor has lost bits (A = [[1e285, 0, 1e7], [5e-324, 2.3e21, 0]]
+    # needs factors 1e608 apart): as unusable as one that underflowed to 0
+    normal = np.finfo(float).tiny
+    if not (np.all(np.isfinite(d1) & (d1 >= normal)) and np.all(np.isfinite(d2) & (d2 >= normal))):
         raise ValueError(
             "the Sinkhorn factors of A are not representable in float64 (A's entries span "
-            "too wide a range); the scaling exists but d1, d2 would over- or underflow"
+            "too wide a range); the scaling exists but d1, d2 would over- or underflow "
+            "(use sinkhorn_log for the factors' logarithms)"
         )
     return d1, B, d2
 
