@@ -1730,4 +1730,9 @@ def run_detections(
     )
     src.detections = detections  # stepped by _step_scan, sensors checked by _register_sensors
     src.labels_to_tracker = bool(labels_to_tracker)
+    if detections.geo_reference is not None:
+        # every geodetic input the same: lat/lon tracks, geo_reference, map.png
+        from jointtrack.experiments.realdata import geodetic_outputs
+
+        options["extra"] = geodetic_outputs(detections, options.get("extra"))
     return _run(src, cfg, out_dir, fmt=fmt, progress=progress, kind=tkind, **options)
