@@ -241,3 +241,49 @@ def test_a_report_file_leaves_the_outlier_out_of_tracking_and_scoring(tmp_path):
     # the corrupt report is not one of its ship's positions when scoring
     assert m["self_reports"]["coverage"] >= 0.99
     _run_geodetic_outputs(out, m, (geo["lat"], geo["lon"], geo["alt"]))
+
+
+# ----------------------------------------------------------------------------- reporting
+
+
+def _dets(times, per_time):
+    from jointtrack.io import Detections
+
+    return Detections(times=times, scans=[np.zeros((per_time, 2)) + k for k in range(len(times))])
+
+
+def test_report_like_detections_get_the_async_model_and_say_why():
+    from jointtrack.experiments.run import REPORT_LIKE_SETTINGS, reporting_from_data
+    from jointtrack.trackers.config import TrackerConfig
+
+    rng = np.random.default_rng(4)
+    irregular = np.cumsum(rng.exponential(0.3, 200))  # Poisson reporters: gap CV ≈ 1
+    table, note = reporting_from_data(_dets(irregular, 1), {})
+    assert table == REPORT_LIKE_SETTINGS and "from the data" in note
+    assert "1.00 returns per time" in note and "report_interval 60 s" in note
+    TrackerConfig(**table)  # a valid configuration
+    # the user's keys win, and a table that sets reporting is left alone
+    table, _ = reporting_from_data(_dets(irregular, 1), {"clutter_density": 1e-9})
+    assert table["clutter_density"] == 1e-9 and table["reporting"] == "async"
+    assert reporting_from_data(_dets(irregular, 1), {"reporting": "scan"}) == (
+        {"reporting": "scan"},
+        None,
+    )
+    for kind in ("jpda", "pmb", "pmbm"):
+        assert reporting_from_data(_dets(irregular, 1), {}, kind) == ({}, None)
+    # a scanning sensor: a fixed period, or several returns per time
+    assert reporting_from_data(_dets(np.arange(200.0), 1), {}) == ({}, None)
+    assert reporting_from_data(_dets(irregular, 3), {}) == ({}, None)
+    assert reporting_from_data(_dets(irregular[:10], 1), {}) == ({}, None)  # too few
+
+
+def test_a_run_that_confirms_nothing_says_so_with_the_likely_reason():
+    from jointtrack.experiments.summary import no_tracks_reason
+
+    m = {"n_scans": 100, "n_detections": 117, "tracker": {"kind": "jipda", "reporting": "scan"}}
+    assert 'reporting = "async"' in no_tracks_reason(m)
+    m["tracker"]["reporting"] = "async"
+    m["tracker"]["measurement_noise"] = 100.0
+    text = no_tracks_reason(m)
+    assert text.startswith("no track was confirmed") and "measurement_noise (100.0)" in text
+    assert "no detections" in no_tracks_reason({"n_scans": 3, "n_detections": 0})
