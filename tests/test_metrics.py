@@ -506,7 +506,7 @@ def test_gospa_series_total_at_huge_scale():
     assert math.isinf(r.switch_cost)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(wide_problem(), wide_order)
 def test_wide_range_properties_and_exact_reference(problem, p):
     X, Y, c = problem

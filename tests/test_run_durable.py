@@ -74,9 +74,8 @@ CASES = [
     ("csv", "scan:2"),
     ("csv", "part:7"),
     ("parquet", "checkpoint:11"),
-    ("parquet", "scan:17"),
     ("csv", "scan:13:TERM"),
-    ("parquet", "scan:9:INT"),
+    ("parquet", "scan:17:INT"),
 ]
 
 

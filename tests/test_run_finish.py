@@ -170,15 +170,8 @@ def _first(base, case):
 # every step of the finishing phase, numbered as the case's OUTPUTS: each kill stops the
 # run (or the resume before it) there; the next resume continues
 CHAINS = {
-    "scenario": [
-        "finishing:0",
-        "write:0",
-        "output:1",
-        "recorded:2",
-        "write:3",
-        "done:0",
-        "cleanup:1",
-    ],
+    # (the write stage of a file, between its temp file and its rename, in the others)
+    "scenario": ["finishing:0", "output:1", "recorded:2", "done:0", "cleanup:1"],
     "detections": ["write:0", "output:1:INT", "output:2"],  # INT: Ctrl-C
     "ais": ["output:0", "write:2", "recorded:3"],
     # one kill (CI time): after map.png, the output only geodetic runs add
