@@ -47,6 +47,8 @@ OUTPUTS = {
     "scenario": ["tracks.csv", "scene.png", "gospa.png", "metrics.json"],
     "detections": ["tracks.parquet", "scene.png", "metrics.json"],
     "ais": ["tracks.csv", "scene.png", "map.png", "metrics.json"],
+    # a plain lat/lon detection file: the same geodetic outputs as a report file
+    "geo": ["tracks.csv", "scene.png", "map.png", "metrics.json"],
 }
 
 
@@ -62,6 +64,7 @@ def _case_args(base, case):
             "parquet",
         ],
         "ais": ["--detections", base / "ais.csv"],
+        "geo": ["--detections", base / "geo.csv"],
     }[case]
 
 
@@ -72,6 +75,20 @@ def _write_detections(path):
         for t, z in zip(sc.times, sc.detections, strict=True):
             for p in z:
                 fh.write(f"{float(t)!r},{float(p[0])!r},{float(p[1])!r}\n")
+
+
+def _write_geodetic(path):
+    """The crossing scenario's detections as a plain ``time, lat, lon`` file (near 50.8° N)."""
+    from jointtrack.io.geodetic import LocalFrame
+
+    sc = crossing(1, n_scans=10, clutter_per_scan=3.0)
+    frame = LocalFrame(50.8, -1.2)
+    with open(path, "w") as fh:
+        fh.write("time,lat,lon\n")
+        for t, z in zip(sc.times, sc.detections, strict=True):
+            lat, lon = frame.to_geodetic(np.asarray(z, dtype=float).reshape(-1, 2))
+            for la, lo in zip(lat, lon, strict=True):
+                fh.write(f"{float(t)!r},{float(la)!r},{float(lo)!r}\n")
 
 
 def _files(out) -> dict:
@@ -101,6 +118,7 @@ def runs(tmp_path_factory):
     )
     _write_detections(base / "det.csv")
     write_ais(base / "ais.csv")
+    _write_geodetic(base / "geo.csv")
     ref = {}
     for case in OUTPUTS:
         cwd = base / f"ref-{case}"
@@ -138,7 +156,7 @@ def _assert_outputs_so_far_are_final(out, want: dict) -> None:
 
 
 #: scans between checkpoints (the AIS file has a scan per report time: hundreds)
-EVERY = {"scenario": 4, "detections": 4, "ais": 50}
+EVERY = {"scenario": 4, "detections": 4, "ais": 50, "geo": 4}
 
 
 def _first(base, case):
@@ -156,6 +174,8 @@ CHAINS = {
     "scenario": ["finishing:0", "output:1", "recorded:2", "done:0", "cleanup:1"],
     "detections": ["write:0", "output:1:INT", "output:2"],  # INT: Ctrl-C
     "ais": ["output:0", "write:2", "recorded:3"],
+    # one kill (CI time): after map.png, the output only geodetic runs add
+    "geo": ["output:2"],
 }
 
 
@@ -258,7 +278,7 @@ def _resume_or_restart(base, case, tmp_path, monkeypatch) -> bool:
     return tracking
 
 
-@pytest.mark.parametrize("case", list(OUTPUTS))
+@pytest.mark.parametrize("case", [c for c in OUTPUTS if c != "geo"])  # "ais" writes the same
 def test_killed_as_soon_as_the_tracks_file_exists(runs, case, tmp_path, monkeypatch):
     # the issue's reproduction: SIGKILL once OUT/tracks.* exists, then --resume alone
     base, ref = runs

@@ -531,6 +531,10 @@ def run_command(
                         "detections file"
                     )
             dets = read_detections(detections, reference=_reference(reference))
+            # report-like files (irregular times, ~1 return per time) get the async
+            # model unless [tracker] sets reporting; a resume decides the same again
+            jpda_table, note = runmod.reporting_from_data(dets, jpda_table, kind)
+            data_notes = [note] if note else []
             tracker_cfg = runmod.make_tracker_config(
                 {"dim": dets.dim}, jpda_table, source=cfg.source
             )
@@ -552,7 +556,13 @@ def run_command(
                 # the [tracker] keys as the user set them (p_g: see make_pmbm_config)
                 tracker_cfg = saved_cfg if saved_cfg is not None else dict(cfg.tracker)
             metrics = runmod.run_detections(
-                dets, tracker_cfg, truth=truth, sensors=cfg.sensors, **kind_opts, **common
+                dets,
+                tracker_cfg,
+                truth=truth,
+                sensors=cfg.sensors,
+                notes=data_notes,
+                **kind_opts,
+                **common,
             )
         else:
             sc_table = dict(cfg.scenario)

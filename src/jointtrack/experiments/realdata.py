@@ -2,23 +2,27 @@
 
 A report file (:func:`jointtrack.io.reports.read_reports`: Stone Soup's AIS CSV,
 OpenSky states CSV, traffic's JSON records) is projected to a local east-north
-plane about a reference point (given, or the centre of the data;
-:class:`~jointtrack.io.geodetic.LocalFrame`, WGS-84 by pymap3d) and tracked by
+plane about a reference point (given, or the centre of the data without its
+outliers, :func:`~jointtrack.io.geodetic.data_centre`, which are left out and
+counted; :class:`~jointtrack.io.geodetic.LocalFrame`, WGS-84 by pymap3d) and tracked by
 :func:`jointtrack.experiments.run.run_detections` — by default one scan per
 report time with the asynchronous-reporting model (``reporting = "async"`` in
 :class:`~jointtrack.trackers.config.TrackerConfig`: each target a Poisson
 reporter of its own rate, so a vessel silent for 30 s is not "missed" at
 every other vessel's report), or in windows of ``window`` seconds.
 
-Besides the usual outputs the run writes
+Besides the usual outputs the run writes what every run on geodetic data writes
+(:func:`geodetic_outputs`, also for a detection file with ``lat, lon`` columns)
 
 * ``tracks.csv`` with ``lat, lon`` columns next to the local ``x, y``;
-* ``metrics.json`` ``geo_reference`` (the frame's origin) and ``self_reports``:
+* ``metrics.json`` ``geo_reference`` (the frame's origin, the outliers left out);
+* ``map.png``: the tracks over the reports on lat/lon axes;
+
+and, for a report file, ``metrics.json`` ``self_reports``:
   the tracks scored against the targets' own reports
   (:func:`jointtrack.metrics.selfreport.score_self_reports`: GOSPA per window
   against the reported positions interpolated to the window end, coverage,
-  tracks per identity, identity switches, purity, false tracks per hour);
-* ``map.png``: the tracks over the reports on lat/lon axes.
+  tracks per identity, identity switches, purity, false tracks per hour).
 
 Each is written once, in its final form (the tracks file with its ``lat, lon``
 columns from the start), by the run's finishing phase, which a checkpointed run
@@ -40,7 +44,7 @@ import numpy as np
 from jointtrack.experiments.config import RunConfigError, make_tracker_config
 from jointtrack.experiments.writers import ExtraOutputs
 
-__all__ = ["LABEL_MODES", "MAX_WINDOWS", "REALDATA_TRACKER", "run_reports"]
+__all__ = ["LABEL_MODES", "MAX_WINDOWS", "REALDATA_TRACKER", "geodetic_outputs", "run_reports"]
 
 #: What the reports' identities are used for (see the module docstring).
 LABEL_MODES = ("associate", "score", "ignore")
@@ -139,8 +143,10 @@ def run_reports(
         (Stone Soup's ``TimeSyncFeeder`` windows; several reports of one target
         in a window then compete as separate returns; reports with a velocity
         are dead-reckoned to the window's end).
-    reference : ``(lat, lon[, alt])`` of the local frame's origin; None: the
-        centre of the reports' bounding box.
+    reference : ``(lat, lon[, alt])`` of the local frame's origin; None:
+        :meth:`~jointtrack.io.reports.Reports.centre` (the centre of the
+        bounding box of the reports that are not outliers; the outliers are left
+        out of the run, tracking and scoring, and counted).
     labels : one of :data:`LABEL_MODES`.
     score_window, score_c : the scoring window (s; default ``window`` or 60)
         and GOSPA cut-off (m; default 500 for AIS, 2000 for ADS-B). The
@@ -184,12 +190,17 @@ def run_reports(
                 "report time"
             )
     family = _FAMILY.get(fmt_name, "ais")
-    frame = rep.frame(reference)
+    centre = None
+    if reference is None:  # the one rule of every geodetic input: outliers left out
+        centre = rep.centre()
+        rep = rep.subset(~centre.outliers)
+    frame = centre.frame if centre is not None else rep.frame(reference)
     dets = rep.detections(
         frame,
         scan="report" if window is None else float(window),
         labels=labels != "ignore",
         propagate=True,
+        excluded=centre,
     )
     over = {**realdata_settings(family, labelled=labels == "associate"), **dict(config or {})}
     cfg = make_tracker_config({"dim": 2}, over)
@@ -199,20 +210,10 @@ def run_reports(
     lat0, lon0, alt0 = frame.reference
 
     def add_metrics(metrics: dict, tracks) -> None:
-        metrics["geo_reference"] = {
-            "lat": lat0,
-            "lon": lon0,
-            "alt": alt0,
-            "frame": "x, y: metres east and north of this point (WGS-84, local ENU, pymap3d)",
-        }
-        metrics.setdefault("notes", []).append(
-            f"positions are metres east/north of lat {lat0:.6f}, lon {lon0:.6f} (WGS-84); "
-            "tracks file also in lat/lon"
-        )
         # rows the reader left out (no position: AIS lat 91 / lon 181, ADS-B without one)
         metrics["reports_skipped"] = rep.skipped
         if rep.skipped:
-            metrics["notes"].append(
+            metrics.setdefault("notes", []).append(
                 f"{rep.skipped:,} report rows without a position left out (AIS lat 91 / "
                 "lon 181 'not available', ADS-B states without lat/lon)"
             )
@@ -232,27 +233,7 @@ def run_reports(
                 "rule": "truth: each identity's reports, linearly interpolated to the window "
                 "ends (gaps up to max_gap); tracks: their latest estimate in the window",
             }
-            metrics["notes"].append("self-reports: " + score.summary())
-
-    def draw_map(path: Path, tracks) -> None:
-        from jointtrack.experiments.map_plot import plot_track_map
-
-        t, ids, xy = tracks
-        track_lat, track_lon = frame.to_geodetic(xy)[:2] if len(xy) else ([], [])
-        plot_track_map(
-            path,
-            rep.lat,
-            rep.lon,
-            np.asarray(track_lat),
-            np.asarray(track_lon),
-            ids,
-            title=f"{Path(rep.source or 'reports').name}: {len(np.unique(ids))} tracks",
-            track_times=t,
-        )
-
-    # every output written once, in its final form, by the run's finishing phase (the
-    # tracks file with lat/lon columns): a run killed while writing them resumes
-    extra = ExtraOutputs(frame=frame, metrics=add_metrics, figures=(("map.png", "map", draw_map),))
+            metrics.setdefault("notes", []).append("self-reports: " + score.summary())
 
     return run_detections(
         dets,
@@ -265,11 +246,90 @@ def run_reports(
             "reports": {
                 "format": fmt_name,
                 "window": window,
-                "reference": [lat0, lon0, alt0],
+                # as given: None recomputes the same centre and outliers on resume
+                # (the file's SHA-256 is in the identity), a given one is used again
+                "reference": None if centre is not None else [lat0, lon0, alt0],
                 "labels": labels,
             }
         },
-        extra=extra,
+        # the lat/lon tracks, geo_reference and map.png: run_detections gives them to
+        # every geodetic input (geodetic_outputs); the report run adds its scores
+        extra=ExtraOutputs(metrics=add_metrics),
         output_interval=options.pop("output_interval", swin),
         **options,
+    )
+
+
+def geodetic_outputs(detections, extra: ExtraOutputs | None = None) -> ExtraOutputs:
+    """The outputs every run on geodetic data writes (detections with a
+    ``geo_reference``: a detection file's ``lat, lon[, alt]`` or ``x, y`` with
+    ``ref_lat, ref_lon``, a report file), merged with a caller's ``extra``.
+
+    * ``tracks.csv`` with ``lat, lon[, alt]`` columns after ``x, y[, z]``;
+    * ``metrics.json`` ``geo_reference``: the frame's origin, how it was chosen
+      and the rows left out as outliers (``outliers_excluded``, with a note for
+      the summary; :func:`~jointtrack.io.geodetic.data_centre`);
+    * ``map.png``: the tracks over the detections on lat/lon axes.
+
+    Called by :func:`~jointtrack.experiments.run.run_detections` for every such
+    input, so that a plain ``time, lat, lon`` file and a report file get the same.
+    """
+    extra = extra or ExtraOutputs()
+    frame = detections.geo_frame()
+    lat0, lon0, alt0 = frame.reference
+    n_out, bound = detections.geo_outliers, detections.geo_outlier_bound
+    pts = [z for z in detections.scans if len(z)]
+    local = np.concatenate(pts) if pts else np.zeros((0, detections.dim))
+    name = Path(detections.source or "detections").name
+
+    def add_metrics(metrics: dict, tracks) -> None:
+        from jointtrack.io.geodetic import OUTLIER_MEDIANS, OUTLIER_MIN_DISTANCE
+
+        metrics["geo_reference"] = {
+            "lat": lat0,
+            "lon": lon0,
+            "alt": alt0,
+            "frame": "x, y: metres east and north of this point (WGS-84, local ENU, pymap3d)",
+            "outliers_excluded": n_out,
+            "outlier_bound_m": bound,
+            "rule": "the reference given, or the centre of the lat/lon bounding box of the "
+            "rows that are not outliers; outliers: rows farther from the data's median "
+            f"point than max({OUTLIER_MEDIANS:g} x the median distance, "
+            f"{OUTLIER_MIN_DISTANCE:g} m) (jointtrack.io.geodetic.data_centre)",
+        }
+        notes = metrics.setdefault("notes", [])
+        notes.append(
+            f"positions are metres east/north of lat {lat0:.6f}, lon {lon0:.6f} (WGS-84); "
+            "tracks file also in lat/lon"
+        )
+        if n_out:
+            notes.append(
+                f"{n_out:,} rows left out as outliers: farther than {bound / 1000:,.0f} km "
+                "from the data's median point (corrupt positions; give --reference LAT,LON "
+                "to keep every row)"
+            )
+        if extra.metrics is not None:
+            extra.metrics(metrics, tracks)
+
+    def draw_map(path: Path, tracks) -> None:
+        from jointtrack.experiments.map_plot import plot_track_map
+
+        t, ids, xy = tracks
+        det_lat, det_lon = frame.to_geodetic(local)[:2] if len(local) else ([], [])
+        track_lat, track_lon = frame.to_geodetic(xy)[:2] if len(xy) else ([], [])
+        plot_track_map(
+            path,
+            np.asarray(det_lat),
+            np.asarray(det_lon),
+            np.asarray(track_lat),
+            np.asarray(track_lon),
+            ids,
+            title=f"{name}: {len(np.unique(ids))} tracks",
+            track_times=t,
+        )
+
+    return ExtraOutputs(
+        frame=frame,
+        metrics=add_metrics,
+        figures=(("map.png", "map", draw_map), *extra.figures),
     )

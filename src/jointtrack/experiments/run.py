@@ -1542,6 +1542,66 @@ def _check_resume_files(resume, identity: dict) -> None:
         )
 
 
+#: :func:`reporting_from_data`: a file is report-like when its times hold at most this
+#: many returns on average ... (Solent AIS as time, lat, lon: 1.17; a scanning sensor
+#: holds a return per target per scan)
+REPORT_LIKE_RETURNS = 1.5
+#: ... and the gaps between its times vary by at least this coefficient of variation
+#: (std / mean; Poisson reporters' exponential gaps: 1; Solent AIS: 0.77; a scanning
+#: sensor's fixed period: ≈ 0)
+REPORT_LIKE_GAP_CV = 0.5
+#: ... over at least this many times (fewer say nothing about a pattern)
+REPORT_LIKE_MIN_TIMES = 20
+#: what a report-like file runs with unless its [tracker] table sets the key: the
+#: asynchronous reporting model and what it needs (TrackerConfig: p_survive_per
+#: "second", a clutter density per m² per second; one false report per 10 km² per
+#: ~3 hours, and a 0.9999 per second survival, a mean life of ~2.8 h, as the AIS
+#: settings of jointtrack.experiments.realdata); report_interval stays the
+#: TrackerConfig default (60 s: without identities one target's reports are unknown)
+REPORT_LIKE_SETTINGS = {
+    "reporting": "async",
+    "p_survive_per": "second",
+    "p_survive": 0.9999,
+    "clutter_density": 1e-11,
+}
+
+
+def reporting_from_data(detections: Detections, table: Mapping, kind: str | None = None):
+    """The ``[tracker]`` table with the asynchronous reporting model when the detections
+    are report-like and the table does not set ``reporting``, and a note saying so.
+
+    Report-like: position detections over at least :data:`REPORT_LIKE_MIN_TIMES`
+    times holding at most :data:`REPORT_LIKE_RETURNS` returns per time on average,
+    at gaps whose coefficient of variation is at least :data:`REPORT_LIKE_GAP_CV` —
+    targets that report one at a time (AIS, ADS-B) rather than a sensor that scans
+    them all. Such a file then runs with :data:`REPORT_LIKE_SETTINGS` (each key
+    the table does not set). Returns ``(table, note)``; ``note`` is None and the
+    table unchanged when the rule does not apply (a JPDA or PMB/PMBM ``kind``, the
+    table setting ``reporting`` or ``existence = false``, not report-like).
+    """
+    table = dict(table)
+    if kind not in (None, "jipda") or "reporting" in table or table.get("existence") is False:
+        return table, None
+    times = detections.times
+    if detections.kind != "position" or times.size < REPORT_LIKE_MIN_TIMES:
+        return table, None
+    per_time = detections.n_detections / times.size
+    gaps = np.diff(times)
+    cv = float(np.std(gaps) / np.mean(gaps))
+    if per_time > REPORT_LIKE_RETURNS or cv < REPORT_LIKE_GAP_CV:
+        return table, None
+    set_here = {k: v for k, v in REPORT_LIKE_SETTINGS.items() if k not in table}
+    table.update(set_here)
+    text = ", ".join(f"{k} = {v!r}" for k, v in set_here.items())
+    return table, (
+        f"{text} from the data: irregular times (gap std/mean {cv:.2f} ≥ "
+        f"{REPORT_LIKE_GAP_CV:g}), {per_time:.2f} returns per time (≤ {REPORT_LIKE_RETURNS:g}): "
+        "targets reporting one at a time; report_interval "
+        f"{table.get('report_interval', 60.0):g} s (default unless set); set reporting in "
+        "[tracker] to choose"
+    )
+
+
 def run_detections(
     detections: Detections,
     config: TrackerConfig | Mapping | None = None,
@@ -1554,6 +1614,7 @@ def run_detections(
     pmbm: Mapping | None = None,
     labels_to_tracker: bool = True,
     run_identity: Mapping | None = None,
+    notes: list | None = None,
     **options,
 ) -> dict:
     """Run the tracker on detections (e.g. from :func:`jointtrack.io.read_detections`).
@@ -1561,7 +1622,12 @@ def run_detections(
     Detections with ``labels`` give them to the tracker (association given the
     label) unless ``labels_to_tracker=False``; ``velocities`` seed new tracks.
     ``run_identity``: more JSON-able entries of the run's identity (how the
-    detections were made), checked on resume.
+    detections were made), checked on resume. ``notes``: sentences for the
+    metrics' notes and the summary (how the settings were chosen).
+
+    Report-like detections (irregular times, about one return per time) run with
+    the asynchronous reporting model unless ``config`` sets ``reporting``
+    (:func:`reporting_from_data`, named in the notes).
 
     ``config``: a :class:`TrackerConfig` or a mapping of overrides on the
     defaults (``dim`` is taken from the detections). Range–bearing detections
@@ -1603,6 +1669,10 @@ def run_detections(
         raise RunConfigError(f"the tracker handles 2-D or 3-D detections, got {detections.dim}-D")
     tkind = _check_kind(tracker, config, pmbm)
     user = {} if isinstance(config, TrackerConfig | PMBMConfig) else dict(config or {})
+    notes_in = list(notes or [])
+    if not isinstance(config, TrackerConfig | PMBMConfig):
+        config, note = reporting_from_data(detections, dict(config or {}), tkind)
+        notes_in += [note] if note else []
     if isinstance(config, TrackerConfig | PMBMConfig):
         cfg = config
     else:
@@ -1683,7 +1753,7 @@ def run_detections(
         # the file's content, so that a resume notices a changed file
         identity = {"detections": str(path), "sha256": file_sha256(path)}
     identity.update(run_identity or {})
-    table, truth_ids, notes, scoring = None, None, [], None
+    table, truth_ids, notes, scoring = None, None, notes_in, None
     if truth is not None:
         table, entries, name = _load_truth(truth, detections)
         identity.update(entries)
@@ -1730,4 +1800,9 @@ def run_detections(
     )
     src.detections = detections  # stepped by _step_scan, sensors checked by _register_sensors
     src.labels_to_tracker = bool(labels_to_tracker)
+    if detections.geo_reference is not None:
+        # every geodetic input the same: lat/lon tracks, geo_reference, map.png
+        from jointtrack.experiments.realdata import geodetic_outputs
+
+        options["extra"] = geodetic_outputs(detections, options.get("extra"))
     return _run(src, cfg, out_dir, fmt=fmt, progress=progress, kind=tkind, **options)

@@ -478,6 +478,39 @@ def tracks_line(tr: Mapping) -> str:
     )
 
 
+def no_tracks_reason(metrics: Mapping) -> str:
+    """The summary's note for a run that confirmed no track: that it did, and the
+    likely reason from its metrics (never a silent "0 confirmed")."""
+    tr = metrics.get("tracker") if isinstance(metrics.get("tracker"), Mapping) else {}
+    n_scans, n_det = metrics.get("n_scans") or 0, metrics.get("n_detections") or 0
+    head = "no track was confirmed"
+    if not n_det:
+        return f"{head}: there are no detections"
+    per_scan = n_det / max(n_scans, 1)
+    if tr.get("reporting", "scan") == "scan" and per_scan <= 1.5 and n_scans > 1:
+        return (
+            f'{head}: {per_scan:.2f} returns per scan with reporting = "scan" counts each '
+            "target as missed at every other target's report; targets that report one at "
+            'a time need reporting = "async" in [tracker]'
+        )
+    if tr.get("kind") in ("pmb", "pmbm"):
+        return (
+            f"{head}: no Bernoulli reached r_estimate = {tr.get('r_estimate', 0.4):g}; check "
+            "that the measurement noise, speeds and clutter density fit the detections' units"
+        )
+    confirm = (
+        f"existence ≥ r_confirm = {tr.get('r_confirm', 0.9):g}"
+        if tr.get("existence", True)
+        else f"{tr.get('confirm_m', 2)} hits of {tr.get('confirm_n', 3)}"
+    )
+    return (
+        f"{head} ({confirm}): the returns did not follow a track as the model expects — "
+        f"check that measurement_noise ({tr.get('measurement_noise')}), max_speed "
+        f"({tr.get('max_speed')}), p_d ({tr.get('p_d')}) and clutter_density "
+        f"({tr.get('clutter_density')}) fit the detections' units and rates"
+    )
+
+
 def summary_tables(metrics: Mapping) -> list:
     """Rich tables summarising a run's metrics dict."""
     from rich.table import Table
@@ -518,6 +551,8 @@ def summary_tables(metrics: Mapping) -> list:
             f"(max {tr['max_confirmed_per_scan']}); no truth, so no GOSPA "
             "(score with --truth FILE)",
         )
+    if tr.get("n_tracks") == 0:
+        add("note", no_tracks_reason(metrics))
     tm = metrics["timing"]
     pa = metrics.get("particle")
     if pa is not None:

@@ -6,6 +6,8 @@ times: :mod:`jointtrack.io.times`.
 
 from __future__ import annotations
 
+import math
+import numbers
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -129,6 +131,11 @@ class Detections:
         local east-north(-up) frame the positions are in
         (:class:`~jointtrack.io.geodetic.LocalFrame`, :meth:`geo_frame`);
         given as 2 or 3 numbers, kept as 3 floats.
+    geo_outliers : rows of the geodetic source left out as outliers, far from the
+        data's median point (:func:`~jointtrack.io.geodetic.data_centre`; 0 with a
+        given reference); needs ``geo_reference``.
+    geo_outlier_bound : the distance (m) from the median point beyond which rows
+        were outliers, or ``None`` (a given reference, data spread too widely).
 
     ``len(d)`` is K; iterating yields ``(time, z)`` pairs; ``d[k]`` is
     ``(times[k], scans[k])``.
@@ -146,6 +153,8 @@ class Detections:
     labels: tuple | None = None
     velocities: tuple | None = None
     geo_reference: tuple | None = None
+    geo_outliers: int = 0
+    geo_outlier_bound: float | None = None
 
     def __post_init__(self):
         origin, _, _ = parse_origin(self.time_origin)
@@ -217,6 +226,9 @@ class Detections:
         labels = _check_labels(self.labels, fixed)
         velocities = _check_velocities(self.velocities, fixed, self.kind, dim)
         geo = _check_geo_reference(self.geo_reference, self.kind, dim)
+        n_out, bound = _check_geo_outliers(self.geo_outliers, self.geo_outlier_bound, geo)
+        object.__setattr__(self, "geo_outliers", n_out)
+        object.__setattr__(self, "geo_outlier_bound", bound)
         object.__setattr__(self, "labels", labels)
         object.__setattr__(self, "velocities", velocities)
         object.__setattr__(self, "geo_reference", geo)
@@ -591,6 +603,25 @@ def _check_geo_reference(ref, kind: str, dim: int) -> tuple | None:
         raise type(exc)(f"geo_reference: {exc}") from None
 
 
+def _check_geo_outliers(count, bound, geo) -> tuple[int, float | None]:
+    """:attr:`Detections.geo_outliers` and :attr:`Detections.geo_outlier_bound`, checked."""
+    if isinstance(count, bool | np.bool_) or not isinstance(count, numbers.Integral):
+        raise TypeError(f"geo_outliers must be a count (an integer ≥ 0), got {count!r}")
+    if count < 0:
+        raise ValueError(f"geo_outliers must be ≥ 0, got {count!r}")
+    if bound is not None:
+        if isinstance(bound, bool | np.bool_) or not isinstance(bound, numbers.Real):
+            raise TypeError(f"geo_outlier_bound must be metres or None, got {bound!r}")
+        if not (math.isfinite(float(bound)) and float(bound) > 0):
+            raise ValueError(f"geo_outlier_bound must be a positive distance, got {bound!r}")
+        bound = float(bound)
+    if (count or bound is not None) and geo is None:
+        raise ValueError("geo_outliers and geo_outlier_bound need a geo_reference")
+    if count and bound is None:
+        raise ValueError("geo_outliers > 0 needs the geo_outlier_bound they lie beyond")
+    return int(count), bound
+
+
 def _coord_names(dim: int) -> list[str]:
     if dim <= 3:
         return ["x", "y", "z"][:dim]
@@ -870,10 +901,12 @@ def read_detections(path, *, allow_empty: bool = False, reference=None) -> Detec
 
     A file of WGS-84 positions (``lat, lon[, alt]`` columns, no ``x, y``) is
     projected into the local east-north(-up) frame about ``reference``
-    (``(lat0, lon0[, alt0])``; default: the centre of the data's lat/lon
-    bounding box at altitude 0, :meth:`LocalFrame.centre
-    <jointtrack.io.geodetic.LocalFrame.centre>`), recorded as
-    ``geo_reference``. A file with ``x, y`` is read as it is (``reference``
+    (``(lat0, lon0[, alt0])``), recorded as ``geo_reference``. Without a
+    reference the frame is :func:`~jointtrack.io.geodetic.data_centre`'s, the
+    rule report files follow too: rows far from the data's median point are
+    outliers, left out (a time whose rows are all outliers makes no scan) and
+    counted in ``geo_outliers``, and the frame is the centre of the other rows'
+    lat/lon bounding box, at altitude 0. A file with ``x, y`` is read as it is (``reference``
     must then be None or the file's own ``ref_lat, ref_lon[, ref_alt]``).
 
     A file with a header but no data rows is an error ("has no detections")
@@ -920,8 +953,10 @@ def read_detections(path, *, allow_empty: bool = False, reference=None) -> Detec
     for c in (*coords, *(c for c in GEO_COLUMNS if c in cols and not geo_in)):
         nullable = kind == "mixed" or c not in coords
         cols[c] = _parse_coordinate(path, err, cols[c], lines, c, nullable)
+    n_out, bound = 0, None
     if geo_in:
-        Z, geo = _project(path, err, cols, lines, reference)
+        Z, geo, outlier, bound = _project(path, err, cols, lines, reference)
+        n_out = int(outlier.sum())
         cols.update(x=Z[:, 0], y=Z[:, 1], **({"z": Z[:, 2]} if Z.shape[1] == 3 else {}))
     else:
         geo = _file_reference(path, err, cols, lines, reference, refs, lines_all)
@@ -968,9 +1003,17 @@ def read_detections(path, *, allow_empty: bool = False, reference=None) -> Detec
         where = _sensor_position_rows(path, err, cols, t, sensor, row_rb, lines)
     labels = _label_column(path, err, cols["label"], lines) if "label" in cols else None
     velocities = _velocity_rows(path, err, cols, lines, Z.shape[1]) if kind == "position" else None
+    if n_out:  # the outliers' rows are left out, as if the file had not held them
+        inl = ~outlier
+        t, Z = t[inl], Z[inl]
+        sensor, labels, velocities, where = (
+            None if a is None else a[inl] for a in (sensor, labels, velocities, where)
+        )
+    # the times of the rows kept (the outliers' times are not scans unless other rows share them)
+    kept = np.sort(np.concatenate([t_all[marker], t]), kind="stable") if n_out else t_all
     # scans: one per distinct time of the file, the empty-scan rows' times included
-    first = np.flatnonzero(np.r_[True, np.diff(t_all) != 0]) if t_all.size else np.zeros(0, int)
-    scan_times = t_all[first]
+    first = np.flatnonzero(np.r_[True, np.diff(kept) != 0]) if kept.size else np.zeros(0, int)
+    scan_times = kept[first]
     group = np.searchsorted(scan_times, t).astype(np.int64)
     counts = np.bincount(group, minlength=scan_times.size)
     full = np.flatnonzero(marker)
@@ -1005,6 +1048,8 @@ def read_detections(path, *, allow_empty: bool = False, reference=None) -> Detec
         labels=split(labels),
         velocities=split(velocities),
         geo_reference=geo,
+        geo_outliers=n_out,
+        geo_outlier_bound=bound,
     )
 
 
@@ -1091,21 +1136,34 @@ def _geo_rows(path, err, cols, lines, names) -> None:
 
 
 def _project(path, err, cols, lines, reference):
-    """Local east-north(-up) positions of ``lat, lon[, alt]`` rows, and the reference."""
-    from jointtrack.io.geodetic import LocalFrame
+    """Local east-north(-up) positions of ``lat, lon[, alt]`` rows, the reference, the
+    rows that are outliers (:func:`~jointtrack.io.geodetic.data_centre`; none with a
+    given ``reference``: their positions are meaningless) and the outliers' bound."""
+    from jointtrack.io.geodetic import LocalFrame, data_centre
 
     _geo_rows(path, err, cols, lines, ("lat", "lon"))
     lat, lon = cols["lat"], cols["lon"]
     alt = cols.get("alt")
     dim = 2 if alt is None else 3
     _geo_altitudes(path, err, alt, lines)  # before a wild altitude becomes a wild x
+    outlier = np.zeros(lat.shape, dtype=bool)
     if not lat.size:
-        return np.zeros((0, dim)), reference
-    frame = LocalFrame(*reference) if reference is not None else LocalFrame.centre(lat, lon)
+        return np.zeros((0, dim)), reference, outlier, None
+    bound = None
+    if reference is not None:
+        frame = LocalFrame(*reference)
+    else:
+        centre = data_centre(lat, lon)
+        frame, outlier, bound = centre.frame, centre.outliers, centre.bound
+    Z = np.full((lat.size, dim), np.nan)
+    inl = ~outlier
     if dim == 2:
         where = "the reference" if reference is not None else "the centre of the data"
-        _geo_in_plane(path, err, frame, lat, lon, lines, where)
-    return frame.to_local(lat, lon, alt), frame.reference
+        _geo_in_plane(path, err, frame, lat, lon, lines, where, skip=outlier)
+    Z[inl] = frame.to_local(lat[inl], lon[inl], None if alt is None else alt[inl])
+    # an outlier keeps a finite placeholder (the reference) until its row is left out
+    Z[outlier] = 0.0
+    return Z, frame.reference, outlier, bound
 
 
 def _geo_altitudes(path, err, alt, lines) -> None:
@@ -1122,13 +1180,14 @@ def _geo_altitudes(path, err, alt, lines) -> None:
         )
 
 
-def _geo_in_plane(path, err, frame, lat, lon, lines, where: str) -> None:
-    """``err`` at the first row beyond what ``frame``'s east-north plane represents
-    (:data:`~jointtrack.io.geodetic.PLANE_MAX_ANGLE` from its reference)."""
+def _geo_in_plane(path, err, frame, lat, lon, lines, where: str, skip=None) -> None:
+    """``err`` at the first row (not in the mask ``skip``) beyond what ``frame``'s
+    east-north plane represents (:data:`~jointtrack.io.geodetic.PLANE_MAX_ANGLE` from
+    its reference)."""
     from jointtrack.io.geodetic import PLANE_MAX_ANGLE, _km
 
     angle = frame.plane_angle(lat, lon)
-    far = np.flatnonzero(angle > PLANE_MAX_ANGLE)
+    far = np.flatnonzero((angle > PLANE_MAX_ANGLE) & (True if skip is None else ~skip))
     if far.size:
         i = int(far[0])
         raise row_error(

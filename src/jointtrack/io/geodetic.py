@@ -33,6 +33,12 @@ points beyond, and ``to_geodetic`` plane points whose ground point lies
 beyond (or that no point projects to, such as 1e8 m east). The 3-D east,
 north, up coordinates are exact everywhere and have no such limit.
 
+Without a given reference the frame is centred on the data by :func:`data_centre`,
+one rule for every geodetic input (detection files with ``lat, lon`` columns and
+report files): reports far from the bulk of the data — a corrupt position such as
+the Solent AIS file's one report at 54.8° E among ships near 1° W — are outliers,
+left out and counted, and the frame is the centre of the bounding box of the rest.
+
 Altitudes (``alt0``, ``alt``) are within :data:`ALT_RANGE`, metres.
 
 Units: :data:`KNOT` (m/s) and :data:`FOOT` (m) are exact by definition.
@@ -41,6 +47,7 @@ Units: :data:`KNOT` (m/s) and :data:`FOOT` (m) are exact by definition.
 from __future__ import annotations
 
 import numbers
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -51,7 +58,11 @@ __all__ = [
     "KNOT",
     "LocalFrame",
     "NEWTON_TOLERANCE",
+    "OUTLIER_MEDIANS",
+    "OUTLIER_MIN_DISTANCE",
     "PLANE_MAX_ANGLE",
+    "DataCentre",
+    "data_centre",
     "velocity_en",
 ]
 
@@ -71,6 +82,14 @@ FOOT = 0.3048
 PLANE_MAX_ANGLE = 60.0
 #: mean Earth radius (m, IUGG), only to state angles as approximate distances
 _EARTH_RADIUS = 6_371_008.8
+#: :func:`data_centre`: a report is an outlier when it is farther from the data's
+#: median point than this many times the median distance of the reports from it ...
+OUTLIER_MEDIANS = 10.0
+#: ... and farther than this (metres along the surface, roughly): a single AIS
+#: receiver hears ships up to ~75 km away and an ADS-B receiver aircraft up to
+#: ~450 km, so no report of one receiver's area is an outlier, whatever the
+#: median (a port's moored ships 2 km from the median point, one ship 100 km out)
+OUTLIER_MIN_DISTANCE = 500_000.0
 #: Newton's method in ``to_geodetic`` stops once every step is below this (metres)
 NEWTON_TOLERANCE = 1e-7
 #: ... or fails after this many steps (it converges quadratically: 5 or 6 suffice at 60°)
@@ -358,6 +377,94 @@ class LocalFrame:
                 f"({self._lat0!r}, {self._lon0!r}) projects there; {self._plane_limit()}"
             )
         return lat, lon
+
+
+@dataclass(frozen=True, eq=False)
+class DataCentre:
+    """The frame :func:`data_centre` picks for geodetic data, and the outliers it left out.
+
+    Attributes
+    ----------
+    frame : :class:`LocalFrame` at the centre of the bounding box of the inliers,
+        altitude ``alt0``.
+    outliers : (R,) bool: the reports farther than ``bound`` from ``median``.
+    median : ``(lat, lon)`` degrees: the data's median point.
+    bound : metres (the angle at the Earth's centre times its mean radius): reports
+        farther from ``median`` are outliers; ``None`` when the data is spread too
+        widely for any report to be called one (the bound would pass
+        :data:`PLANE_MAX_ANGLE`).
+    """
+
+    frame: LocalFrame
+    outliers: np.ndarray
+    median: tuple[float, float]
+    bound: float | None
+
+    @property
+    def n_outliers(self) -> int:
+        """How many reports are outliers."""
+        return int(np.count_nonzero(self.outliers))
+
+
+def data_centre(lat, lon, alt0=0.0) -> DataCentre:
+    """The local frame for geodetic data without a given reference, robust to corrupt reports.
+
+    1. The data's *median point*: the coordinate-wise median of the reports' unit
+       normals (x, y, z of the WGS-84 vertical), normalised — one corrupt report
+       in any number of others moves it by at most one report's rank, and the
+       normals have no antimeridian or pole to wrap around.
+    2. Each report's distance from it (the angle between the verticals,
+       :meth:`LocalFrame.plane_angle`), and their median d.
+    3. Reports farther than ``max(OUTLIER_MEDIANS · d, OUTLIER_MIN_DISTANCE)``
+       are outliers (:data:`OUTLIER_MEDIANS`, :data:`OUTLIER_MIN_DISTANCE`). When
+       that bound passes :data:`PLANE_MAX_ANGLE` the data is not one area with a
+       few strays, and nothing is an outlier (a frame that cannot hold the data
+       is then refused where it is used).
+    4. The frame: :meth:`LocalFrame.centre` of the other reports (the centre of
+       their bounding box, so the plane's largest angle is as small as the box
+       allows), at altitude ``alt0``.
+
+    Data without outliers thus gets :meth:`LocalFrame.centre` of all of it.
+
+    Examples
+    --------
+    >>> c = data_centre([50.80, 50.81, 50.79, 50.80], [-1.10, -1.09, -1.11, 54.8])
+    >>> c.outliers.tolist(), [round(v, 2) for v in c.frame.reference[:2]]
+    ([False, False, False, True], [50.8, -1.1])
+    """
+    la = _latitudes(lat).reshape(-1)
+    lo = _longitudes(lon).reshape(-1)
+    if la.shape != lo.shape:
+        raise ValueError(f"lat and lon must have one shape, got {la.shape} and {lo.shape}")
+    if not la.size:
+        raise ValueError("lat and lon are empty: no data to centre a frame on")
+    phi, lam = np.deg2rad(la), np.deg2rad(lo)
+    normal = np.median(
+        np.column_stack([np.cos(phi) * np.cos(lam), np.cos(phi) * np.sin(lam), np.sin(phi)]),
+        axis=0,
+    )
+    norm = float(np.linalg.norm(normal))
+    none = np.zeros(la.shape, dtype=bool)
+    if not norm > 1e-6:  # reports all round the Earth: no median point, no outliers
+        return DataCentre(LocalFrame.centre(la, lo, alt0), none, (0.0, 0.0), None)
+    normal = normal / norm
+    median = (
+        float(np.rad2deg(np.arcsin(np.clip(normal[2], -1.0, 1.0)))),
+        float(np.rad2deg(np.arctan2(normal[1], normal[0]))),
+    )
+    angle = LocalFrame(*median).plane_angle(la, lo)
+    bound_deg = max(OUTLIER_MEDIANS * float(np.median(angle)), _degrees(OUTLIER_MIN_DISTANCE))
+    if bound_deg > PLANE_MAX_ANGLE:
+        return DataCentre(LocalFrame.centre(la, lo, alt0), none, median, None)
+    outliers = angle > bound_deg
+    inliers = ~outliers
+    frame = LocalFrame.centre(la[inliers], lo[inliers], alt0)
+    return DataCentre(frame, outliers, median, np.deg2rad(bound_deg) * _EARTH_RADIUS)
+
+
+def _degrees(metres: float) -> float:
+    """A distance along the surface as the angle at the Earth's centre (mean radius)."""
+    return float(np.rad2deg(metres / _EARTH_RADIUS))
 
 
 def velocity_en(speed_mps, course_deg) -> np.ndarray:

@@ -56,8 +56,10 @@ from jointtrack.io.geodetic import (
     FOOT,
     KNOT,
     PLANE_MAX_ANGLE,
+    DataCentre,
     LocalFrame,
     _km,
+    data_centre,
     velocity_en,
 )
 from jointtrack.io.times import (
@@ -208,12 +210,20 @@ class Reports:
             raise ValueError(f"rows: an index is outside 0..{len(self) - 1}")
         return self._rows(np.sort(np.mod(a, len(self)), kind="stable"))
 
+    def centre(self) -> DataCentre:
+        """:func:`~jointtrack.io.geodetic.data_centre` of the reports: the frame without
+        a given reference, and the outliers (corrupt positions far from the bulk, such
+        as the Solent AIS file's one report at 54.8° E among ships near 1° W, which
+        would otherwise move a bounding-box centre ~1,900 km away) to leave out
+        (:meth:`subset`)."""
+        if not len(self):
+            raise ValueError("no reports: give a reference to build a frame")
+        return data_centre(self.lat, self.lon)
+
     def frame(self, reference=None) -> LocalFrame:
         """The local frame about ``reference`` ``(lat0, lon0[, alt0])``, or (None)
-        about the centre of the reports' lat/lon bounding box (:meth:`LocalFrame.centre`)
-        without the 1 % most extreme reports on each side in latitude and
-        longitude: one glitch (the Solent AIS file has a report at 54.8° E among
-        ships near 1° W) would otherwise move the centre ~1,900 km away.
+        :meth:`centre`'s: the centre of the bounding box of the reports that are not
+        outliers. The outliers are not left out here (``subset(~r.centre().outliers)``).
 
         Raises ValueError when a report is more than
         :data:`~jointtrack.io.geodetic.PLANE_MAX_ANGLE` (60°, about 6,700 km)
@@ -230,16 +240,8 @@ class Reports:
                 raise ValueError(f"reference must be (lat0, lon0[, alt0]), got {reference!r}")
             else:
                 frame = LocalFrame(*reference)
-        elif not len(self):
-            raise ValueError("no reports: give a reference to build a frame")
         else:
-            lat_lo, lat_hi = np.quantile(self.lat, [0.01, 0.99])
-            lon_lo, lon_hi = np.quantile(self.lon, [0.01, 0.99])
-            core = (self.lat >= lat_lo) & (self.lat <= lat_hi)
-            core &= (self.lon >= lon_lo) & (self.lon <= lon_hi)
-            if not core.any():  # (data across the antimeridian) the full box
-                core[:] = True
-            frame = LocalFrame.centre(self.lat[core], self.lon[core])
+            frame = self.centre().frame
         self._check_plane(frame, given=reference is not None)
         return frame
 
@@ -419,6 +421,7 @@ class Reports:
         labels: bool = False,
         velocities: bool = True,
         propagate: bool = False,
+        excluded: DataCentre | None = None,
     ) -> Detections:
         """The reports as :class:`Detections` in a local east-north frame.
 
@@ -436,6 +439,9 @@ class Reports:
             its scan's time (dead reckoning, x + v·(t_scan − t_report)): a scan
             is taken to be at its window's end, and a ship at 10 m/s moves 600 m
             in a 60 s window. Reports without a velocity stay where they were.
+        excluded : the :meth:`centre` whose outliers were left out of these reports
+            (``subset``), recorded as :attr:`Detections.geo_outliers` and
+            :attr:`Detections.geo_outlier_bound`; None: nothing left out.
         """
         frame = self.frame(frame)
         xy = frame.to_local(self.lat, self.lon)
@@ -471,6 +477,8 @@ class Reports:
             labels=split(self.identity) if labels else None,
             velocities=vel,
             geo_reference=frame.reference,
+            geo_outliers=0 if excluded is None else excluded.n_outliers,
+            geo_outlier_bound=None if excluded is None else excluded.bound,
         )
 
 

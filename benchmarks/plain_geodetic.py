@@ -1,0 +1,100 @@
+"""Issue 32.5: the Solent AIS file as a plain ``time, lat, lon`` detection file, no config.
+
+Writes the reports of Stone Soup's Solent AIS demo CSV (18,623 reports, 91 vessels)
+as ``time, lat, lon`` only — no MMSI, speed or course — runs ``jointtrack run
+--detections plain.csv --out OUT`` on it with no config (a subprocess, timed), and
+scores the tracks with the project's self-report scorer
+(:func:`jointtrack.metrics.selfreport.score_self_reports`: truth = each vessel's own
+reports, identities from the original file, in the run's own frame from
+``metrics.json`` ``geo_reference``; window 60 s, GOSPA cut-off 500 m, as the
+report-file runs of ``jointtrack run``).
+
+    python benchmarks/plain_geodetic.py --ais SolentAIS_20160112_130211.csv --out DIR
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from jointtrack.io.geodetic import LocalFrame
+from jointtrack.io.reports import read_ais_csv
+from jointtrack.io.times import format_timestamp, parse_origin
+from jointtrack.metrics.selfreport import score_self_reports
+
+#: the scoring of jointtrack run's report-file runs (realdata._SCORE_C["ais"], 60 s)
+WINDOW, C = 60.0, 500.0
+
+
+def write_plain(reports, path: Path) -> None:
+    """``time, lat, lon`` rows: ISO-8601 UTC timestamps (ms), degrees as read."""
+    _, ns0, _ = parse_origin(reports.time_origin)
+    ns = np.rint(reports.times * 1e9).astype(np.int64)
+    with open(path, "w", newline="") as fh:
+        fh.write("time,lat,lon\n")
+        for k in range(len(reports)):
+            stamp = format_timestamp(ns0 + int(ns[k]), True)
+            fh.write(f"{stamp},{float(reports.lat[k])!r},{float(reports.lon[k])!r}\n")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--ais", required=True, help="Stone Soup's SolentAIS_*.csv")
+    parser.add_argument("--out", required=True, help="working folder")
+    args = parser.parse_args()
+    work = Path(args.out)
+    work.mkdir(parents=True, exist_ok=True)
+    rep = read_ais_csv(args.ais)
+    plain = work / "plain.csv"
+    write_plain(rep, plain)
+    out = work / "run"
+    code = "import sys; from jointtrack.cli import main; sys.argv[0] = 'jointtrack'; main()"
+    argv = [sys.executable, "-c", code, "run", "--no-progress", "--detections", str(plain)]
+    t0 = time.perf_counter()
+    done = subprocess.run([*argv, "--out", str(out)], capture_output=True, text=True)
+    seconds = time.perf_counter() - t0
+    print(done.stdout)
+    if done.returncode:
+        sys.exit(f"jointtrack run failed ({done.returncode}):\n{done.stderr}")
+    m = json.loads((out / "metrics.json").read_text())
+    geo = m["geo_reference"]
+    frame = LocalFrame(geo["lat"], geo["lon"], geo["alt"])
+    # the vessels' own reports, in the run's frame (the run left out its outliers:
+    # score against the same reports, so that a corrupt position is no one's truth)
+    keep = np.ones(len(rep), dtype=bool)
+    if geo["outliers_excluded"]:
+        keep = rep.centre().outliers == False  # noqa: E712 - a mask, elementwise
+    truth = rep.subset(keep).truth(frame)
+    with open(out / "tracks.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    tt = np.array([float(r["time"]) for r in rows])
+    ti = np.array([int(r["track_id"]) for r in rows])
+    tp = np.array([[float(r["x"]), float(r["y"])] for r in rows]).reshape(-1, 2)
+    score = score_self_reports(
+        truth[0], truth[1], truth[2], tt, ti, tp, window=WINDOW, c=C, t0=float(rep.times[0])
+    )
+    result = {
+        "reports": len(rep),
+        "vessels": len(truth[3]),
+        "run_seconds": seconds,
+        "confirmed_tracks": m["tracks"]["n_tracks"],
+        "outliers_excluded": geo["outliers_excluded"],
+        "geo_reference": [geo["lat"], geo["lon"]],
+        "tracker": {k: m["tracker"].get(k) for k in ("reporting", "report_interval")},
+        "notes": m.get("notes", []),
+        "self_reports": score.as_dict(),
+    }
+    (work / "plain_geodetic.json").write_text(json.dumps(result, indent=1))
+    print(json.dumps({k: v for k, v in result.items() if k != "notes"}, indent=1))
+    print("self-reports:", score.summary())
+
+
+if __name__ == "__main__":
+    main()
