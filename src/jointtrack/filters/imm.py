@@ -312,17 +312,29 @@ class IMMModes:
         """The measurement model of the common state seen from mode j's own space:
         ``{"H": H[:, idx], "R": R}`` or ``{"model": …}`` (an EKF model evaluated at the
         common state with the other components 0)."""
-        idx = self.mode_indices[j]
+        idx, n = self.mode_indices[j], self.state_dim
         if model is None:
-            H = np.asarray(H, float)
-            return {"H": H[..., idx], "R": R}
-        return {"model": _ModeSensor(model, idx, self.state_dim)}
+            H = _arr(H, "H")
+            k = H.shape[-1] if H.ndim >= 2 else -1
+            if not 1 <= k <= n:
+                raise ValueError(
+                    f"H must be (m, k) with k ≤ {n}, the common state's length, got {H.shape}"
+                )
+            full = np.zeros((*H.shape[:-1], n))
+            full[..., :k] = H  # a model of the first k components (position, velocity)
+            return {"H": full[..., idx], "R": R}
+        return {"model": _ModeSensor(model, idx, n)}
 
 
 class _ModeSensor:
     """An EKF measurement model of the common state, on one mode's own components."""
 
     def __init__(self, model, idx, n):
+        # the model sees the first k components of the common state (k = its
+        # state_dim, e.g. position and velocity), which every mode has first
+        self._k = int(getattr(model, "state_dim", n))
+        if not 1 <= self._k <= n:
+            raise ValueError(f"measurement model state_dim {self._k} exceeds the common {n}")
         self._model, self._idx, self._n = model, idx, n
         self.state_dim = len(idx)
         self.R = model.R
@@ -332,13 +344,16 @@ class _ModeSensor:
         x = np.asarray(x, float)
         full = np.zeros((*x.shape[:-1], self._n))
         full[..., self._idx] = x
-        return full
+        return full[..., : self._k]
 
     def h(self, x):
         return self._model.h(self._full(x))
 
     def jacobian(self, x):
-        return np.asarray(self._model.jacobian(self._full(x)), float)[..., self._idx]
+        J = np.asarray(self._model.jacobian(self._full(x)), float)
+        full = np.zeros((*J.shape[:-1], self._n))
+        full[..., : self._k] = J
+        return full[..., self._idx]
 
 
 def _mode_state(x, P, r=None):
