@@ -79,6 +79,14 @@ def test_five_degree_turn_cv_fragments_imm_holds_one_id(seed):
     np.testing.assert_allclose(res.mode_probabilities.sum(axis=1), 1.0, rtol=1e-14)
     # the report keeps the usual layout: [x, y, vx, vy]
     assert res.x.shape == (1, 4) and res.P.shape == (1, 4, 4) and h_imm.state_dim == 4
+    # the history holds the mode probabilities too, as mode_<name> columns
+    assert h_imm.mode_names == ("cv", "ct")
+    np.testing.assert_array_equal(h_imm.mode_probabilities[-1], res.mode_probabilities[0])
+    table = h_imm.to_dict()
+    assert list(table)[-2:] == ["mode_cv", "mode_ct"]
+    back = type(h_imm).from_dict(table)
+    np.testing.assert_array_equal(back.mode_probabilities, h_imm.mode_probabilities)
+    assert h_cv.mode_names == () and h_cv.mode_probabilities is None
 
 
 def test_single_cv_mode_imm_is_the_cv_tracker():
@@ -285,3 +293,26 @@ def test_stay_probability_and_toml_round_trip():
 def test_pmb_refuses_imm_naming_it():
     with pytest.raises(ValueError, match="motion = 'imm' is available to the JPDA/JIPDA"):
         PMBTracker(PMBMConfig(motion="imm", clutter_density=1e-6))
+
+
+# ----------------------------------------------------------------------------- run outputs
+
+
+def test_run_writes_mode_columns_and_resumes_exactly(tmp_path):
+    """``jointtrack run`` with motion = "imm": tracks.csv has mode_cv, mode_ct (each
+    row summing to 1); a run stopped at scan 8 and resumed from its checkpoint
+    writes the same file as an uninterrupted run."""
+    from jointtrack.experiments.run import run_scenario
+    from jointtrack.io import read_tracks
+
+    kw = dict(seed=2, scenario_kwargs={"n_scans": 16}, plots=False)
+    run_scenario("crossing", {"motion": "imm"}, tmp_path / "full", **kw)
+    cols = read_tracks(tmp_path / "full" / "tracks.csv")
+    assert list(cols)[-2:] == ["mode_cv", "mode_ct"]
+    assert len(cols["time"]) > 0
+    np.testing.assert_allclose(cols["mode_cv"] + cols["mode_ct"], 1.0, rtol=1e-12)
+    ck = tmp_path / "ck.npz"
+    part = tmp_path / "part"
+    run_scenario("crossing", {"motion": "imm"}, part, checkpoint=ck, max_scans=8, **kw)
+    run_scenario("crossing", {"motion": "imm"}, part, resume=ck, checkpoint=ck, **kw)
+    assert (part / "tracks.csv").read_bytes() == (tmp_path / "full" / "tracks.csv").read_bytes()

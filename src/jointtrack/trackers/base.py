@@ -412,6 +412,7 @@ class ScanTracker:
             self._history_rows.pop()
         if self.keep_history and len(result.ids):
             order = np.argsort(result.ids, kind="stable")
+            modes = result.mode_probabilities
             self._history_rows.append(
                 (
                     np.full(len(order), result.time),
@@ -419,6 +420,7 @@ class ScanTracker:
                     result.x[order],  # change the ScanResult's arrays freely
                     result.P[order],
                     np.asarray(result.existence, dtype=float)[order],
+                    np.zeros((len(order), 0)) if modes is None else modes[order],
                 )
             )
         return result
@@ -631,7 +633,8 @@ class ScanTracker:
 
         One row per (scan time, track id) with ``time`` (seconds; after
         ``time_origin`` for datetime scans), ``track_id``, ``x`` (n,), ``P``
-        (n, n) and ``existence``: the ``ScanResult`` of every successful
+        (n, n), ``existence`` and, with ``motion = "imm"``, ``mode_probabilities``: the
+        ``ScanResult`` of every successful
         :meth:`step` since the tracker was built (or :meth:`clear_history`).
         Not part of the saved state: after :meth:`load` it starts empty.
         Raises RuntimeError if recording is off (``keep_history=False``) and
@@ -644,17 +647,28 @@ class ScanTracker:
             self._history_rows = [
                 tuple(np.concatenate(cols) for cols in zip(*self._history_rows, strict=True))
             ]
+        names = self._motion.names if isinstance(self._motion, IMMModes) else ()
         if self._history_rows:
-            time, ids, x, P, existence = self._history_rows[0]
+            time, ids, x, P, existence, modes = self._history_rows[0]
         else:
-            time, ids, x, P, existence = (
+            time, ids, x, P, existence, modes = (
                 np.zeros(0),
                 np.zeros(0, np.int64),
                 np.zeros((0, n)),
                 np.zeros((0, n, n)),
                 np.zeros(0),
+                np.zeros((0, len(names))),
             )
-        return TrackHistory(time, ids, x, P, existence, time_origin=self.time_origin)
+        return TrackHistory(
+            time,
+            ids,
+            x,
+            P,
+            existence,
+            time_origin=self.time_origin,
+            mode_names=names,
+            mode_probabilities=modes if names else None,
+        )
 
     def clear_history(self) -> None:
         """Forget the recorded history (the tracker state is unchanged)."""
