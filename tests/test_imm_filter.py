@@ -367,6 +367,25 @@ def test_bad_models_and_states():
         imm_predict(xs[:, :, :4], Ps[:, :, :4, :4], log_mu, modes, 1.0)
 
 
+def test_bad_pairs_and_association_probabilities_name_them():
+    modes = IMMModes([ConstantVelocity(), CoordinatedTurn()], [[0.9, 0.1], [0.1, 0.9]])
+    xs, Ps, log_mu = modes.initial_states(np.zeros((1, 4)), np.eye(4)[None], 0.01)
+    H = np.eye(2, 5)
+    z = np.zeros((2, 2))
+    args = (modes, xs, Ps, log_mu, z)
+    for b0, rows, cols, w, match in [
+        ([0.5], [0], [2], [0.5], "cols indexes outside the 2 measurements"),
+        ([0.5], [1], [0], [0.5], "rows indexes outside the 1 tracks"),
+        ([0.5], [0.5], [0], [0.5], "rows must hold integer indices"),
+        ([0.5], [0], [0], [-0.5], "finite and ≥ 0"),
+        ([0.5], [0], [0], [0.7], "sum to 1.2"),
+        ([0.5], [0], [0], [0.5j], "weights has complex entries"),
+        ([True], [0], [0], [0.0], "beta0 is boolean"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            imm_pda_pairs_update(*args, b0, rows, cols, w, H=H, R=np.eye(2))
+
+
 # ----------------------------------------------------------------------------- coordinated turn
 
 

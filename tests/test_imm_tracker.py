@@ -316,3 +316,12 @@ def test_run_writes_mode_columns_and_resumes_exactly(tmp_path):
     run_scenario("crossing", {"motion": "imm"}, part, checkpoint=ck, max_scans=8, **kw)
     run_scenario("crossing", {"motion": "imm"}, part, resume=ck, checkpoint=ck, **kw)
     assert (part / "tracks.csv").read_bytes() == (tmp_path / "full" / "tracks.csv").read_bytes()
+
+
+def test_imm_modes_object_of_another_dimension_is_refused():
+    from jointtrack.filters import IMMModes
+    from jointtrack.models import ConstantVelocity
+
+    modes = IMMModes([ConstantVelocity(dim=2)], [[1.0]])
+    with pytest.raises(ValueError, match="IMM modes are 2-D, but dim = 3"):
+        JPDATracker(TrackerConfig(dim=3, motion="imm", imm_modes=["cv"]), motion=modes)

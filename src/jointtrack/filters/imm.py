@@ -538,8 +538,7 @@ def imm_pair_log_likelihoods(modes, x, P, log_cbar, z, rows, cols, *, H=None, R=
     N, r, _ = x.shape
     log_cbar = _log_probabilities(log_cbar, N, r, "log_cbar")
     z = _arr(z, "z")
-    rows = np.asarray(rows, np.int64).reshape(-1)
-    cols = np.asarray(cols, np.int64).reshape(-1)
+    rows, cols = _pair_indices(rows, cols, N, z)
     _measurement(model, H, R)
     log_g_mode = np.empty((len(rows), r))
     for j in range(r):
@@ -554,6 +553,23 @@ def imm_pair_log_likelihoods(modes, x, P, log_cbar, z, rows, cols, *, H=None, R=
         log_g_mode[:, j] = log_likelihood(nu, S[rows]) if len(rows) else np.zeros(0)
     log_g = _logsumexp(log_cbar[rows] + log_g_mode, 1)
     return log_g, log_g_mode
+
+
+def _pair_indices(rows, cols, N: int, z: np.ndarray):
+    """Validated pair indices: integers, equal lengths, inside the tracks / measurements."""
+    from jointtrack.assignment._checks import _as_real_array
+
+    out = []
+    for name, v, hi, what in (("rows", rows, N, "tracks"), ("cols", cols, len(z), "measurements")):
+        a = _as_real_array(v, name).reshape(-1)
+        if not (np.isfinite(a).all() and (a == np.round(a)).all()):
+            raise ValueError(f"{name} must hold integer indices")
+        if a.size and (a.min() < 0 or a.max() >= hi):
+            raise ValueError(f"{name} indexes outside the {hi} {what}")
+        out.append(a.astype(np.int64))
+    if out[0].shape != out[1].shape:
+        raise ValueError("rows and cols must have one entry per pair")
+    return out
 
 
 def imm_pda_pairs_update(
@@ -571,12 +587,22 @@ def imm_pda_pairs_update(
     x, P = _checked(modes, x, P)
     N, r, _ = x.shape
     kw = _measurement(model, H, R)
-    b0 = _arr(beta0, "beta0").reshape(-1)
-    rows = np.asarray(rows, np.int64).reshape(-1)
-    cols = np.asarray(cols, np.int64).reshape(-1)
-    w = _arr(weights, "weights").reshape(-1)
-    if b0.shape != (N,) or not (rows.shape == cols.shape == w.shape):
+    from jointtrack.assignment._checks import _as_real_array
+
+    b0 = _as_real_array(beta0, "beta0").reshape(-1)
+    rows, cols = _pair_indices(rows, cols, N, _arr(z, "z"))
+    w = _as_real_array(weights, "weights").reshape(-1)
+    if b0.shape != (N,) or w.shape != rows.shape:
         raise ValueError("beta0 needs one entry per track and rows/cols/weights one per pair")
+    if not (np.isfinite(b0).all() and np.isfinite(w).all()) or (b0 < 0).any() or (w < 0).any():
+        raise ValueError("association probabilities beta0/weights must be finite and ≥ 0")
+    tot = b0.copy()
+    np.add.at(tot, rows, w)
+    bad = ~(np.abs(tot - 1.0) <= 1e-6)  # the PDA's tolerance (filters.pda), renormalised
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"track {i}'s association probabilities sum to {tot[i]:.12g}, not 1")
+    b0, w = b0 / tot, w / tot[rows]
     log_g, log_g_mode = imm_pair_log_likelihoods(modes, x, P, log_cbar, z, rows, cols, **kw)
     log_cbar = _log_probabilities(log_cbar, N, r, "log_cbar")
     # log(β_ik g_ijk / g_ik) per pair and mode; log β_i0 per track

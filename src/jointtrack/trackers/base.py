@@ -280,6 +280,8 @@ class ScanTracker:
                 f"motion = 'imm' (an IMMModes motion model) is available to the JPDA/JIPDA "
                 f"tracker only, not to {type(self).__name__}"
             )
+        if isinstance(motion, IMMModes) and motion.dim != c.dim:
+            raise ValueError(f"motion: the IMM modes are {motion.dim}-D, but dim = {c.dim}")
         # an IMM's tracks report (and are gated, confirmed and saved by) the combined
         # position and velocity; its modes' common state is the tracker's business
         n = 2 * c.dim if isinstance(motion, IMMModes) else int(motion.state_dim)
