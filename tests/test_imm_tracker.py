@@ -325,3 +325,20 @@ def test_imm_modes_object_of_another_dimension_is_refused():
     modes = IMMModes([ConstantVelocity(dim=2)], [[1.0]])
     with pytest.raises(ValueError, match="IMM modes are 2-D, but dim = 3"):
         JPDATracker(TrackerConfig(dim=3, motion="imm", imm_modes=["cv"]), motion=modes)
+
+
+@pytest.mark.parametrize(
+    "overrides, match",
+    [
+        ({"motion": "imm"}, 'motion = "imm" is available to the JPDA/JIPDA tracker only'),
+        ({"imm_modes": ["cv"]}, "imm_modes"),
+    ],
+)
+def test_pmb_run_refuses_imm_settings_naming_them(tmp_path, overrides, match):
+    from jointtrack.experiments.run import RunConfigError, run_scenario
+
+    with pytest.raises(RunConfigError, match=match):
+        run_scenario(
+            "crossing", overrides, tmp_path, scenario_kwargs={"n_scans": 5}, tracker="pmb",
+            plots=False,
+        )  # fmt: skip

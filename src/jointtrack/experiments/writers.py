@@ -139,7 +139,9 @@ def _track_columns(dim: int, mode_names=()) -> list[str]:
 
 def mode_names_of(config) -> tuple:
     """The IMM mode names of a tracker configuration (``motion = "imm"``), else ()."""
-    return tuple(config.imm_modes) if getattr(config, "motion", None) == "imm" else ()
+    if getattr(config, "motion", None) != "imm":
+        return ()
+    return tuple(getattr(config, "imm_modes", ()))  # a PMB/PMBM config refuses imm later
 
 
 def _temporary_name(path: Path) -> Path:
