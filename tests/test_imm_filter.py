@@ -465,3 +465,49 @@ def test_coordinated_turn_bad_states():
         m.jacobian([0.0, 0.0, 1.0, np.inf, 0.0], 1.0)
     with pytest.raises(ValueError, match="dt"):
         m.propagate(np.zeros(5), -1.0)
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    st.lists(st.tuples(st.floats(-30.0, 30.0), st.floats(-30.0, 30.0)), min_size=0, max_size=4),
+    st.floats(0.05, 0.99),
+    st.floats(1e-6, 1e-2),
+    st.floats(0.05, 0.95),
+)
+def test_imm_pda_is_each_modes_own_pdaf(offsets, p_d, clutter, mu_cv):
+    """One track, β from the mixture likelihood (single-track PDA): every mode's
+    update equals that mode's own PDAF (its β from its own likelihoods, Bar-Shalom
+    et al. §11.6.6 IMM-PDAF) and μ_j ∝ c̄_j [(1 − P_D) + P_D/λ Σ_k g_jk]."""
+    from jointtrack.filters import imm_pair_log_likelihoods, pda_update
+
+    modes = IMMModes(
+        [ConstantVelocity(q=0.2), CoordinatedTurn(q=0.2, turn_rate_std=0.05)],
+        [[0.9, 0.1], [0.1, 0.9]],
+    )
+    x0 = np.array([[0.0, 0.0, 10.0, 2.0]])
+    xs, Ps, _ = modes.initial_states(x0, np.diag([9.0, 9.0, 4.0, 4.0])[None], 0.01)
+    log_mu = np.log([[mu_cv, 1.0 - mu_cv]])
+    xp, Pp, log_cbar = imm_predict(xs, Ps, log_mu, modes, 1.0)
+    H, R = np.eye(2, 5), 4.0 * np.eye(2)
+    z = np.array([[10.0 + a, 2.0 + b] for a, b in offsets]).reshape(-1, 2)
+    M = len(z)
+    rows, cols = np.zeros(M, np.int64), np.arange(M)
+    log_g, log_g_mode = imm_pair_log_likelihoods(modes, xp, Pp, log_cbar, z, rows, cols, H=H, R=R)
+    L = p_d * np.exp(log_g) / clutter
+    miss = 1.0 - p_d
+    beta0, beta = miss / (miss + L.sum()), L / (miss + L.sum())
+    xu, Pu, log_post = imm_pda_pairs_update(
+        modes, xp, Pp, log_cbar, z, [beta0], rows, cols, beta, H=H, R=R
+    )
+    cbar = np.exp(log_cbar[0])
+    lam = miss + p_d / clutter * np.exp(log_g_mode).sum(axis=0)  # Λ_j up to a constant
+    np.testing.assert_allclose(np.exp(log_post[0]), cbar * lam / (cbar * lam).sum(), rtol=1e-12)
+    for j in range(2):
+        Lj = p_d * np.exp(log_g_mode[:, j]) / clutter
+        bj = np.concatenate([[miss], Lj]) / (miss + Lj.sum())
+        xj, Pj = modes.to_mode(j, xp[:, j], Pp[:, j])
+        Hj = modes.mode_measurement(j, H, R)["H"]
+        want_x, want_P = pda_update(xj[0], Pj[0], z, Hj, R, bj)
+        got_x, got_P = modes.to_mode(j, xu[:, j], Pu[:, j])
+        np.testing.assert_allclose(got_x[0], want_x, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(got_P[0], want_P, rtol=1e-10, atol=1e-10)
