@@ -265,6 +265,7 @@ from jointtrack.experiments.writers import (  # noqa: F401 - re-exported
     atomic_output,
     check_run_phase,
     fault,
+    mode_names_of,
 )
 from jointtrack.io import Detections, to_jsonable, write_metrics
 from jointtrack.io._files import file_sha256
@@ -794,7 +795,14 @@ def _run(
                 # the directory as the run was first given it (--resume passes the
                 # checkpoint's absolute one): metrics.json names the files as before
                 out_dir = Path(given)
-            writer = _TrackWriter(out_dir, src.dim, fmt, scan_times=src.times, frame=extra.frame)
+            writer = _TrackWriter(
+                out_dir,
+                src.dim,
+                fmt,
+                scan_times=src.times,
+                frame=extra.frame,
+                mode_names=mode_names_of(trk.config),
+            )
             clusters = list(info.get("clusters", []))
             fallbacks.update(info.get("fallbacks", {}))
             tiers.update(info.get("fallback_tiers", {}))
@@ -827,7 +835,14 @@ def _run(
             if checkpoint is None:
                 checkpoint = resume  # keep checkpointing where the run was checkpointed
         else:
-            writer = _TrackWriter(out_dir, src.dim, fmt, scan_times=src.times, frame=extra.frame)
+            writer = _TrackWriter(
+                out_dir,
+                src.dim,
+                fmt,
+                scan_times=src.times,
+                frame=extra.frame,
+                mode_names=mode_names_of(cfg),
+            )
             writer.start_fresh()
             dt = float(np.median(np.diff(src.times))) if len(src.times) > 1 else 1.0
             if particle is not None:

@@ -130,10 +130,18 @@ class ExtraOutputs:
     figures: tuple[tuple[str, str, Callable[[Path, tuple], object]], ...] = field(default=())
 
 
-def _track_columns(dim: int) -> list[str]:
+def _track_columns(dim: int, mode_names=()) -> list[str]:
     c = ["x", "y", "z"][:dim]
     cov = [f"P_{c[i]}_{c[j]}" for i in range(dim) for j in range(i, dim)]
-    return ["time", "track_id", *c, *(f"v{a}" for a in c), "existence", *cov]
+    modes = [f"mode_{m}" for m in mode_names]  # an IMM's mode probabilities
+    return ["time", "track_id", *c, *(f"v{a}" for a in c), "existence", *cov, *modes]
+
+
+def mode_names_of(config) -> tuple:
+    """The IMM mode names of a tracker configuration (``motion = "imm"``), else ()."""
+    if getattr(config, "motion", None) != "imm":
+        return ()
+    return tuple(getattr(config, "imm_modes", ()))  # a PMB/PMBM config refuses imm later
 
 
 def _temporary_name(path: Path) -> Path:
@@ -204,17 +212,22 @@ class _TrackWriter:
 
     Keeps every row in memory as well (for the metrics and plots). ``frame``: a
     :class:`~jointtrack.io.geodetic.LocalFrame` whose ``lat, lon`` the tracks file
-    holds next to ``x, y`` (report runs), or None.
+    holds next to ``x, y`` (report runs), or None. ``mode_names``: an IMM tracker's
+    modes (``motion = "imm"``), whose probabilities follow the covariance columns
+    as ``mode_<name>``.
     """
 
-    def __init__(self, out_dir: Path, dim: int, fmt: str, scan_times=None, frame=None):
+    def __init__(
+        self, out_dir: Path, dim: int, fmt: str, scan_times=None, frame=None, mode_names=()
+    ):
         self.out_dir = Path(out_dir)
         # the run's scan times: Parquet row groups hold PARQUET_ROW_GROUP_SCANS scans each
         self.scan_times = None if scan_times is None else np.asarray(scan_times, float)
         self.dim = dim
         self.fmt = fmt
         self.frame = frame
-        self.columns = _track_columns(dim)
+        self.mode_names = tuple(mode_names)
+        self.columns = _track_columns(dim, self.mode_names)
         self.parts_dir = self.out_dir / PARTS_DIR
         self.path = self.out_dir / f"tracks.{'csv' if fmt == 'csv' else 'parquet'}"
         self._chunks: list[np.ndarray] = []  # committed rows
@@ -299,6 +312,8 @@ class _TrackWriter:
             for j in range(i, d):
                 rows[:, col] = res.P[:, i, j]
                 col += 1
+        if self.mode_names:  # motion = "imm": mode_<name> columns, in the config's order
+            rows[:, col:] = res.mode_probabilities
         self._pending.append(rows)
         if self.fmt == "csv":
             if self._partial is None:

@@ -26,7 +26,8 @@ def write_tracks(tracks_table, path, *, frame=None) -> Path:
     tracks_table : mapping of column name → 1-D array (e.g. a dict), or a numpy
         structured array. Required columns ``time, track_id, x, y, vx, vy``;
         ``z`` and ``vz`` together for 3-D; extra numeric columns (covariance
-        entries, ``existence``, …) are written after them in the given order.
+        entries, ``existence``, an IMM tracker's mode probabilities
+        ``mode_<name>``, …) are written after them in the given order.
         Required columns must be finite and ``track_id`` integer-valued.
     path : ``.csv``, ``.csv.gz``, ``.parquet`` or ``.pq``; parent directories are
         created.

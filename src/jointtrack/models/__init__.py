@@ -15,6 +15,7 @@ from jointtrack.models.measurement import (
 from jointtrack.models.motion import (
     ConstantAcceleration,
     ConstantVelocity,
+    CoordinatedTurn,
     ca_noise,
     ca_transition,
     cv_noise,
@@ -24,6 +25,7 @@ from jointtrack.models.motion import (
 __all__ = [
     "ConstantAcceleration",
     "ConstantVelocity",
+    "CoordinatedTurn",
     "LinearPosition",
     "LinearPositionVelocity",
     "RangeBearing",

@@ -1,4 +1,4 @@
-"""Kinematic motion models: nearly-constant velocity and constant acceleration.
+"""Kinematic motion models: nearly-constant velocity, constant acceleration, coordinated turn.
 
 State layout (the same in every jointtrack model, filter and tracker)
 --------------------------------------------------------------------
@@ -36,6 +36,19 @@ Q are finite: ``q Δt³/3`` overflows first for CV, ``q Δt⁵/20`` or ``Δt²/2
 a larger one raises ``ValueError`` naming dt and the limit); the functions accept a
 scalar ``dt`` (one ``(n, n)`` matrix) or a 1-D array of ``N`` steps (an
 ``(N, n, n)`` stack, e.g. one per track).
+
+Coordinated turn
+----------------
+:class:`CoordinatedTurn` is the nearly-coordinated-turn model with the turn rate
+estimated (Bar-Shalom, Li & Kirubarajan 2001, §11.7.1-§11.7.2), state
+``[x, y, vx, vy, ω]`` (2-D, positions first as above, the turn rate ω in rad/s
+last). It is nonlinear in ω: :meth:`CoordinatedTurn.propagate` is the exact
+motion ``f(x, Δt)`` of a constant-speed turn at rate ω and
+:meth:`CoordinatedTurn.jacobian` its Jacobian ``∂f/∂x`` (extended Kalman
+prediction). Every coefficient is written so that ω → 0 needs no division by
+ω: ``sin(ωΔt)/ω = Δt·sinc(ωΔt)``, ``(1 − cos ωΔt)/ω = Δt·(θ/2)·sinc²(θ/2)``
+(θ = ωΔt) and their ω-derivatives by their Taylor series for |θ| ≤ 1, so at
+ω = 0 the model is exactly the nearly-constant-velocity one.
 """
 
 from __future__ import annotations
@@ -49,6 +62,7 @@ import numpy as np
 __all__ = [
     "ConstantAcceleration",
     "ConstantVelocity",
+    "CoordinatedTurn",
     "ca_noise",
     "ca_transition",
     "cv_noise",
@@ -395,3 +409,191 @@ class ConstantAcceleration(_KinematicModel):
     def noise(self, dt) -> np.ndarray:
         """Q(Δt), see :func:`ca_noise`."""
         return ca_noise(dt, self.q, self.dim)
+
+
+# --------------------------------------------------------------------------- coordinated turn
+
+#: Taylor coefficients (in θ²) of (sin θ − θ cos θ)/θ³ and (θ sin θ − (1 − cos θ))/θ²:
+#: Σ_k (−1)^k 2(k+1)/(2k+3)! θ^{2k} and Σ_k (−1)^k (2k+1)/(2k+2)! θ^{2k}. Twelve terms
+#: leave a truncation error below θ²⁴/26! ≈ 2.5e-27 for |θ| ≤ 1.
+_DA_SERIES = tuple(
+    (-1) ** k * 2.0 * (k + 1) / float(np.prod(np.arange(1, 2 * k + 4, dtype=np.float64)))
+    for k in range(12)
+)
+_DB_SERIES = tuple(
+    (-1) ** k * (2.0 * k + 1) / float(np.prod(np.arange(1, 2 * k + 3, dtype=np.float64)))
+    for k in range(12)
+)
+
+
+def _horner(coeffs, u):
+    acc = np.zeros_like(u)
+    for c in reversed(coeffs):
+        acc = acc * u + c
+    return acc
+
+
+def _turn_coefficients(omega: np.ndarray, dt: np.ndarray):
+    """``(a, b, c, s, da, db)`` of a turn at rate ω over Δt, elementwise, θ = ωΔt.
+
+    ``a = sin θ / ω``, ``b = (1 − cos θ)/ω``, ``c = cos θ``, ``s = sin θ``,
+    ``da = ∂a/∂ω``, ``db = ∂b/∂ω``; finite and without division by ω at ω = 0
+    (there ``a = Δt``, ``b = 0``, ``da = 0``, ``db = Δt²/2``).
+    """
+    theta = omega * dt
+    half = 0.5 * theta
+    sinc_half = np.sinc(half / np.pi)  # sin(θ/2)/(θ/2), exactly 1 at θ = 0
+    a = dt * np.sinc(theta / np.pi)
+    b = dt * half * sinc_half * sinc_half  # (1 − cos θ)/ω = 2 sin²(θ/2)/ω: no cancellation
+    c, s = np.cos(theta), np.sin(theta)
+    small = np.abs(theta) <= 1.0
+    u = theta * theta
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # direct forms only where |θ| > 1 (no cancellation there); series elsewhere
+        da_direct = dt * dt * (theta * c - s) / (theta * theta)
+        db_direct = dt * dt * (theta * s - (1.0 - c)) / (theta * theta)
+    da = np.where(small, -dt * dt * theta * _horner(_DA_SERIES, u), da_direct)
+    db = np.where(small, dt * dt * _horner(_DB_SERIES, u), db_direct)
+    return a, b, c, s, da, db
+
+
+def _check_turn_states(x, what="x") -> np.ndarray:
+    from jointtrack.assignment._checks import _as_real_array
+
+    x = _as_real_array(x, what)
+    if x.ndim not in (1, 2) or x.shape[-1] != 5:
+        raise ValueError(
+            f"{what} must be one coordinated-turn state (5,) [x, y, vx, vy, ω] or a batch "
+            f"(N, 5), got shape {x.shape}"
+        )
+    if not np.isfinite(x).all():
+        raise ValueError(f"{what} has non-finite entries")
+    return x
+
+
+@dataclass(frozen=True)
+class CoordinatedTurn:
+    """Nearly-coordinated turn with the turn rate estimated, state ``[x, y, vx, vy, ω]``.
+
+    The target moves at constant speed on a circle at turn rate ω (rad/s,
+    positive counter-clockwise), Bar-Shalom, Li & Kirubarajan (2001) §11.7.1::
+
+        x'  = x + a vx − b vy         a = sin(ωΔt)/ω
+        y'  = y + b vx + a vy         b = (1 − cos ωΔt)/ω
+        vx' = cos(ωΔt) vx − sin(ωΔt) vy
+        vy' = sin(ωΔt) vx + cos(ωΔt) vy
+        ω'  = ω
+
+    Process noise: white acceleration of power spectral density ``q`` per
+    axis on position and velocity (the continuous-time nearly-constant-velocity
+    noise :func:`cv_noise`, exact at ω = 0) and a Wiener-process turn rate of
+    power spectral density ``turn_rate_std²`` ((rad/s)²/s): ω's variance
+    grows by ``turn_rate_std² Δt`` per step (§11.7.2).
+
+    Parameters
+    ----------
+    q : float ≥ 0
+        acceleration noise power spectral density (m²/s³), per axis.
+    turn_rate_std : float ≥ 0
+        σ of the turn-rate random walk, rad/s per √s.
+
+    Examples
+    --------
+    >>> m = CoordinatedTurn(q=0.5, turn_rate_std=0.01)
+    >>> x1 = m.propagate([0.0, 0.0, 10.0, 0.0, 0.05], 1.0)   # a left turn
+    >>> J, Q = m.jacobian([0.0, 0.0, 10.0, 0.0, 0.05], 1.0), m.noise(1.0)
+    """
+
+    q: float = 1.0
+    turn_rate_std: float = 0.01
+    dim: ClassVar[int] = 2
+    state_dim: ClassVar[int] = 5
+
+    def __post_init__(self):
+        object.__setattr__(self, "q", _check_q(self.q))
+        try:
+            w = float(self.turn_rate_std)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"turn_rate_std must be a number, got {self.turn_rate_std!r}"
+            ) from None
+        if not (np.isfinite(w) and w >= 0) or isinstance(self.turn_rate_std, bool):
+            raise ValueError(f"turn_rate_std must be finite and ≥ 0, got {self.turn_rate_std!r}")
+        object.__setattr__(self, "turn_rate_std", w)
+
+    @property
+    def max_dt(self) -> float:
+        """Largest time step: that of the nearly-constant-velocity part with this ``q``."""
+        return _max_dt(2, max(self.q, self.turn_rate_std**2))
+
+    @property
+    def position_indices(self) -> np.ndarray:
+        """``[0, 1]``."""
+        return np.arange(2)
+
+    @property
+    def velocity_indices(self) -> np.ndarray:
+        """``[2, 3]``."""
+        return np.arange(2, 4)
+
+    @property
+    def turn_rate_index(self) -> int:
+        """4: the turn rate ω is the last state component."""
+        return 4
+
+    def _dt(self, dt, n: int | None):
+        dt = _check_dt(dt)
+        _check_dt_range(dt, 2, max(self.q, self.turn_rate_std**2), "process noise Q")
+        if dt.ndim == 1 and n is not None and len(dt) != n:
+            raise ValueError(f"dt has {len(dt)} steps for {n} states; give one per state")
+        return dt
+
+    def propagate(self, x, dt) -> np.ndarray:
+        """``f(x, Δt)``: the states ``x`` (5,) or (N, 5) after a turn of Δt seconds."""
+        x = _check_turn_states(x)
+        single = x.ndim == 1
+        X = x[None] if single else x
+        dt = self._dt(dt, None if single else len(X))
+        a, b, c, s, _, _ = _turn_coefficients(X[:, 4], dt)
+        vx, vy = X[:, 2], X[:, 3]
+        out = np.stack(
+            [X[:, 0] + a * vx - b * vy, X[:, 1] + b * vx + a * vy]
+            + [c * vx - s * vy, s * vx + c * vy, X[:, 4]],
+            axis=-1,
+        )
+        return out[0] if single else out
+
+    def jacobian(self, x, dt) -> np.ndarray:
+        """``∂f/∂x`` at ``x`` (5,) or (N, 5): (5, 5) or (N, 5, 5).
+
+        The ω column is ``[a' vx − b' vy, b' vx + a' vy, −Δt (s vx + c vy),
+        Δt (c vx − s vy), 1]`` with ``a' = ∂a/∂ω``, ``b' = ∂b/∂ω`` (series near ω = 0).
+        """
+        x = _check_turn_states(x)
+        single = x.ndim == 1
+        X = x[None] if single else x
+        dt = self._dt(dt, None if single else len(X))
+        a, b, c, s, da, db = _turn_coefficients(X[:, 4], dt)
+        vx, vy = X[:, 2], X[:, 3]
+        N = len(X)
+        J = np.zeros((N, 5, 5))
+        J[:, 0, 0] = J[:, 1, 1] = J[:, 4, 4] = 1.0
+        J[:, 0, 2], J[:, 0, 3] = a, -b
+        J[:, 1, 2], J[:, 1, 3] = b, a
+        J[:, 2, 2], J[:, 2, 3] = c, -s
+        J[:, 3, 2], J[:, 3, 3] = s, c
+        J[:, 0, 4] = da * vx - db * vy
+        J[:, 1, 4] = db * vx + da * vy
+        J[:, 2, 4] = -dt * (s * vx + c * vy)
+        J[:, 3, 4] = dt * (c * vx - s * vy)
+        return J[0] if single else J
+
+    def noise(self, dt) -> np.ndarray:
+        """Q(Δt) (5, 5), or (N, 5, 5) for an array ``dt``: :func:`cv_noise` on
+        ``[x, y, vx, vy]`` and ``turn_rate_std² Δt`` on ω."""
+        dt = self._dt(dt, None)
+        Qcv = cv_noise(dt, self.q, 2)
+        Q = np.zeros((*Qcv.shape[:-2], 5, 5))
+        Q[..., :4, :4] = Qcv
+        Q[..., 4, 4] = self.turn_rate_std**2 * dt
+        return Q

@@ -47,9 +47,11 @@ from jointtrack.association.clustering import cluster_pair_marginals, clusters
 from jointtrack.association.gating import gate_measurements, gate_pairs
 from jointtrack.errors import CoincidentReturnsWarning
 from jointtrack.filters import ekf_predict_measurement, predict_measurement
+from jointtrack.filters.imm import IMMModes
 from jointtrack.models import (
     ConstantAcceleration,
     ConstantVelocity,
+    CoordinatedTurn,
     LinearPosition,
     RangeBearing,
 )
@@ -90,6 +92,9 @@ class ScanResult:
     ``"dense_budget: …"`` for a cluster too large for an N × M matrix).
     ``n_coincident``: returns dropped because they repeated another return of
     the scan exactly (see :meth:`JPDATracker.step`).
+    With ``motion = "imm"``: ``mode_names`` (r,) and ``mode_probabilities``
+    (K, r), each confirmed track's mode probabilities after the update (else
+    ``()`` and None); ``x``, ``P`` are then the modes' combined position and velocity.
     """
 
     time: float
@@ -106,6 +111,8 @@ class ScanResult:
     cluster_confirmed: list = field(default_factory=list)
     cluster_fallbacks: list = field(default_factory=list)
     n_coincident: int = 0
+    mode_names: tuple = ()
+    mode_probabilities: np.ndarray | None = None
 
     @property
     def n_fallbacks(self) -> int:
@@ -163,19 +170,46 @@ class ClusterRecord:
 
 
 def motion_model(config, motion=None):
-    """``motion``, checked, or the configuration's NCV / constant-acceleration model.
+    """``motion``, checked, or the configuration's NCV / constant-acceleration / IMM model.
 
     Any object with ``state_dim``, ``transition(dt)`` and ``noise(dt)`` is a
-    motion model; the default is built from ``config.motion``, ``config.dim``
-    and ``config.process_noise``.
+    motion model, and so is an :class:`~jointtrack.filters.imm.IMMModes`; the
+    default is built from ``config.motion``, ``config.dim`` and
+    ``config.process_noise`` (and, for ``motion = "imm"``, ``imm_modes``,
+    ``imm_switching``, ``imm_initial`` and ``turn_rate_std``).
     """
+    if motion is None and config.motion == "imm":
+        if not hasattr(config, "imm_modes"):
+            raise ValueError(
+                f"motion = 'imm' is available to the JPDA/JIPDA tracker (TrackerConfig) only, "
+                f"not to {type(config).__name__}"
+            )
+        return imm_modes(config)
     if motion is None:
         model = ConstantVelocity if config.motion == "cv" else ConstantAcceleration
         motion = model(dim=config.dim, q=config.process_noise)
+    if isinstance(motion, IMMModes):
+        return motion
     for attr in ("state_dim", "transition", "noise"):
         if not hasattr(motion, attr):
             raise ValueError(f"motion model {motion!r} has no {attr!r}")
     return motion
+
+
+def imm_modes(config) -> IMMModes:
+    """The :class:`~jointtrack.filters.imm.IMMModes` of a ``motion = "imm"`` configuration."""
+    q, d = config.process_noise, config.dim
+    build = {
+        "cv": lambda: ConstantVelocity(dim=d, q=q),
+        "ca": lambda: ConstantAcceleration(dim=d, q=q),
+        "ct": lambda: CoordinatedTurn(q=q, turn_rate_std=config.turn_rate_std),
+    }
+    return IMMModes(
+        [build[name]() for name in config.imm_modes],
+        config.imm_switching_matrix(),
+        initial=config.imm_initial,
+        names=config.imm_modes,
+    )
 
 
 class ScanTracker:
@@ -192,6 +226,8 @@ class ScanTracker:
     _ATTRS: dict = {}
     #: per-report fields ``step`` accepts besides ``z`` (``labels``, ``velocities``)
     REPORT_FIELDS: tuple = ()
+    #: whether the tracker runs an interacting multiple model (``motion = "imm"``)
+    SUPPORTS_IMM: bool = False
 
     def __init__(
         self,
@@ -239,7 +275,17 @@ class ScanTracker:
         self._fallbacks: dict = {}
         c = self.config
         self._motion = motion = motion_model(c, motion)
-        n = int(motion.state_dim)
+        if isinstance(motion, IMMModes) and not self.SUPPORTS_IMM:
+            raise ValueError(
+                f"motion = 'imm' (an IMMModes motion model) is available to the JPDA/JIPDA "
+                f"tracker only, not to {type(self).__name__}"
+            )
+        if isinstance(motion, IMMModes) and motion.dim != c.dim:
+            raise ValueError(f"motion: the IMM modes are {motion.dim}-D, but dim = {c.dim}")
+        # an IMM's tracks report (and are gated, confirmed and saved by) the combined
+        # position and velocity; its modes' common state is the tracker's business
+        n = 2 * c.dim if isinstance(motion, IMMModes) else int(motion.state_dim)
+        self._state_dim = n
         if n < 2 * c.dim:
             raise ValueError(
                 f"motion model state_dim = {n} cannot hold position and velocity in {c.dim}-D"
@@ -280,8 +326,9 @@ class ScanTracker:
 
     @property
     def state_dim(self) -> int:
-        """Length of a track state (from the motion model)."""
-        return int(self._motion.state_dim)
+        """Length of a (reported) track state: the motion model's, or ``2·dim``
+        (position and velocity) for an IMM."""
+        return self._state_dim
 
     @property
     def default_sensor(self) -> Sensor:
@@ -367,6 +414,7 @@ class ScanTracker:
             self._history_rows.pop()
         if self.keep_history and len(result.ids):
             order = np.argsort(result.ids, kind="stable")
+            modes = result.mode_probabilities
             self._history_rows.append(
                 (
                     np.full(len(order), result.time),
@@ -374,6 +422,7 @@ class ScanTracker:
                     result.x[order],  # change the ScanResult's arrays freely
                     result.P[order],
                     np.asarray(result.existence, dtype=float)[order],
+                    np.zeros((len(order), 0)) if modes is None else modes[order],
                 )
             )
         return result
@@ -586,7 +635,8 @@ class ScanTracker:
 
         One row per (scan time, track id) with ``time`` (seconds; after
         ``time_origin`` for datetime scans), ``track_id``, ``x`` (n,), ``P``
-        (n, n) and ``existence``: the ``ScanResult`` of every successful
+        (n, n), ``existence`` and, with ``motion = "imm"``, ``mode_probabilities``: the
+        ``ScanResult`` of every successful
         :meth:`step` since the tracker was built (or :meth:`clear_history`).
         Not part of the saved state: after :meth:`load` it starts empty.
         Raises RuntimeError if recording is off (``keep_history=False``) and
@@ -594,22 +644,33 @@ class ScanTracker:
         """
         if not self.keep_history and not self._history_rows:
             raise RuntimeError("this tracker does not record its history (keep_history=False)")
-        n = self._motion.state_dim
+        n = self.state_dim
         if len(self._history_rows) > 1:  # consolidate, so repeated calls are cheap
             self._history_rows = [
                 tuple(np.concatenate(cols) for cols in zip(*self._history_rows, strict=True))
             ]
+        names = self._motion.names if isinstance(self._motion, IMMModes) else ()
         if self._history_rows:
-            time, ids, x, P, existence = self._history_rows[0]
+            time, ids, x, P, existence, modes = self._history_rows[0]
         else:
-            time, ids, x, P, existence = (
+            time, ids, x, P, existence, modes = (
                 np.zeros(0),
                 np.zeros(0, np.int64),
                 np.zeros((0, n)),
                 np.zeros((0, n, n)),
                 np.zeros(0),
+                np.zeros((0, len(names))),
             )
-        return TrackHistory(time, ids, x, P, existence, time_origin=self.time_origin)
+        return TrackHistory(
+            time,
+            ids,
+            x,
+            P,
+            existence,
+            time_origin=self.time_origin,
+            mode_names=names,
+            mode_probabilities=modes if names else None,
+        )
 
     def clear_history(self) -> None:
         """Forget the recorded history (the tracker state is unchanged)."""

@@ -9,6 +9,7 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 __all__ = [
+    "IMM_MODES",
     "MAX_STD",
     "MAX_VARIANCE",
     "MISS_MODELS",
@@ -84,7 +85,11 @@ class TrackerConfig(ModelSettings):
     Attributes
     ----------
     dim : 2 or 3, spatial dimension; measurements are positions ``[x, y(, z)]``.
-    motion : ``"cv"`` (nearly constant velocity) or ``"ca"`` (constant acceleration).
+    motion : ``"cv"`` (nearly constant velocity), ``"ca"`` (constant acceleration)
+        or ``"imm"``: an interacting multiple model of the modes ``imm_modes``
+        (:mod:`jointtrack.filters.imm`; JPDA/JIPDA), each track carrying its mode
+        probabilities and one state per mode, reporting the combined
+        ``[x, y(, z), vx, vy(, vz)]``.
     process_noise : q of the motion model (m²/s³ for CV, m²/s⁵ for CA); at most
         ``MAX_VARIANCE`` (1e300), like every variance-like setting.
     measurement_noise : measurement noise R of ``sensor="position"``: a number
@@ -221,6 +226,23 @@ class TrackerConfig(ModelSettings):
     r_labelled : existence of a track started on a labelled report
         (``step(…, labels=)``: the report names its target, so it is real);
         < 1 so that a target that stops reporting still fades out.
+    imm_modes : the modes of ``motion = "imm"``, distinct names among ``"cv"``
+        (nearly constant velocity, q = ``process_noise``), ``"ct"`` (coordinated
+        turn with the turn rate estimated, 2-D: acceleration noise
+        ``process_noise``, turn-rate noise ``turn_rate_std``) and ``"ca"``
+        (constant acceleration, jerk noise ``process_noise`` in m²/s⁵); default
+        ``("cv", "ct")``.
+    imm_switching : the Markov switching matrix of the modes: a number p in
+        (0, 1], the probability of staying in a mode from one scan to the next
+        (the rest shared equally among the other modes), or a square
+        row-stochastic matrix, one row per mode, ``[i][j]`` = P(mode j | mode i
+        before); every column needs a positive entry. Default 0.95.
+    imm_initial : mode probabilities of a new track, one per mode, each > 0,
+        summing to 1; None (default) = uniform.
+    turn_rate_std : σ of the coordinated-turn mode's turn-rate random walk,
+        rad/s per √s (its variance grows by turn_rate_std²·Δt); ≥ 0.
+    max_turn_rate : largest turn rate, rad/s: a new track's turn rate starts at 0
+        with σ = max_turn_rate/2 (``"ct"`` mode). Default 0.2 rad/s (11°/s).
     """
 
     p_g: float = 0.99
@@ -252,6 +274,11 @@ class TrackerConfig(ModelSettings):
     velocity_std: float = 1.0
     measure_velocity: bool = False
     r_labelled: float = 0.999
+    imm_modes: tuple = ("cv", "ct")
+    imm_switching: float | tuple = 0.95
+    imm_initial: tuple | None = None
+    turn_rate_std: float = 0.02
+    max_turn_rate: float = 0.2
 
     def __post_init__(self):
         for f in fields(self):
@@ -305,6 +332,8 @@ class TrackerConfig(ModelSettings):
             "measure_velocity needs the position sensor (sensor = 'position')",
         )
         self._check_noise_conditioning()
+        if self.motion == "imm":  # the IMM settings are unused otherwise
+            self._check_imm()
         if self.reporting == "async":
             need(self.existence, "reporting = 'async' needs existence = true (JIPDA)")
             need(
@@ -317,6 +346,52 @@ class TrackerConfig(ModelSettings):
                 "reporting = 'async' needs p_survive_per = 'second' (a scan per report: "
                 "survival per scan would depend on how often other targets report)",
             )
+
+    def _check_imm(self) -> None:
+        """The IMM settings against each other and ``dim`` (messages name the key)."""
+        r = len(self.imm_modes)
+        if "ct" in self.imm_modes and self.dim != 2:
+            raise ValueError(
+                f"TrackerConfig: imm_modes: the coordinated-turn mode 'ct' is 2-D, but dim = "
+                f"{self.dim}"
+            )
+        try:
+            self.imm_switching_matrix()
+        except ValueError as exc:
+            rest = str(exc).removeprefix("imm_switching")
+            raise ValueError(f"TrackerConfig: imm_switching{rest}") from None
+        if self.imm_initial is not None:
+            from jointtrack.filters.imm import _probability_vector
+
+            if len(self.imm_initial) != r:
+                raise ValueError(
+                    f"TrackerConfig: imm_initial must have one probability per mode of "
+                    f"imm_modes ({r}), got {len(self.imm_initial)}"
+                )
+            try:
+                _probability_vector(self.imm_initial, r, "imm_initial")
+            except ValueError as exc:
+                raise ValueError(f"TrackerConfig: {exc}") from None
+
+    def imm_switching_matrix(self) -> np.ndarray:
+        """The (r, r) switching matrix of ``imm_switching`` for the ``imm_modes``."""
+        from jointtrack.filters.imm import _switching_matrix
+
+        r = len(self.imm_modes)
+        if isinstance(self.imm_switching, float):
+            p = self.imm_switching
+            if r == 1:
+                return np.ones((1, 1))
+            M = np.full((r, r), (1.0 - p) / (r - 1))
+            np.fill_diagonal(M, p)
+            return M
+        M = np.asarray(self.imm_switching, dtype=np.float64)
+        if M.shape != (r, r):
+            raise ValueError(
+                f"imm_switching must be a {r} × {r} matrix (one row and column per mode of "
+                f"imm_modes = {list(self.imm_modes)}), got shape {M.shape}"
+            )
+        return _switching_matrix(M, r, "imm_switching")
 
     def _check_noise_conditioning(self) -> None:
         """The measurement noise covariances the tracker will filter with, as the
@@ -601,9 +676,58 @@ def _check_noise(v, dim: int):
     return v
 
 
+#: Modes of ``motion = "imm"`` (``TrackerConfig.imm_modes``).
+IMM_MODES = ("cv", "ct", "ca")
+
+
+def _imm_modes(name, v):
+    want = f"a non-empty list of distinct mode names among {', '.join(map(repr, IMM_MODES))}"
+    if isinstance(v, str | bytes) or not isinstance(v, list | tuple) or not v:
+        raise _fail(name, want, v)
+    for m in v:
+        if not isinstance(m, str) or m not in IMM_MODES:
+            raise ValueError(
+                f"TrackerConfig: {name}: unknown mode name {m!r} (known: "
+                f"{', '.join(map(repr, IMM_MODES))})"
+            )
+    if len(set(v)) != len(v):
+        raise _fail(name, want + " (each at most once)", v)
+    return tuple(v)
+
+
+def _imm_switching(name, v):
+    """A stay probability in (0, 1] or a square matrix of numbers in [0, 1] (rows are
+    checked against imm_modes by TrackerConfig)."""
+    want = "a stay probability in (0, 1] or a square row-stochastic matrix (list of lists)"
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, list | tuple):
+        if not v or not all(isinstance(r, list | tuple) and len(r) == len(v) for r in v):
+            raise _fail(name, want, v)
+        rows = tuple(tuple(_real(name, a, want) for a in r) for r in v)
+        if not all(0.0 <= a <= 1.0 for r in rows for a in r):
+            raise _fail(name, want + " with entries in [0, 1]", v)
+        return rows
+    return _probability(name, v)
+
+
+def _imm_initial(name, v):
+    if v is None:
+        return None
+    want = "None or a list of mode probabilities > 0 (one per mode) summing to 1"
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, str | bytes) or not isinstance(v, list | tuple) or not v:
+        raise _fail(name, want, v)
+    out = tuple(_real(name, a, want) for a in v)
+    if not all(math.isfinite(a) and a > 0 for a in out):
+        raise _fail(name, want + " (a mode of probability 0 could never be entered)", v)
+    return out
+
+
 _CHECKS = {
     "dim": _dim,
-    "motion": _choice(("cv", "ca")),
+    "motion": _choice(("cv", "ca", "imm")),
     "process_noise": _variance,
     "measurement_noise": _noise_shape,
     "sensor": _choice(("position", "range-bearing")),
@@ -640,6 +764,11 @@ _CHECKS = {
     "velocity_std": _std,
     "measure_velocity": _bool,
     "r_labelled": _open_probability,
+    "imm_modes": _imm_modes,
+    "imm_switching": _imm_switching,
+    "imm_initial": _imm_initial,
+    "turn_rate_std": _non_negative,
+    "max_turn_rate": _positive,
 }
 
 

@@ -12,6 +12,9 @@ column          array        meaning
 ``x``           (R, n)       state estimate
 ``P``           (R, n, n)    its covariance
 ``existence``   (R,)         probability of existence (1.0 without JIPDA)
+``mode_probabilities`` (R, r) an IMM tracker's mode probabilities
+                             (``motion = "imm"``; names in ``mode_names``),
+                             else None
 ==============  ===========  ==============================================
 
 Rows are in scan order and, within a scan, by track id. :meth:`TrackHistory.to_dict`
@@ -132,7 +135,18 @@ class TrackHistory:
     read-only.
     """
 
-    def __init__(self, time, track_id, x, P, existence, *, time_origin: str | None = None):
+    def __init__(
+        self,
+        time,
+        track_id,
+        x,
+        P,
+        existence,
+        *,
+        time_origin: str | None = None,
+        mode_names=(),
+        mode_probabilities=None,
+    ):
         time = np.asarray(time, dtype=float).reshape(-1)
         track_id = np.asarray(track_id, dtype=np.int64).reshape(-1)
         x = np.asarray(x, dtype=float)
@@ -148,8 +162,21 @@ class TrackHistory:
             raise ValueError("time, track_id and existence must have one value per row")
         if time_origin is not None:
             ns_from_iso(time_origin)  # validates
+        mode_names = tuple(mode_names)
+        if mode_names:
+            mode_probabilities = np.asarray(mode_probabilities, dtype=float)
+            if mode_probabilities.shape != (R, len(mode_names)):
+                raise ValueError(
+                    f"mode_probabilities must have shape ({R}, {len(mode_names)}), got "
+                    f"{mode_probabilities.shape}"
+                )
+            mode_probabilities.flags.writeable = False
+        elif mode_probabilities is not None:
+            raise ValueError("mode_probabilities need mode_names")
         for a in (time, track_id, x, P, existence):
             a.flags.writeable = False
+        self.mode_names = mode_names
+        self.mode_probabilities = mode_probabilities
         self.time = time
         self.track_id = track_id
         self.x = x
@@ -195,6 +222,10 @@ class TrackHistory:
             self.P[rows],
             self.existence[rows],
             time_origin=self.time_origin,
+            mode_names=self.mode_names,
+            mode_probabilities=(
+                None if self.mode_probabilities is None else self.mode_probabilities[rows]
+            ),
         )
 
     def track(self, track_id: int) -> TrackHistory:
@@ -222,10 +253,12 @@ class TrackHistory:
             *(f"x_{i}" for i in range(n)),
             *(f"P_{i}_{j}" for i, j in zip(iu, ju, strict=True)),
             "existence",
+            *(f"mode_{m}" for m in self.mode_names),
         ]
 
     def to_dict(self) -> dict[str, np.ndarray]:
-        """Plain 1-D columns: time, track_id, x_0…x_{n-1}, P_i_j (i ≤ j), existence.
+        """Plain 1-D columns: time, track_id, x_0…x_{n-1}, P_i_j (i ≤ j), existence
+        (and an IMM's mode probabilities, ``mode_<name>``).
 
         Every value is a 1-D array of length ``len(self)``, ready for a CSV or
         Parquet writer; :meth:`from_dict` rebuilds the table (P symmetric).
@@ -237,6 +270,8 @@ class TrackHistory:
         for i, j in zip(*np.triu_indices(n), strict=True):
             out[f"P_{i}_{j}"] = self.P[:, i, j]
         out["existence"] = self.existence
+        for k, m in enumerate(self.mode_names):
+            out[f"mode_{m}"] = self.mode_probabilities[:, k]
         return out
 
     @classmethod
@@ -253,6 +288,8 @@ class TrackHistory:
             x[:, i] = columns[f"x_{i}"]
         for i, j in zip(*np.triu_indices(n), strict=True):
             P[:, i, j] = P[:, j, i] = columns[f"P_{i}_{j}"]
+        names = tuple(k.removeprefix("mode_") for k in columns if k.startswith("mode_"))
+        modes = np.column_stack([columns[f"mode_{m}"] for m in names]) if names else None
         return cls(
             time,
             np.asarray(columns["track_id"]).astype(np.int64),
@@ -260,6 +297,8 @@ class TrackHistory:
             P,
             columns["existence"],
             time_origin=time_origin,
+            mode_names=names,
+            mode_probabilities=modes,
         )
 
     def to_pandas(self):

@@ -17,6 +17,7 @@ one association call per multi-track cluster — no per-track Python objects.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 
@@ -26,7 +27,15 @@ from jointtrack.assignment._checks import _as_real_array, as_float
 from jointtrack.association.clustering import clusters
 from jointtrack.association.clutter import cluster_heuristic_densities
 from jointtrack.association.gating import likelihood_ratio_pairs
-from jointtrack.filters import pda_pairs_update, predict
+from jointtrack.filters import (
+    imm_combine,
+    imm_pair_log_likelihoods,
+    imm_pda_pairs_update,
+    imm_predict,
+    pda_pairs_update,
+    predict,
+)
+from jointtrack.filters.imm import IMMModes
 from jointtrack.trackers.base import ClusterRecord, ScanResult, ScanTracker
 from jointtrack.trackers.config import TrackerConfig
 from jointtrack.trackers.existence import existence_update, merge_duplicates, silence_outcomes
@@ -35,6 +44,7 @@ from jointtrack.trackers.initiation import pair_returns
 from jointtrack.trackers.state_io import (
     StateFileError,
     covariance_problem,
+    validate_mode_arrays,
     validate_tracker_arrays,
 )
 
@@ -57,6 +67,7 @@ class JPDATracker(ScanTracker):
     KIND = "jpda"
     CONFIG = TrackerConfig
     REPORT_FIELDS = ("labels", "velocities")
+    SUPPORTS_IMM = True
 
     def __init__(
         self,
@@ -97,6 +108,15 @@ class JPDATracker(ScanTracker):
             )
         self.x = np.zeros((0, n))
         self.P = np.zeros((0, n, n))
+        # motion = "imm": each track's modes — state in the modes' common state
+        # (N, r, n_c), covariance and log probability (N, r); r = 0 without an IMM.
+        # x and P above are then the combined position and velocity (what is
+        # reported, gated and confirmed).
+        self._imm = self._motion if isinstance(self._motion, IMMModes) else None
+        r, nc = (self._imm.n_modes, self._imm.state_dim) if self._imm else (0, 0)
+        self.mode_x = np.zeros((0, r, nc))
+        self.mode_P = np.zeros((0, r, nc, nc))
+        self.mode_log_prob = np.zeros((0, r))
         self.ids = np.zeros(0, np.int64)
         self.confirmed = np.zeros(0, bool)
         self.hit_history = np.zeros(0, np.int64)  # bit k: hit k scans ago
@@ -137,9 +157,17 @@ class JPDATracker(ScanTracker):
             self._sensor, self._mdim = self._position_velocity, 2 * c.dim
 
         if dt is not None and dt > 0 and len(self.ids):
-            self.x, self.P = predict(
-                self.x, self.P, self._motion.transition(dt), self._motion.noise(dt)
-            )
+            if self._imm is not None:
+                # mixing and mode-conditioned prediction; the predicted mode
+                # probabilities c̄ stand until an update (a track without a pair keeps them)
+                self.mode_x, self.mode_P, self.mode_log_prob = imm_predict(
+                    self.mode_x, self.mode_P, self.mode_log_prob, self._imm, dt
+                )
+                self._combine(slice(None))
+            else:
+                self.x, self.P = predict(
+                    self.x, self.P, self._motion.transition(dt), self._motion.noise(dt)
+                )
         self._scan_detection(t, 0.0 if dt is None else dt)
         if c.existence and len(self.ids):
             # survival to the time this scan's evidence is about (see _scan_detection)
@@ -224,16 +252,37 @@ class JPDATracker(ScanTracker):
             local = np.full(N, -1)
             local[touched] = np.arange(len(touched))
             on = local[rows] >= 0
-            self.x[touched], self.P[touched] = pda_pairs_update(
-                self.x[touched],
-                self.P[touched],
-                z,
-                beta0[touched],
-                local[rows[on]],
-                cols[on],
-                w[on],
-                **self._measurement_model(),
-            )
+            if self._imm is not None:
+                # IMM-JPDA: each mode's PDA with its mode-conditioned β, then the
+                # mode probabilities (jointtrack.filters.imm, Blom & Bloem 2000)
+                (
+                    self.mode_x[touched],
+                    self.mode_P[touched],
+                    self.mode_log_prob[touched],
+                ) = imm_pda_pairs_update(
+                    self._imm,
+                    self.mode_x[touched],
+                    self.mode_P[touched],
+                    self.mode_log_prob[touched],
+                    z,
+                    beta0[touched],
+                    local[rows[on]],
+                    cols[on],
+                    w[on],
+                    **self._measurement_model(),
+                )
+                self._combine(touched)
+            else:
+                self.x[touched], self.P[touched] = pda_pairs_update(
+                    self.x[touched],
+                    self.P[touched],
+                    z,
+                    beta0[touched],
+                    local[rows[on]],
+                    cols[on],
+                    w[on],
+                    **self._measurement_model(),
+                )
             if len(lab_rows):
                 self._restart(
                     lab_rows[jumped], z[lab_cols[jumped]], _rows(velocities, lab_cols[jumped])
@@ -276,6 +325,12 @@ class JPDATracker(ScanTracker):
         self.time = t
         self.n_scans += 1
         keep = self.confirmed & (self.existence >= c.r_report) if c.existence else self.confirmed
+        imm = {}
+        if self._imm is not None:
+            imm = {
+                "mode_names": self._imm.names,
+                "mode_probabilities": np.exp(self.mode_log_prob[keep]),
+            }
         return ScanResult(
             time=t,
             ids=self.ids[keep].copy(),
@@ -291,6 +346,24 @@ class JPDATracker(ScanTracker):
             cluster_confirmed=kinds,
             cluster_fallbacks=fallbacks,
             n_coincident=n_coincident,
+            **imm,
+        )
+
+    def _combine(self, rows) -> None:
+        """x, P of the tracks ``rows``: the modes' combined (moment-matched) position
+        and velocity (:func:`~jointtrack.filters.imm.imm_combine`)."""
+        k = self.state_dim
+        x, P = imm_combine(self.mode_x[rows], self.mode_P[rows], self.mode_log_prob[rows])
+        self.x[rows], self.P[rows] = x[:, :k], P[:, :k, :k]
+
+    def _mode_states(self, x0, P0):
+        """Per-mode states ``(mode_x, mode_P, mode_log_prob)`` of new tracks at ``x0, P0``."""
+        c = self.config
+        if self._imm is None:
+            k = len(x0)
+            return np.zeros((k, 0, 0)), np.zeros((k, 0, 0, 0)), np.zeros((k, 0))
+        return self._imm.initial_states(
+            x0, P0, (c.max_acceleration / 2.0) ** 2, (c.max_turn_rate / 2.0) ** 2
         )
 
     # ------------------------------------------------------- reporting targets
@@ -463,6 +536,8 @@ class JPDATracker(ScanTracker):
         """
         if len(rows):
             self.x[rows], self.P[rows] = self._initial_states(z_new, velocities)
+            modes = self._mode_states(self.x[rows], self.P[rows])
+            self.mode_x[rows], self.mode_P[rows], self.mode_log_prob[rows] = modes
 
     def _exact_budget(self, loud):
         """Confirmed tracks (``loud``): ``exact_max_tracks``; tentative ones: the
@@ -512,6 +587,20 @@ class JPDATracker(ScanTracker):
         # (0.99**1e6) or an underflowing P_D,i/Δt gives exactly 0, which the pair
         # likelihoods refuse as a P_D; such a track explains nothing either way
         pd_r = np.maximum(pd_r / scale, np.finfo(float).tiny)
+        if self._imm is not None:
+            # the association weighs each pair by the modes' mixture likelihood
+            # Σ_j c̄_j g_ij (jointtrack.filters.imm); the gate is the combined estimate's
+            log_g, _ = imm_pair_log_likelihoods(
+                self._imm,
+                self.mode_x[tracks],
+                self.mode_P[tracks],
+                self.mode_log_prob[tracks],
+                z,
+                g.rows,
+                g.cols,
+                **self._measurement_model(),
+            )
+            g = dataclasses.replace(g, log_g=log_g)
         L_pairs, _ = likelihood_ratio_pairs(g, pd_r, lam / scale)
         if available is not None:  # a return taken by an earlier pass is less likely ours
             L_pairs = L_pairs * available[g.cols]
@@ -574,6 +663,9 @@ class JPDATracker(ScanTracker):
         "born",
         "report_count",
         "labels",
+        "mode_x",
+        "mode_P",
+        "mode_log_prob",
     )
 
     def _keep(self, keep):
@@ -660,7 +752,7 @@ class JPDATracker(ScanTracker):
     def _states(self, pos, cov, vel, cov_vv, cov_pv):
         """Full states and covariances from position and velocity blocks."""
         c = self.config
-        n, d, k = self._motion.state_dim, c.dim, len(pos)
+        n, d, k = self.state_dim, c.dim, len(pos)
         x0 = np.zeros((k, n))
         x0[:, :d] = pos
         x0[:, d : 2 * d] = vel
@@ -700,6 +792,10 @@ class JPDATracker(ScanTracker):
             self.label_names, self.label_ids = names, numbers[first]
         self.x = np.concatenate([self.x, x0])
         self.P = np.concatenate([self.P, P0])
+        mx, mP, ml = self._mode_states(x0, P0)
+        self.mode_x = np.concatenate([self.mode_x, mx])
+        self.mode_P = np.concatenate([self.mode_P, mP])
+        self.mode_log_prob = np.concatenate([self.mode_log_prob, ml])
         self.ids = np.concatenate([self.ids, ids])
         self.confirmed = np.concatenate([self.confirmed, np.full(k, confirmed)])
         self.hit_history = np.concatenate([self.hit_history, np.ones(k, np.int64)])
@@ -741,7 +837,7 @@ class JPDATracker(ScanTracker):
                     "at the current time or predict their states to it first"
                 )
         # Everything accepted here must survive save() and load(): the same checks.
-        n = self._motion.state_dim
+        n = self.state_dim
         x0 = np.atleast_2d(_as_real_array(x0, "x0"))
         if x0.ndim != 2 or x0.shape[1] != n:
             raise ValueError(f"x0 must have shape (K, {n}), got {x0.shape}")
@@ -788,12 +884,16 @@ class JPDATracker(ScanTracker):
         "labels",
         "label_names",
         "label_ids",
+        "mode_x",
+        "mode_P",
+        "mode_log_prob",
     )
     # state key -> attribute (``history()`` is the track-history method)
     _ATTRS = {"history": "hit_history"}
 
     def _validate_state(self, path, arrays: dict, scalars: dict) -> None:
         validate_tracker_arrays(path, arrays, scalars, self.state_dim, self.config.dim)
+        validate_mode_arrays(path, arrays, self._imm)
         if self.config.existence and (arrays["existence"] <= 0.0).any():
             # a JIPDA track of existence 0 is deleted before any state is saved
             raise StateFileError(f"{path}: field 'existence' holds a track of existence 0")

@@ -4,7 +4,7 @@ A state file is a NumPy ``.npz`` archive (a zip of ``.npy`` arrays, read with
 ``allow_pickle=False``) holding the tracker's arrays and one more array,
 ``__header__``, with a UTF-8 JSON header::
 
-    {"format": "jointtrack-tracker-state", "version": 4,
+    {"format": "jointtrack-tracker-state", "version": 5,
      "sha256": "<hex digest of the payload>", "config": {...},
      "scalars": {"time": ..., "next_id": ..., "n_scans": ...},
      "rng": {... numpy bit-generator state ...}}
@@ -40,13 +40,23 @@ __all__ = [
     "read_run",
     "read_state",
     "validate_counters",
+    "validate_mode_arrays",
     "write_state",
 ]
 
 FORMAT = "jointtrack-tracker-state"
-VERSION = 4
+VERSION = 5
 #: Older versions still read, each upgraded by :func:`_upgrade` to this one.
-_READABLE = (3, 4)
+_READABLE = (3, 4, 5)
+#: JPDA settings of the interacting multiple model (version 5), and the values an
+#: older state's run continues under (its motion is "cv" or "ca": they are unused)
+_IMM_SETTINGS = {
+    "imm_modes": ["cv", "ct"],
+    "imm_switching": 0.95,
+    "imm_initial": None,
+    "turn_rate_std": 0.02,
+    "max_turn_rate": 0.2,
+}
 _PICKLE_MAGIC = b"\x80"
 _ZIP_MAGIC = b"PK\x03\x04"
 #: Largest array member accepted (a tracker with a million tracks is ~100 MB).
@@ -206,10 +216,18 @@ def _fill_added_settings(header: dict) -> None:
     if header["scalars"].get("tracker", "jpda") != "jpda":
         return
     header["config"].setdefault("exact_max_bits_tentative", None)
+    if header["version"] < 5:  # the IMM settings (issue 32) did not exist
+        for key, value in _IMM_SETTINGS.items():
+            header["config"].setdefault(key, value)
 
 
 def _upgrade(header: dict, arrays: dict) -> None:
-    """Bring an intact version-3 JPDA state to version 4, in place.
+    """Bring an intact version-3 or 4 JPDA state to version 5, in place.
+
+    Version 5 added the per-track modes of ``motion = "imm"`` (``mode_x``,
+    ``mode_P``, ``mode_log_prob``; zero modes for the CV/CA trackers every
+    earlier state holds) and the IMM settings (:data:`_IMM_SETTINGS`, unused by
+    those trackers).
 
     Version 4 added the settings and track arrays of reporting targets
     (``reporting``, ``report_interval``, ``p_survive_per``, ``max_coast``,
@@ -241,6 +259,9 @@ def _upgrade(header: dict, arrays: dict) -> None:
     arrays.setdefault("labels", np.full(n, "", dtype="U1"))
     arrays.setdefault("label_names", np.zeros(0, dtype="U1"))
     arrays.setdefault("label_ids", np.zeros(0, np.int64))
+    arrays.setdefault("mode_x", np.zeros((n, 0, 0)))
+    arrays.setdefault("mode_P", np.zeros((n, 0, 0, 0)))
+    arrays.setdefault("mode_log_prob", np.zeros((n, 0)))
 
 
 def read_run(path):
@@ -320,6 +341,54 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
         raise bad("fields 'label_names'/'label_ids' are not one sorted list of distinct labels")
     if len(numbers) and ((numbers < 1) | (numbers >= scalars["next_id"])).any():
         raise bad("field 'label_ids' holds ids the tracker never issued")
+
+
+def validate_mode_arrays(path, arrays: dict, modes) -> None:
+    """Check the IMM fields ``mode_x``, ``mode_P``, ``mode_log_prob`` of a JPDA state.
+
+    ``modes``: the tracker's :class:`~jointtrack.filters.imm.IMMModes`, or None
+    (then every track has zero modes). Each mode's state must be finite and zero
+    outside the mode's own components, its covariance there symmetric positive
+    definite and zero elsewhere, and each track's log mode probabilities finite
+    and normalised (to 1e-9). Raises :class:`StateFileError` naming the field.
+    """
+
+    def bad(what: str) -> StateFileError:
+        return StateFileError(f"{path}: {what}")
+
+    N = len(arrays["ids"])
+    r, n = (modes.n_modes, modes.state_dim) if modes is not None else (0, 0)
+    for name, shape in (
+        ("mode_x", (N, r, n)),
+        ("mode_P", (N, r, n, n)),
+        ("mode_log_prob", (N, r)),
+    ):
+        if name not in arrays:
+            raise bad(f"missing field {name!r}")
+        a = arrays[name]
+        if a.dtype.kind != "f" or a.shape != shape:
+            raise bad(
+                f"field {name!r} has dtype {a.dtype} and shape {a.shape}, expected float "
+                f"{shape} ({r} modes of the configuration's motion)"
+            )
+        if not np.isfinite(a).all():
+            raise bad(f"field {name!r} has non-finite values")
+    if modes is None or N == 0:
+        return
+    mx, mP, lp = arrays["mode_x"], arrays["mode_P"], arrays["mode_log_prob"]
+    for j, idx in enumerate(modes.mode_indices):
+        other = np.setdiff1d(np.arange(n), idx)
+        outside = mP[:, j][:, other].any() or mP[:, j][:, :, other].any()
+        if outside or mx[:, j, other].any():
+            raise bad(f"field 'mode_x'/'mode_P': mode {j} has components outside its model")
+        problem = covariance_problem(mP[:, j][:, idx[:, None], idx[None, :]])
+        if problem:
+            raise bad(f"field 'mode_P' holds a covariance of mode {j} that {problem}")
+    top = lp.max(axis=1, keepdims=True)
+    tot = np.log(np.exp(lp - top).sum(axis=1)) + top[:, 0]
+    if (np.abs(tot) > 1e-9).any():
+        i = int(np.argmax(np.abs(tot) > 1e-9))
+        raise bad(f"field 'mode_log_prob': the mode probabilities of track {i} do not sum to 1")
 
 
 def validate_counters(path, ids: np.ndarray, scalars: dict, field: str = "ids") -> None:
