@@ -769,6 +769,18 @@ def _run(
     # resume that only finishes reports the count of the process that tracked
     tracked_before = 0
     writer = None
+
+    def new_writer(directory, config):
+        """The tracks writer of this run into ``directory`` (IMM mode columns of ``config``)."""
+        return _TrackWriter(
+            directory,
+            src.dim,
+            fmt,
+            scan_times=src.times,
+            frame=extra.frame,
+            mode_names=mode_names_of(config),
+        )
+
     # whether a checkpoint file refers to the parts (a resumed run's, or one saved below):
     # a failed run removes them otherwise, as they cannot be needed
     checkpointed = [resume is not None]
@@ -795,14 +807,7 @@ def _run(
                 # the directory as the run was first given it (--resume passes the
                 # checkpoint's absolute one): metrics.json names the files as before
                 out_dir = Path(given)
-            writer = _TrackWriter(
-                out_dir,
-                src.dim,
-                fmt,
-                scan_times=src.times,
-                frame=extra.frame,
-                mode_names=mode_names_of(trk.config),
-            )
+            writer = new_writer(out_dir, trk.config)
             clusters = list(info.get("clusters", []))
             fallbacks.update(info.get("fallbacks", {}))
             tiers.update(info.get("fallback_tiers", {}))
@@ -835,14 +840,7 @@ def _run(
             if checkpoint is None:
                 checkpoint = resume  # keep checkpointing where the run was checkpointed
         else:
-            writer = _TrackWriter(
-                out_dir,
-                src.dim,
-                fmt,
-                scan_times=src.times,
-                frame=extra.frame,
-                mode_names=mode_names_of(cfg),
-            )
+            writer = new_writer(out_dir, cfg)
             writer.start_fresh()
             dt = float(np.median(np.diff(src.times))) if len(src.times) > 1 else 1.0
             if particle is not None:

@@ -235,12 +235,7 @@ class LocalFrame:
         antimeridian (179.9°, -179.9°) is centred on 180°, not on 0°. The
         centre's longitude is given in [-180, 180).
         """
-        la = _latitudes(lat).reshape(-1)
-        lo = _longitudes(lon).reshape(-1)
-        if la.shape != lo.shape:
-            raise ValueError(f"lat and lon must have one shape, got {la.shape} and {lo.shape}")
-        if not la.size:
-            raise ValueError("lat and lon are empty: no data to centre a frame on")
+        la, lo = _lat_lon_to_centre(lat, lon)
         west = np.mod(lo + 180.0, 360.0) - 180.0  # [-180, 180)
         east = np.mod(lo, 360.0)  # [0, 360)
         mids = []
@@ -406,6 +401,17 @@ class DataCentre:
         return int(np.count_nonzero(self.outliers))
 
 
+def _lat_lon_to_centre(lat, lon) -> tuple[np.ndarray, np.ndarray]:
+    """``lat, lon`` as validated flat arrays of one shape, not empty (a frame's centre)."""
+    la = _latitudes(lat).reshape(-1)
+    lo = _longitudes(lon).reshape(-1)
+    if la.shape != lo.shape:
+        raise ValueError(f"lat and lon must have one shape, got {la.shape} and {lo.shape}")
+    if not la.size:
+        raise ValueError("lat and lon are empty: no data to centre a frame on")
+    return la, lo
+
+
 def data_centre(lat, lon, alt0=0.0) -> DataCentre:
     """The local frame for geodetic data without a given reference, robust to corrupt reports.
 
@@ -432,12 +438,7 @@ def data_centre(lat, lon, alt0=0.0) -> DataCentre:
     >>> c.outliers.tolist(), [round(v, 2) for v in c.frame.reference[:2]]
     ([False, False, False, True], [50.8, -1.1])
     """
-    la = _latitudes(lat).reshape(-1)
-    lo = _longitudes(lon).reshape(-1)
-    if la.shape != lo.shape:
-        raise ValueError(f"lat and lon must have one shape, got {la.shape} and {lo.shape}")
-    if not la.size:
-        raise ValueError("lat and lon are empty: no data to centre a frame on")
+    la, lo = _lat_lon_to_centre(lat, lon)
     phi, lam = np.deg2rad(la), np.deg2rad(lo)
     normal = np.median(
         np.column_stack([np.cos(phi) * np.cos(lam), np.cos(phi) * np.sin(lam), np.sin(phi)]),
