@@ -200,20 +200,19 @@ def test_cached_frontier_kernels_survive_reload(tmp_path):
     first = _run(tmp_path, W, [dp, glynn])
     # 2. like the saddle example: frontier_value compiled on top of that cache
     second = _run(tmp_path, W, [value, ryser, "frontier_value:1"])
-    # 3. and 4. everything loaded from the cache: this run segfaulted
+    # 3. everything loaded from the cache: this run segfaulted
     third = _run(tmp_path, W, [value, dp, glynn, ryser, "frontier_value:1", "frontier_dp:1"])
-    fourth = _run(tmp_path, W, [value, dp])
     # the runs above did go through the on-disk cache
     assert list(tmp_path.glob("**/_frontier.frontier_value-*.nbi"))
     assert list(tmp_path.glob("**/_frontier.frontier_dp-*.nbi"))
 
     log_z = math.log(_matching_sum(W))
     log_per = math.log(_permanent(W))
-    for run in (first, second, third, fourth):
+    for run in (first, second, third):
         for entry, out in run.items():
             want = log_per if entry.startswith(("glynn", "ryser")) else log_z
             assert float.fromhex(out) == pytest.approx(want, rel=1e-13, abs=1e-13), entry
     # the same bits whichever process compiled it and whatever the chunking
     for entry in (value, dp):
-        assert third[entry] == fourth[entry] == (first | second)[entry]
+        assert third[entry] == (first | second)[entry]
     assert third["frontier_value:1"] == third[value] == third[dp] == third["frontier_dp:1"]

@@ -113,6 +113,16 @@ def test_resume_alone_extends_a_shortened_run(tmp_path, reference):
     assert _rows(tmp_path / "part", "csv") == reference["csv"][0]
 
 
+@pytest.fixture(scope="module")
+def shortened(tmp_path_factory):
+    """A run stopped after 6 scans with its checkpoint: the refusals below leave it as it is."""
+    base = tmp_path_factory.mktemp("short")
+    (base / "run.toml").write_text(CONFIG)
+    args = ["run", "--config", "run.toml", "--out", "part", "--checkpoint", "ck.npz"]
+    assert _cli([*args, "--max-scans", "6"], base).returncode == 0
+    return base
+
+
 @pytest.mark.parametrize(
     "extra, flag",
     [
@@ -122,13 +132,13 @@ def test_resume_alone_extends_a_shortened_run(tmp_path, reference):
         (["--scenario", "bojilov"], "--scenario"),
     ],
 )
-def test_conflicting_flag_on_resume_is_named(tmp_path, extra, flag):
-    (tmp_path / "run.toml").write_text(CONFIG)
-    args = ["run", "--config", "run.toml", "--out", "part", "--checkpoint", "ck.npz"]
-    assert _cli([*args, "--max-scans", "6"], tmp_path).returncode == 0
-    r = _cli(["run", "--resume", "ck.npz", *extra], tmp_path)
+def test_conflicting_flag_on_resume_is_named(shortened, extra, flag):
+    before = {p: p.stat().st_mtime_ns for p in shortened.rglob("*")}
+    r = _cli(["run", "--resume", "ck.npz", *extra], shortened)
     assert r.returncode != 0
     assert flag in r.stderr + r.stdout and "Traceback" not in r.stderr
+    # refused before anything was written: the next case finds the same run
+    assert {p: p.stat().st_mtime_ns for p in shortened.rglob("*")} == before
 
 
 def test_bad_output_paths_fail_before_the_first_scan(tmp_path):
