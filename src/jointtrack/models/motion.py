@@ -548,13 +548,18 @@ class CoordinatedTurn:
             raise ValueError(f"dt has {len(dt)} steps for {n} states; give one per state")
         return dt
 
-    def propagate(self, x, dt) -> np.ndarray:
-        """``f(x, Δt)``: the states ``x`` (5,) or (N, 5) after a turn of Δt seconds."""
+    def _turn(self, x, dt):
+        """``(single, X (N, 5), Δt, turn coefficients)`` of validated states ``x`` and
+        step ``dt``: what :meth:`propagate` and :meth:`jacobian` both start from."""
         x = _check_turn_states(x)
         single = x.ndim == 1
         X = x[None] if single else x
         dt = self._dt(dt, None if single else len(X))
-        a, b, c, s, _, _ = _turn_coefficients(X[:, 4], dt)
+        return single, X, dt, _turn_coefficients(X[:, 4], dt)
+
+    def propagate(self, x, dt) -> np.ndarray:
+        """``f(x, Δt)``: the states ``x`` (5,) or (N, 5) after a turn of Δt seconds."""
+        single, X, dt, (a, b, c, s, _, _) = self._turn(x, dt)
         vx, vy = X[:, 2], X[:, 3]
         out = np.stack(
             [X[:, 0] + a * vx - b * vy, X[:, 1] + b * vx + a * vy]
@@ -569,11 +574,7 @@ class CoordinatedTurn:
         The ω column is ``[a' vx − b' vy, b' vx + a' vy, −Δt (s vx + c vy),
         Δt (c vx − s vy), 1]`` with ``a' = ∂a/∂ω``, ``b' = ∂b/∂ω`` (series near ω = 0).
         """
-        x = _check_turn_states(x)
-        single = x.ndim == 1
-        X = x[None] if single else x
-        dt = self._dt(dt, None if single else len(X))
-        a, b, c, s, da, db = _turn_coefficients(X[:, 4], dt)
+        single, X, dt, (a, b, c, s, da, db) = self._turn(x, dt)
         vx, vy = X[:, 2], X[:, 3]
         N = len(X)
         J = np.zeros((N, 5, 5))
