@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 
 import numpy as np
 
@@ -38,9 +37,17 @@ from jointtrack.filters import (
 from jointtrack.filters.imm import IMMModes
 from jointtrack.trackers.base import ClusterRecord, ScanResult, ScanTracker
 from jointtrack.trackers.config import TrackerConfig
-from jointtrack.trackers.existence import existence_update, merge_duplicates, silence_outcomes
+from jointtrack.trackers.existence import existence_update, merge_duplicates
 from jointtrack.trackers.history import TrackHistory, is_datetime
 from jointtrack.trackers.initiation import pair_returns
+from jointtrack.trackers.reporting import (
+    check_report_fields,
+    label_identities,
+    match_labels,
+    scaled_pair_factor,
+    scan_detection,
+    seed_velocities,
+)
 from jointtrack.trackers.state_io import (
     StateFileError,
     covariance_problem,
@@ -368,148 +375,40 @@ class JPDATracker(ScanTracker):
 
     # ------------------------------------------------------- reporting targets
     def _check_report_fields(self, t, z, labels, velocities, n_coincident):
-        """Validated ``labels`` (M,) str and ``velocities`` (M, dim) of a scan's reports.
-
-        Given for the scan's rows as passed to ``step``; the rows of exactly
-        repeated returns that :meth:`_check_scan` merged are dropped with them.
-        Two reports naming one target in one scan keep the first (counted in
-        ``n_coincident``, like a repeated return).
-        """
-        c = self.config
-        kept = self._kept_rows
-        M = len(z) + (n_coincident if kept is not None else 0)
-        if labels is not None:
-            if isinstance(labels, str | bytes):
-                raise TypeError("labels must be a sequence of strings, one per report")
-            try:
-                arr = np.asarray(labels, dtype=object)
-            except (TypeError, ValueError) as exc:  # ragged nesting
-                raise TypeError(f"labels must be a sequence of strings: {exc}") from None
-            if arr.ndim != 1 or len(arr) != M:
-                # (M, 1) nesting was flattened silently before: one string per report
-                raise ValueError(
-                    f"labels must have one entry per report ({M},), got shape {arr.shape}"
-                )
-            if not all(isinstance(v, str) for v in arr):
-                bad = next(v for v in arr if not isinstance(v, str))
-                raise TypeError(f"labels must be strings ('' for none), got {bad!r}")
-            from jointtrack.io._files import NUL_REASON, nul_index
-
-            if (i := nul_index(arr.tolist())) is not None:  # numpy would merge "A", "A\0"
-                raise ValueError(f"labels[{i}] = {arr[i]!r} {NUL_REASON}")
-            labels = np.asarray(arr.tolist() if M else [], dtype=str).reshape(M)
-            if kept is not None:
-                labels = labels[kept]
-            repeated = np.zeros(len(z), bool)
-            named = np.flatnonzero(labels != "")
-            _, first = np.unique(labels[named], return_index=True)
-            if len(first) < len(named):
-                repeat = np.ones(len(z), bool)
-                repeat[named[first]] = False
-                repeat[labels == ""] = False
-                n_coincident += int(repeat.sum())
-                labels = labels.copy()
-                labels[repeat] = ""
-                repeated = repeat
-        if velocities is not None:
-            v = _as_real_array(velocities, "velocities")
-            if v.shape != (M, c.dim):
-                raise ValueError(f"velocities must have shape ({M}, {c.dim}), got {v.shape}")
-            if np.isinf(v).any():
-                raise ValueError("velocities must be finite (NaN where unknown)")
-            velocities = v if kept is None else v[kept]
-        return labels, (repeated if labels is not None else None), velocities, n_coincident
+        """Validated ``labels`` and ``velocities`` of a scan's reports
+        (:func:`~jointtrack.trackers.reporting.check_report_fields`)."""
+        return check_report_fields(
+            self.config.dim, z, labels, velocities, self._kept_rows, n_coincident
+        )
 
     def _scan_detection(self, t, dt):
-        """Per-track detection and survival of this scan.
+        """Per-track detection and survival of this scan
+        (:func:`~jointtrack.trackers.reporting.scan_detection`).
 
         Sets ``_scan_pd`` (P_D,i), ``_scan_pdg`` (the P_D·P_G of the miss weight;
-        P_D,i for a labelled track, which has no gate) and ``_scan_missed`` = 1 −
-        ``_scan_pdg`` (formed without that subtraction, which keeps only the first
-        digits of a miss probability of 1e-10 after a long silence), the pair factor
-        ``_scan_pd_ratio`` and ``_scan_survival``, the factor that takes each
-        existence from the previous scan to this one.
-
-        Scanning sensor: P_D = p_d for every track, survival p_survive per scan or
-        p_survive^Δt per second. Reporting targets (``reporting = "async"``): the
-        track's rate estimate at time s is λ_i(s) = (1 + reports) /
-        (report_interval + (s − born)); its reports are received with probability
-        p_d (and fall in the gate with P_G, for ``miss_model = "1-pd*pg"``), so
-        nothing is received in (t − Δt, t] with probability exp(−p_d ∫λ_i) =
-        (β₀/β₁)^(p_d(1 + reports)), β₀, β₁ = report_interval + seconds tracked at
-        the interval's ends, and P_D,i = 1 − (β₀/β₁)^(p_d(1 + reports)). For p_d = 1
-        it is the Gamma–Poisson predictive (negative binomial) of the track's own
-        rate. The pairs' likelihood ratios use P_D,i/Δt (→ p_d·λ_i as Δt → 0)
-        against a clutter density per second.
-
-        The target also dies at the rate μ = −log p_survive per second, at any
-        moment of the interval, so the interval ends in one of three ways
-        (:func:`~jointtrack.trackers.existence.silence_outcomes`): the target is
-        alive and unheard (probability a), was heard before dying (e), or died
-        unheard (d = 1 − a − e). The existence is predicted to r(1 − d) (alive
-        when it is heard, or at t) and the miss weight's P_D·P_G is e/(a + e): a
-        missed scan then leaves exactly the continuous-time posterior ra / (1 − re)
-        — which composes, scan after scan, into the posterior of the whole
-        silence, so a silence costs the same existence however many other
-        targets' reports cut it into scans (applying p_survive^Δt before a miss
-        at each scan, as before, did not: 300 s of silence at p_survive = 0.9999
-        per second left 10–14 times the existence when cut into 500 scans as in
-        one). Without deaths (p_survive = 1) d = 0 and the miss probabilities
-        themselves telescope.
+        P_D,i for a labelled track, which has no gate), ``_scan_missed`` = 1 −
+        ``_scan_pdg``, the pair factor ``_scan_pd_ratio`` and ``_scan_survival``,
+        the factor that takes each existence from the previous scan to this one.
         """
         c = self.config
-        labelled = self.labels != ""
-        if c.reporting == "scan":
-            self._scan_pd = np.full(len(self.ids), self._p_d)
-            self._scan_pdg = np.where(labelled, self._scan_pd, c.detection_in_gate(self._p_d))
-            self._scan_missed = 1.0 - self._scan_pdg
-            self._scan_pd_ratio = self._scan_pd
-            survive = c.p_survive ** (dt if c.p_survive_per == "second" else 1.0)
-            self._scan_survival = np.full(len(self.ids), survive if dt > 0 else 1.0)
-            return
-        alpha = 1.0 + self.report_count
-        t_prev = t - dt if self.time is None else self.time
-        beta0 = c.report_interval + np.maximum(t_prev - self.born, 0.0)
-        # seconds tracked within the interval: Δt itself (no cancellation for tiny Δt)
-        # unless the track was born inside it
-        elapsed = np.minimum(dt, np.maximum(t - self.born, 0.0))
-        hazard = alpha * np.log1p(elapsed / beta0)  # ∫ λ_i(s) ds over the interval
-        self._scan_pd = -np.expm1(-self._p_d * hazard)
-        gate = np.where(labelled, 1.0, c.p_g if c.miss_model == "1-pd*pg" else 1.0)
-        death_rate = -math.log(c.p_survive)
-        if death_rate > 0.0 and dt > 0:
-            silent, heard, _ = silence_outcomes(
-                self._p_d * gate * alpha, beta0, elapsed, death_rate
-            )
-            self._scan_survival = alive = silent + heard  # = 1 − died, without cancellation
-            # a track whose survival underflowed to 0 is dropped before it is used
-            self._scan_pdg = np.divide(heard, alive, out=np.zeros_like(heard), where=alive > 0)
-            self._scan_missed = np.divide(silent, alive, out=np.ones_like(heard), where=alive > 0)
-        else:
-            self._scan_survival = np.ones(len(self.ids))
-            self._scan_pdg = -np.expm1(-self._p_d * gate * hazard)
-            self._scan_missed = np.exp(-self._p_d * gate * hazard)
-        self._scan_pd_ratio = self._p_d * alpha / beta0 if dt == 0 else self._scan_pd / dt
+        det = scan_detection(
+            c,
+            self._p_d,
+            t,
+            dt,
+            t - dt if self.time is None else self.time,
+            self.born,
+            self.report_count,
+            self.labels != "",
+            in_gate=c.p_g if c.miss_model == "1-pd*pg" else 1.0,
+        )
+        self._scan_pd, self._scan_pdg, self._scan_missed = det.pd, det.pdg, det.missed
+        self._scan_pd_ratio, self._scan_survival = det.pd_ratio, det.survival
 
     def _match_labels(self, labels, repeated):
-        """``(track rows, report columns)`` of the labelled reports whose target has a
-        track, and the columns of labelled reports that start one."""
-        track_of = {lab: i for i, lab in enumerate(self.labels.tolist()) if lab}
-        rows, cols, open_cols = [], [], []
-        for j, lab in enumerate(labels.tolist()):
-            if lab == "" or repeated[j]:
-                continue
-            i = track_of.get(lab)
-            if i is None:
-                open_cols.append(j)
-            else:
-                rows.append(i)
-                cols.append(j)
-        return (
-            np.asarray(rows, np.int64),
-            np.asarray(cols, np.int64),
-            np.asarray(open_cols, np.int64),
-        )
+        """``(track rows, report columns, open columns)`` of the labelled reports
+        (:func:`~jointtrack.trackers.reporting.match_labels`)."""
+        return match_labels(self.labels, labels, repeated)
 
     def _pairs_gated(self, rows, z_pairs, chunk=256):
         """Whether each report ``z_pairs[k]`` is in the gate of track ``rows[k]``.
@@ -579,14 +478,8 @@ class JPDATracker(ScanTracker):
             gated = groups.measurement_cluster >= 0
             lam[gated] = dens[groups.measurement_cluster[gated]]
         r = self.existence[tracks] if c.existence else np.ones(n)
-        # P_D,i·r_i / λ; with reporting targets P_D,i is a rate (per second) that
-        # may exceed 1, so numerator and λ are divided by a common scale
-        pd_r = self._scan_pd_ratio[tracks] * r
-        scale = max(1.0, float(pd_r.max())) if len(pd_r) else 1.0
-        # floored at the smallest normal float: survival per second over a long gap
-        # (0.99**1e6) or an underflowing P_D,i/Δt gives exactly 0, which the pair
-        # likelihoods refuse as a P_D; such a track explains nothing either way
-        pd_r = np.maximum(pd_r / scale, np.finfo(float).tiny)
+        # P_D,i·r_i / λ, both divided by a common scale (a rate may exceed 1)
+        pd_r, scale = scaled_pair_factor(self._scan_pd_ratio[tracks], r)
         if self._imm is not None:
             # the association weighs each pair by the modes' mixture likelihood
             # Σ_j c̄_j g_ij (jointtrack.filters.imm); the gate is the combined estimate's
@@ -743,11 +636,8 @@ class JPDATracker(ScanTracker):
         pos, cov = self._sensor.position_and_covariance(z_new)
         vel = np.zeros_like(pos)
         cov_vv = np.broadcast_to(np.eye(d) * (c.max_speed / 2.0) ** 2, cov.shape).copy()
-        if velocities is not None and len(pos):
-            known = np.isfinite(velocities).all(axis=1)
-            vel[known] = velocities[known]
-            cov_vv[known] = np.eye(d) * c.velocity_std**2
-        return self._states(pos, cov, vel, cov_vv, np.zeros_like(cov))
+        x0, P0 = self._states(pos, cov, vel, cov_vv, np.zeros_like(cov))
+        return seed_velocities(x0, P0, velocities, d, c.velocity_std)
 
     def _states(self, pos, cov, vel, cov_vv, cov_pv):
         """Full states and covariances from position and velocity blocks."""
@@ -778,18 +668,10 @@ class JPDATracker(ScanTracker):
         self.labels = np.concatenate([self.labels, new_labels])
         ids = np.arange(self.next_id, self.next_id + k)
         self.next_id += k
-        if labels is not None and len(self.label_names):
-            # a target that reports under a label again takes back its old id: the
-            # label is its identity, whatever happened to its track in between
-            pos = np.searchsorted(self.label_names, new_labels)
-            pos = np.minimum(pos, len(self.label_names) - 1)
-            known = self.label_names[pos] == new_labels
-            ids[known] = self.label_ids[pos[known]]
-        if labels is not None and k:
-            names = np.concatenate([self.label_names, new_labels])
-            numbers = np.concatenate([self.label_ids, ids])
-            names, first = np.unique(names, return_index=True)
-            self.label_names, self.label_ids = names, numbers[first]
+        if labels is not None:
+            ids, self.label_names, self.label_ids = label_identities(
+                self.label_names, self.label_ids, new_labels, ids
+            )
         self.x = np.concatenate([self.x, x0])
         self.P = np.concatenate([self.P, P0])
         mx, mP, ml = self._mode_states(x0, P0)
