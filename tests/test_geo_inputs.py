@@ -269,8 +269,10 @@ def test_report_like_detections_get_the_async_model_and_say_why():
         {"reporting": "scan"},
         None,
     )
-    for kind in ("jpda", "pmb", "pmbm"):
-        assert reporting_from_data(_dets(irregular, 1), {}, kind) == ({}, None)
+    # M-of-N JPDA has no existence to decay; PMB and PMBM take it as JIPDA does (issue 32)
+    assert reporting_from_data(_dets(irregular, 1), {}, "jpda") == ({}, None)
+    for kind in ("pmb", "pmbm"):
+        assert reporting_from_data(_dets(irregular, 1), {}, kind)[0]["reporting"] == "async"
     # a scanning sensor: a fixed period, or several returns per time
     assert reporting_from_data(_dets(np.arange(200.0), 1), {}) == ({}, None)
     assert reporting_from_data(_dets(irregular, 3), {}) == ({}, None)

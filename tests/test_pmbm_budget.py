@@ -188,6 +188,7 @@ def test_past_the_budget_the_tiers_are_exact(sc, K, extra):
         pmb.x = np.array([m for *_, m, _ in prior])
         pmb.P = np.array([c for *_, c in prior])
         pmb.reported = np.zeros(len(prior), bool)
+        pmb.born, pmb.report_count = np.zeros(len(prior)), np.zeros(len(prior))
         pmb.next_id = sc["T"] + 1
         pmb.step(0.0, sc["z"])
         s = trk.hyp[0][trk.hyp[0] >= 0]

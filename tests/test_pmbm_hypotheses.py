@@ -154,6 +154,7 @@ def _tracker(sc, **kw):
     trk.sth_r = np.array(sc["r"], float)
     trk.sth_x, trk.sth_P = sc["x"].copy(), sc["P"].copy()
     trk.sth_track = sc["sth_track"].copy()
+    trk.sth_born, trk.sth_reports = np.zeros(len(sc["r"])), np.zeros(len(sc["r"]))
     trk.track_ids = np.arange(1, sc["T"] + 1, dtype=np.int64)
     trk.track_reported = np.zeros(sc["T"], bool)
     trk.next_id = sc["T"] + 1

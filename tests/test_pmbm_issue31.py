@@ -82,6 +82,7 @@ def _equal_state(T, H, **config):
     trk.sth_x = np.array([[100.0 * i + 5.0 * b, 0.0, 1.0, 0.0] for i in range(T) for b in (0, 1)])
     trk.sth_P = np.tile(np.diag([4.0, 4.0, 1.0, 1.0]), (2 * T, 1, 1))
     trk.sth_track = np.repeat(np.arange(T), 2)
+    trk.sth_born, trk.sth_reports = np.zeros(2 * T), np.zeros(2 * T)
     trk.track_ids = np.arange(1, T + 1)
     trk.track_reported = np.zeros(T, bool)
     trk.next_id = T + 1
@@ -146,10 +147,12 @@ def test_existence_that_underflows_in_the_prediction_is_dropped(kind):
     if kind is PMBTracker:
         trk.x, trk.P, trk.existence = x, P, r
         trk.ids, trk.reported, trk.next_id = np.array([1, 2]), np.zeros(2, bool), 3
+        trk.born, trk.report_count = np.zeros(2), np.zeros(2)
     else:
         trk.sth_r, trk.sth_x, trk.sth_P = r, x, P
         trk.sth_track, trk.track_ids = np.array([0, 1]), np.array([1, 2])
         trk.track_reported, trk.next_id = np.zeros(2, bool), 3
+        trk.sth_born, trk.sth_reports = np.zeros(2), np.zeros(2)
         trk.hyp, trk.hyp_logw = np.array([[0, 1]]), np.zeros(1)
     trk.time = 0.0
     res = trk.step(1.0, np.array([[0.5, 0.0], [500.0, 0.5]]))
@@ -218,7 +221,7 @@ def _strip_track(arrays, track):
     """Remove every STH of ``track`` (consistently renumbered): a track with none."""
     keep = arrays["sth_track"] != track
     renumber = np.cumsum(keep) - 1
-    for name in ("sth_r", "sth_x", "sth_P", "sth_track"):
+    for name in ("sth_r", "sth_x", "sth_P", "sth_track", "sth_born", "sth_reports"):
         arrays[name] = arrays[name][keep]
     hyp = arrays["hyp"]
     hyp[:, track] = -1
@@ -232,7 +235,7 @@ def test_a_track_without_single_target_hypotheses_is_refused(tmp_path):
         PMBMTracker.load(bad)
 
     def nothing_left(a, s):  # tracks, and not one STH (it was: IndexError)
-        for name in ("sth_r", "sth_x", "sth_P", "sth_track"):
+        for name in ("sth_r", "sth_x", "sth_P", "sth_track", "sth_born", "sth_reports"):
             a[name] = a[name][:0]
         a["hyp"] = np.full_like(a["hyp"], -1)
 

@@ -165,6 +165,7 @@ def _tracker(sc, **kw):
     trk.ids = np.arange(1, n + 1, dtype=np.int64)
     trk.existence = np.array(sc["r"], float)
     trk.reported = np.zeros(n, bool)
+    trk.born, trk.report_count = np.zeros(n), np.zeros(n)
     trk.next_id = n + 1
     return trk
 

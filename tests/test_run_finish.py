@@ -12,7 +12,8 @@ ends with every output of the uninterrupted run: the tracks file (CSV or Parquet
 the PNGs byte for byte, metrics.json equal but for its wall-clock fields
 (:data:`WALL_CLOCK`) and, when a kill fell in the tracking phase, ``n_scans_this_run``.
 Cases: a built-in scenario (JIPDA, CSV), a detections file (PMBM, Parquet) and a
-synthetic AIS report file (CSV). ``benchmarks/kill_campaign.py`` kills many more runs.
+synthetic AIS report file (CSV; JIPDA, and PMBM killed at a random instant).
+``benchmarks/kill_campaign.py`` kills many more runs.
 """
 
 from __future__ import annotations
@@ -47,6 +48,8 @@ OUTPUTS = {
     "scenario": ["tracks.csv", "scene.png", "gospa.png", "metrics.json"],
     "detections": ["tracks.parquet", "scene.png", "metrics.json"],
     "ais": ["tracks.csv", "scene.png", "map.png", "metrics.json"],
+    # the AIS file with the PMBM tracker (asynchronous reporting model and labels)
+    "ais-pmbm": ["tracks.csv", "scene.png", "map.png", "metrics.json"],
     # a plain lat/lon detection file: the same geodetic outputs as a report file
     "geo": ["tracks.csv", "scene.png", "map.png", "metrics.json"],
 }
@@ -64,6 +67,7 @@ def _case_args(base, case):
             "parquet",
         ],
         "ais": ["--detections", base / "ais.csv"],
+        "ais-pmbm": ["--detections", base / "ais.csv", "--tracker", "pmbm"],
         "geo": ["--detections", base / "geo.csv"],
     }[case]
 
@@ -156,7 +160,7 @@ def _assert_outputs_so_far_are_final(out, want: dict) -> None:
 
 
 #: scans between checkpoints (the AIS file has a scan per report time: hundreds)
-EVERY = {"scenario": 4, "detections": 4, "ais": 50, "geo": 4}
+EVERY = {"scenario": 4, "detections": 4, "ais": 50, "ais-pmbm": 50, "geo": 4}
 
 
 def _first(base, case):
@@ -278,7 +282,8 @@ def _resume_or_restart(base, case, tmp_path, monkeypatch) -> bool:
     return tracking
 
 
-@pytest.mark.parametrize("case", [c for c in OUTPUTS if c != "geo"])  # "ais" writes the same
+# "ais" writes what "geo" and "ais-pmbm" write
+@pytest.mark.parametrize("case", [c for c in OUTPUTS if c not in ("geo", "ais-pmbm")])
 def test_killed_as_soon_as_the_tracks_file_exists(runs, case, tmp_path, monkeypatch):
     # the issue's reproduction: SIGKILL once OUT/tracks.* exists, then --resume alone
     base, ref = runs
@@ -291,7 +296,7 @@ def test_killed_as_soon_as_the_tracks_file_exists(runs, case, tmp_path, monkeypa
 # seeded instants across each run, from its first write (the seconds before, loading
 # modules and kernels and reading the inputs, write nothing) to past its end: a fraction
 # of the uninterrupted run's time from its first write to its end
-RANDOM_KILLS = [("scenario", 0), ("detections", 1), ("ais", 2)]
+RANDOM_KILLS = [("scenario", 0), ("detections", 1), ("ais", 2), ("ais-pmbm", 3)]
 
 
 @pytest.mark.parametrize("case, seed", RANDOM_KILLS)

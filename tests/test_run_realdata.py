@@ -417,7 +417,7 @@ def test_adsb_files_give_one_track_per_aircraft(data, name, movers, shift):
         (["--reference", "95,0"], ["--reference", "95"]),
         (["--reference", "50,nan"], ["--reference", "nan"]),
         (["--reference", "50,-1,0,7"], ["--reference"]),
-        (["--tracker", "pmbm"], ["--tracker pmbm", "report"]),
+        (["--tracker", "jpda"], ["--tracker jpda", "report", "M-of-N"]),
         (["--truth", "ais.csv"], ["--truth"]),
     ],
 )

@@ -640,12 +640,16 @@ def test_new_config_fields_are_checked(kwargs, name):
 
 @pytest.mark.parametrize("cls", [PMBMTracker, PMBTracker])
 @pytest.mark.parametrize("field", ["labels", "velocities"])
-def test_poisson_trackers_refuse_report_fields(cls, field):
+def test_poisson_trackers_check_report_fields(cls, field):
+    """The PMB/PMBM trackers take labels and velocities (issue 32;
+    tests/test_pmbm_reporting.py) and check them as JPDA does: one per report."""
     trk = cls(PMBMConfig())
-    value = ["A"] if field == "labels" else np.zeros((1, 2))
+    value = ["A", "B"] if field == "labels" else np.zeros((2, 2))
     with pytest.raises(ValueError, match=field):
         trk.step(0.0, np.zeros((1, 2)), **{field: value})
     assert trk.time is None and trk.n_scans == 0
+    trk.step(0.0, np.zeros((1, 2)), **{field: value[:1]})
+    assert trk.n_scans == 1
 
 
 # ---------------------------------------------------------------------- 5. state

@@ -519,8 +519,9 @@ def run_command(
                 )
             if rfmt is not None:
                 metrics = _run_report_file(
-                    detections, rfmt, kind, jpda_table, resume, window, reference, labels, common
-                )
+                    detections, rfmt, kind, jpda_table, resume, window, reference, labels, common,
+                    pmbm=cfg.pmbm,
+                )  # fmt: skip
                 runmod.print_summary(metrics, console)
                 console.print(f"outputs in {out}/", markup=False, highlight=False)
                 return
@@ -554,7 +555,8 @@ def run_command(
                 )
             if kind in runmod.POISSON_KINDS:
                 # the [tracker] keys as the user set them (p_g: see make_pmbm_config)
-                tracker_cfg = saved_cfg if saved_cfg is not None else dict(cfg.tracker)
+                # and the reporting model chosen from the data above
+                tracker_cfg = saved_cfg if saved_cfg is not None else dict(jpda_table)
             metrics = runmod.run_detections(
                 dets,
                 tracker_cfg,
@@ -684,11 +686,12 @@ def _reference(text):
     return values
 
 
-def _run_report_file(path, rfmt, kind, table, resume, window, reference, labels, common):
+def _run_report_file(path, rfmt, kind, table, resume, window, reference, labels, common, pmbm=None):
     """``jointtrack run --detections`` on a report file: :func:`run_reports`.
 
     On ``--resume`` the window, frame and label use come from the checkpoint
-    (the run's identity); flags that differ are an error.
+    (the run's identity); flags that differ are an error. ``kind``: JIPDA (None or
+    ``"jipda"``), ``"pmb"`` or ``"pmbm"`` (``pmbm``: the ``[pmbm]`` table).
     """
     import math
 
@@ -696,10 +699,10 @@ def _run_report_file(path, rfmt, kind, table, resume, window, reference, labels,
     from jointtrack.experiments.run import RunConfigError, read_run
     from jointtrack.io.reports import MAX_WINDOW
 
-    if kind not in (None, "jipda"):
+    if kind not in (None, "jipda", "pmb", "pmbm"):
         raise RunConfigError(
-            f"report files run the JIPDA tracker with the asynchronous reporting model; "
-            f"--tracker {kind} is not available for them"
+            f"report files run the JIPDA, PMB or PMBM tracker with the asynchronous "
+            f"reporting model; --tracker {kind} (M-of-N confirmation) is not available for them"
         )
     # checked here, not only by run_reports, so that the message names the flag
     if window is not None and not (math.isfinite(window) and window > 0):
@@ -733,6 +736,8 @@ def _run_report_file(path, rfmt, kind, table, resume, window, reference, labels,
         window=window,
         reference=ref,
         labels=labels or "associate",
+        tracker=kind,
+        pmbm=pmbm,
         **common,
     )
 

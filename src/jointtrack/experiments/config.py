@@ -685,9 +685,17 @@ def make_pmbm_config(
         box = None if region is None else np.asarray(region, dtype=float)
         area = float(np.prod(box[:, 1] - box[:, 0])) if box is not None else 0.0
         rate = info.get("birth_rate")
+        # reporting targets: rates per second, a "scan" being one report_interval
+        per = "scan" if base.reporting == "scan" else "second"
         if area > 0 and isinstance(rate, int | float) and rate > 0:
             over["birth_density"] = float(rate) / area
             why = f"the scenario's birth rate {float(rate):g} per scan"
+        elif area > 0 and per == "second":
+            over["birth_density"] = DEFAULT_BIRTHS_PER_SCAN / base.report_interval / area
+            why = (
+                f"the default {DEFAULT_BIRTHS_PER_SCAN:g} births per report_interval "
+                f"({base.report_interval:g} s; no birth model known)"
+            )
         elif area > 0:
             over["birth_density"] = DEFAULT_BIRTHS_PER_SCAN / area
             why = f"the default {DEFAULT_BIRTHS_PER_SCAN:g} births per scan (no birth model known)"
@@ -697,11 +705,15 @@ def make_pmbm_config(
             unit = "area" if base.dim == 2 else "volume"
             text = (
                 f"PMB/PMBM birth model: uniform, {over['birth_density']:.4g} per unit {unit} "
-                f"per scan = {why} over the region ({area:.4g})"
+                f"per {per} = {why} over the region ({area:.4g})"
             )
             if "prior_density" not in pmbm:
                 p_s = float(user_tracker.get("p_survive", base.p_survive))
-                steady = over["birth_density"] / (1.0 - p_s * (1.0 - base.p_d))
+                if per == "second":  # births against deaths and first reports, per second
+                    loss = -math.log(p_s) + base.p_d / base.report_interval
+                else:
+                    loss = 1.0 - p_s * (1.0 - base.p_d)
+                steady = over["birth_density"] / loss
                 over["prior_density"] = max(steady, DEFAULT_PRIOR_TARGETS / area)
                 text += (
                     f"; prior {over['prior_density']:.4g} per unit {unit} at the first scan "

@@ -130,6 +130,8 @@ def run_reports(
     labels: str = "associate",
     score_window: float | None = None,
     score_c: float | None = None,
+    tracker: str | None = None,
+    pmbm: Mapping | None = None,
     **options,
 ) -> dict:
     """Track self-reports and score the tracks against them (see the module docstring).
@@ -148,6 +150,11 @@ def run_reports(
         bounding box of the reports that are not outliers; the outliers are left
         out of the run, tracking and scoring, and counted).
     labels : one of :data:`LABEL_MODES`.
+    tracker, pmbm : the tracker kind — None or ``"jipda"`` (JIPDA), ``"pmb"`` or
+        ``"pmbm"`` (PMB / PMBM with the same reporting model, labels and reported
+        velocities; their settings are
+        :func:`~jointtrack.experiments.config.make_pmbm_config` of the format's,
+        with ``[pmbm]`` table ``pmbm``).
     score_window, score_c : the scoring window (s; default ``window`` or 60)
         and GOSPA cut-off (m; default 500 for AIS, 2000 for ADS-B). The
         tracks file holds the tracks at the last scan at or before each multiple of
@@ -202,7 +209,13 @@ def run_reports(
         propagate=True,
         excluded=centre,
     )
-    over = {**realdata_settings(family, labelled=labels == "associate"), **dict(config or {})}
+    # the PMB/PMBM trackers measure positions only (reported velocities seed new
+    # Bernoullis): the positions-only settings, whose clutter is per m² per second
+    poisson = tracker in ("pmb", "pmbm")
+    over = {
+        **realdata_settings(family, labelled=labels == "associate" or poisson),
+        **dict(config or {}),
+    }
     cfg = make_tracker_config({"dim": 2}, over)
     truth = rep.truth(frame) if labels != "ignore" else None
     swin = float(score_window or window or 60.0)
@@ -242,6 +255,8 @@ def run_reports(
         fmt,
         progress,
         labels_to_tracker=labels == "associate",
+        tracker=tracker if poisson else None,
+        pmbm=pmbm if poisson else None,
         run_identity={
             "reports": {
                 "format": fmt_name,

@@ -1589,11 +1589,13 @@ def reporting_from_data(detections: Detections, table: Mapping, kind: str | None
     targets that report one at a time (AIS, ADS-B) rather than a sensor that scans
     them all. Such a file then runs with :data:`REPORT_LIKE_SETTINGS` (each key
     the table does not set). Returns ``(table, note)``; ``note`` is None and the
-    table unchanged when the rule does not apply (a JPDA or PMB/PMBM ``kind``, the
-    table setting ``reporting`` or ``existence = false``, not report-like).
+    table unchanged when the rule does not apply (the M-of-N ``kind`` "jpda", the
+    table setting ``reporting`` or ``existence = false``, not report-like). The PMB
+    and PMBM kinds get it as JIPDA does (their Bernoullis are detected as its tracks).
     """
     table = dict(table)
-    if kind not in (None, "jipda") or "reporting" in table or table.get("existence") is False:
+    scanning = kind not in (None, "jipda", *POISSON_KINDS) or table.get("existence") is False
+    if scanning or "reporting" in table:
         return table, None
     times = detections.times
     if detections.kind != "position" or times.size < REPORT_LIKE_MIN_TIMES:

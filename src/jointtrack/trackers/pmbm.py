@@ -82,6 +82,26 @@ Approximations, each with its knob in :class:`~jointtrack.trackers.pmbm_config.P
 * **uniform birth** ignores the edges of ``birth_region`` (a measurement
   inside it gets the full density, one outside none).
 
+**Reporting targets** (AIS, ADS-B; ``step(…, labels=, velocities=)``), by the
+rules the JIPDA tracker uses (:mod:`jointtrack.trackers.reporting`):
+
+* ``reporting = "async"``: each Bernoulli (PMBM: each single-target hypothesis)
+  is a Poisson reporter of its own rate, learnt from its reports since birth, and
+  dies at a rate per second; P_D,i, the miss weight and the survival over the
+  interval since the previous scan are :func:`~jointtrack.trackers.reporting.scan_detection`'s,
+  so a Bernoulli's update is exactly a JIPDA track's (tests/test_pmbm_reporting.py).
+  Undetected targets report at p_d / ``report_interval``; the clutter and birth
+  densities are per second, the pair weights P_D,i/Δt · g / ρ_j.
+* labels: a labelled report goes to the Bernoulli carrying its label — updated,
+  existence ``r_labelled``, or restarted on the report when outside its gate — or
+  starts one (a label seen before takes back its id); it is never associated
+  with another Bernoulli, and unlabelled reports never with a labelled one.
+  Such a Bernoulli's association is certain, the same in every global
+  hypothesis, so the labelled Bernoullis (``labelled_*``) are kept outside the
+  hypotheses and the association.
+* reported velocities seed the velocity of the Bernoullis the reports start
+  (σ = ``velocity_std``); they are not measured.
+
 What they cost, measured on the coalescence scene (10 runs, seeds 0–9, mean
 GOSPA c = 10, p = 2, α = 2; ``benchmarks/RESULTS.md``, "Issue 23"): with the
 defaults and gate P_G = 0.99, PMBM 2.294 ± 0.073 and PMB 2.701 ± 0.079. Turning each approximation
@@ -113,6 +133,18 @@ from jointtrack.trackers.base import ScanResult, ScanTracker
 from jointtrack.trackers.existence import existence_update
 from jointtrack.trackers.pmbm_config import PMBMConfig
 from jointtrack.trackers.poisson import moment_match, prune_and_merge
+from jointtrack.trackers.reporting import (
+    ScanDetection,
+    check_report_fields,
+    label_identities,
+    match_labels,
+    miss_weight,
+    missed_existence,
+    scaled_pair_factor,
+    scan_detection,
+    seed_velocities,
+    undetected_detection,
+)
 from jointtrack.trackers.state_io import StateFileError, covariance_problem, validate_counters
 
 __all__ = ["PMBMConfig", "PMBMTracker", "PMBTracker"]
@@ -122,7 +154,23 @@ class _PoissonTracker(ScanTracker):
     """The Poisson part and the Bernoulli arithmetic both filters share."""
 
     CONFIG = PMBMConfig
+    REPORT_FIELDS = ("labels", "velocities")
     _POISSON = ("poisson_w", "poisson_m", "poisson_P", "undetected_density")
+    #: Bernoullis of labelled targets (``step(…, labels=)``) and the label → id table.
+    #: A labelled report goes to the Bernoulli carrying its label (or starts one) and
+    #: no other: such a Bernoulli's association is certain, the same in every global
+    #: hypothesis, so it is kept outside the hypotheses (and the PMB association).
+    _LABELLED = (
+        "labelled_r",
+        "labelled_x",
+        "labelled_P",
+        "labelled_ids",
+        "labelled_labels",
+        "labelled_born",
+        "labelled_reports",
+        "label_names",
+        "label_ids",
+    )
 
     def __init__(
         self,
@@ -162,26 +210,171 @@ class _PoissonTracker(ScanTracker):
         else:
             self.poisson_w, self.poisson_m = np.zeros(0), np.zeros((0, n))
             self.poisson_P = np.zeros((0, n, n))
-            steady = c.birth_density / (1.0 - c.p_survive * (1.0 - c.p_d))
+            if c.reporting == "async":  # births per second against deaths and reports
+                steady = c.birth_density / (-math.log(c.p_survive) + c.p_d / c.report_interval)
+            else:
+                steady = c.birth_density / (1.0 - c.p_survive * (1.0 - c.p_d))
             u0 = steady if c.prior_density is None else c.prior_density
         self.undetected_density = np.array([u0])
         keep = self.poisson_w > 0
         self.poisson_w = self.poisson_w[keep]
         self.poisson_m, self.poisson_P = self.poisson_m[keep], self.poisson_P[keep]
+        self.labelled_r, self.labelled_x = np.zeros(0), np.zeros((0, n))
+        self.labelled_P = np.zeros((0, n, n))
+        self.labelled_ids = np.zeros(0, np.int64)
+        self.labelled_labels = np.zeros(0, dtype="U1")
+        self.labelled_born, self.labelled_reports = np.zeros(0), np.zeros(0)
+        # every label seen (sorted) and the id of its target's Bernoulli
+        self.label_names, self.label_ids = np.zeros(0, dtype="U1"), np.zeros(0, np.int64)
+        # the undetected targets' pair factor and miss probability of this scan
+        self._u_pd_ratio, self._u_missed = c.p_d, 1.0 - c.p_d
+
+    # ------------------------------------------------------------ reporting
+    def _begin_scan(self, t, z, dt, n_coincident, labels, velocities):
+        """The scan's clock and reports: validated ``labels`` and ``velocities``
+        (:func:`~jointtrack.trackers.reporting.check_report_fields`), and the
+        undetected targets' detection over the interval. Returns ``(labels,
+        repeated, velocities, n_coincident, step)`` with ``step`` = Δt (0 at the
+        first scan)."""
+        labels, repeated, velocities, n_coincident = check_report_fields(
+            self.config.dim, z, labels, velocities, self._kept_rows, n_coincident
+        )
+        step = 0.0 if dt is None else dt
+        self._scan_t, self._scan_dt = t, step
+        self._u_pd_ratio, self._u_missed = undetected_detection(self.config, self._p_d, step)
+        return labels, repeated, velocities, n_coincident, step
+
+    def _detection(self, born, reports, labelled=False) -> ScanDetection:
+        """Detection and survival of Bernoullis born at ``born`` with ``reports`` (soft)
+        reports over this scan's interval (:func:`~jointtrack.trackers.reporting.scan_detection`;
+        no gate factor: the Poisson multi-Bernoulli weights have none)."""
+        t, dt = self._scan_t, self._scan_dt
+        t_prev = t - dt if self.time is None else self.time
+        flags = np.full(len(born), bool(labelled))
+        return scan_detection(self.config, self._p_d, t, dt, t_prev, born, reports, flags)
+
+    def _report_states(self, z, velocities=None):
+        """``(x, P)`` of Bernoullis started on the returns ``z`` with nothing else known:
+        the return's position, zero-mean velocity of per-axis σ = max_speed / 2
+        (acceleration σ = max_acceleration / 2), or the reported velocity with σ =
+        velocity_std where ``velocities`` has one."""
+        c = self.config
+        n, d, M = self.state_dim, c.dim, len(z)
+        x, P = np.zeros((M, n)), np.zeros((M, n, n))
+        if M == 0:
+            return x, P
+        pos, cov = self._sensor.position_and_covariance(z)
+        x[:, :d] = pos
+        P[:, :d, :d] = cov
+        idx = np.arange(d, 2 * d)
+        P[:, idx, idx] = (c.max_speed / 2.0) ** 2
+        if n > 2 * d:
+            a = np.arange(2 * d, min(3 * d, n))
+            P[:, a, a] = (c.max_acceleration / 2.0) ** 2
+        return seed_velocities(x, P, velocities, d, c.velocity_std)
+
+    def _labelled_scan(self, t, z, labels, repeated, velocities, F=None, Q=None):
+        """The labelled Bernoullis through one scan; returns the unlabelled returns' columns.
+
+        Predicted with ``F``, ``Q`` (None: no time passed) and survival; a labelled
+        report goes to the Bernoulli carrying its label — Kalman update, existence
+        ``r_labelled`` (the report names a real target), or a restart on the report
+        when it is outside that Bernoulli's gate (a position jump: a new id would
+        break the identity the label guarantees) — or starts one (its id the label's
+        old one if the label was seen before). A labelled Bernoulli not heard is
+        missed with its own P_D,i (no gate: the label decides).
+        """
+        c = self.config
+        if F is not None and len(self.labelled_r):
+            self.labelled_x, self.labelled_P = predict(self.labelled_x, self.labelled_P, F, Q)
+        det = self._detection(self.labelled_born, self.labelled_reports, labelled=True)
+        self.labelled_r = self.labelled_r * det.survival
+        if labels is None:
+            rows = cols = open_cols = np.zeros(0, np.int64)
+            z_index = np.arange(len(z))
+        else:
+            rows, cols, open_cols = match_labels(self.labelled_labels, labels, repeated)
+            z_index = np.flatnonzero((labels == "") & ~repeated)
+        heard = np.zeros(len(self.labelled_r), bool)
+        heard[rows] = True
+        self.labelled_r[~heard] = missed_existence(
+            self.labelled_r[~heard], det._replace(missed=det.missed[~heard]), self._p_d
+        )
+        if len(rows):
+            x, P = self.labelled_x[rows], self.labelled_P[rows]
+            g = self._gate(x, P, z[cols], dense=True)
+            inside = np.diagonal(g.mask)
+            x_new, P_new = self._pair_update(x, P, z[cols])
+            x_jump, P_jump = self._report_states(
+                z[cols], None if velocities is None else velocities[cols]
+            )
+            self.labelled_x[rows] = np.where(inside[:, None], x_new, x_jump)
+            self.labelled_P[rows] = np.where(inside[:, None, None], P_new, P_jump)
+            self.labelled_r[rows] = c.r_labelled
+            self.labelled_reports[rows] += 1.0
+        if len(open_cols):
+            x0, P0 = self._report_states(
+                z[open_cols], None if velocities is None else velocities[open_cols]
+            )
+            k = len(open_cols)
+            ids, self.label_names, self.label_ids = label_identities(
+                self.label_names, self.label_ids, labels[open_cols], np.arange(k) + self.next_id
+            )
+            self.next_id += k
+            self.labelled_r = np.concatenate([self.labelled_r, np.full(k, c.r_labelled)])
+            self.labelled_x = np.concatenate([self.labelled_x, x0])
+            self.labelled_P = np.concatenate([self.labelled_P, P0])
+            self.labelled_ids = np.concatenate([self.labelled_ids, ids])
+            self.labelled_labels = np.concatenate([self.labelled_labels, labels[open_cols]])
+            self.labelled_born = np.concatenate([self.labelled_born, np.full(k, float(t))])
+            self.labelled_reports = np.concatenate([self.labelled_reports, np.zeros(k)])
+        keep = (self.labelled_r >= c.r_prune) & (self.labelled_r > 0)
+        if not keep.all():
+            for name in self._LABELLED[:7]:
+                setattr(self, name, getattr(self, name)[keep])
+        return z_index
+
+    def _labelled_estimates(self):
+        """``(ids, x, P, r)`` of the labelled Bernoullis reported (r ≥ r_estimate)."""
+        on = self.labelled_r >= self.config.r_estimate
+        return (
+            self.labelled_ids[on],
+            self.labelled_x[on],
+            self.labelled_P[on],
+            self.labelled_r[on],
+        )
+
+    def _result(self, t, ids, x, P, r, **fields) -> ScanResult:
+        """The scan's :class:`ScanResult`: the unlabelled estimates, then the labelled."""
+        lab = self._labelled_estimates()
+        return ScanResult(
+            time=t,
+            ids=np.concatenate([ids, lab[0]]),
+            x=np.concatenate([x, lab[1]]),
+            P=np.concatenate([P, lab[2]]),
+            existence=np.concatenate([r, lab[3]]),
+            **fields,
+        )
 
     # ------------------------------------------------------------------ Poisson
-    def _predict_poisson(self, F, Q) -> None:
-        """Survival and birth of the undetected intensity (García-Fernández et al. eq. (12))."""
+    def _predict_poisson(self, F, Q, dt) -> None:
+        """Survival and birth of the undetected intensity (García-Fernández et al. eq. (12)).
+
+        Survival p_survive per scan, or p_survive^Δt (``p_survive_per = "second"``);
+        births per scan, or per second × Δt (``reporting = "async"``).
+        """
         c = self.config
         if len(self.poisson_w):
             self.poisson_m, self.poisson_P = predict(self.poisson_m, self.poisson_P, F, Q)
-        self.poisson_w = c.p_survive * self.poisson_w
+        survive = c.p_survive if c.p_survive_per == "scan" else c.p_survive**dt
+        births = 1.0 if c.reporting == "scan" else dt
+        self.poisson_w = survive * self.poisson_w
         if c.birth_model == "gaussian":
-            self.poisson_w = np.concatenate([self.poisson_w, self._birth_w])
+            self.poisson_w = np.concatenate([self.poisson_w, births * self._birth_w])
             self.poisson_m = np.concatenate([self.poisson_m, self._birth_m])
             self.poisson_P = np.concatenate([self.poisson_P, self._birth_P])
         else:
-            self.undetected_density = c.p_survive * self.undetected_density + c.birth_density
+            self.undetected_density = survive * self.undetected_density + births * c.birth_density
 
     def _uniform_births(self, z):
         """``(e, x, P)``: the uniform part's P_D ∫ g_j D and posterior of every return.
@@ -194,26 +387,18 @@ class _PoissonTracker(ScanTracker):
         max_speed / 2 (acceleration σ = max_acceleration / 2).
         """
         c = self.config
-        n, d, M = self.state_dim, c.dim, len(z)
+        n, M = self.state_dim, len(z)
         u = float(self.undetected_density[0])
-        x = np.zeros((M, n))
-        P = np.zeros((M, n, n))
         if M == 0 or c.birth_model != "uniform" or u == 0.0:
-            return np.zeros(M), x, P
-        pos, cov = self._sensor.position_and_covariance(z)
-        x[:, :d] = pos
-        P[:, :d, :d] = cov
-        idx = np.arange(d, 2 * d)
-        P[:, idx, idx] = (c.max_speed / 2.0) ** 2
-        if n > 2 * d:
-            a = np.arange(2 * d, min(3 * d, n))
-            P[:, a, a] = (c.max_acceleration / 2.0) ** 2
+            return np.zeros(M), np.zeros((M, n)), np.zeros((M, n, n))
+        x, P = self._report_states(z)
+        pos, cov = x[:, : c.dim], P[:, : c.dim, : c.dim]
         # in log space: det of a 2-D covariance of σ² ~ 1e154 and more overflows to inf
         # (inf / inf = NaN birth existence), within the settings' bound MAX_VARIANCE
         log_det_cov = np.linalg.slogdet(cov)[1]
         log_det_R = np.linalg.slogdet(self._sensor.R)[1]
         jac = np.exp(0.5 * (log_det_cov - log_det_R))
-        e = self._p_d * u * jac
+        e = self._u_pd_ratio * u * jac
         if c.birth_region is not None:
             box = np.asarray(c.birth_region)
             inside = ((pos >= box[:, 0]) & (pos <= box[:, 1])).all(axis=1)
@@ -242,7 +427,7 @@ class _PoissonTracker(ScanTracker):
         if len(self.poisson_w) and M:
             g = self._gate(self.poisson_m, self.poisson_P, z)
             with np.errstate(divide="ignore"):  # a component of weight 0 (a loaded state) adds 0
-                w = np.exp(np.log(self.poisson_w[g.rows]) + math.log(self._p_d) + g.log_g)
+                w = np.exp(np.log(self.poisson_w[g.rows]) + math.log(self._u_pd_ratio) + g.log_g)
             xu, Pu = self._pair_update(self.poisson_m[g.rows], self.poisson_P[g.rows], z[g.cols])
             weights.append(w)
             groups.append(g.cols)
@@ -262,7 +447,7 @@ class _PoissonTracker(ScanTracker):
         intensity (weight = existence; Williams 2012), added after the thinning.
         """
         c = self.config
-        miss = 1.0 - self._p_d
+        miss = self._u_missed
         self.undetected_density = miss * self.undetected_density
         w, m, P = miss * self.poisson_w, self.poisson_m, self.poisson_P
         if recycled is not None and len(recycled[0]):
@@ -273,12 +458,21 @@ class _PoissonTracker(ScanTracker):
             w, m, P, prune=c.poisson_prune, merge=c.poisson_merge, cap=c.max_poisson_components
         )
 
-    def _pair_weights(self, r, g, rho):
-        """Likelihood ratios L = r P_D g / ρ of the gated pairs and miss weights 1 − r P_D."""
-        L, _ = likelihood_ratio_pairs(g, self._p_d * r, rho)
-        return L, 1.0 - self._p_d * r
+    def _pair_weights(self, r, g, rho, det: ScanDetection | None = None):
+        """Likelihood ratios L = r P_D g / ρ of the gated pairs and miss weights 1 − r P_D.
 
-    def _pmb_update(self, ids, r, x, P, z, rows, cols, L, miss, loud):
+        Reporting targets (``det`` of :meth:`_detection`; None: a scanning sensor):
+        P_D,i/Δt per Bernoulli against ρ per second (numerator and ρ divided by a
+        common scale: a rate may exceed 1), and the miss weight (1 − r) + r·missed.
+        """
+        if det is None or det.scan:
+            L, _ = likelihood_ratio_pairs(g, self._p_d * r, rho)
+            return L, 1.0 - self._p_d * r
+        pd_r, scale = scaled_pair_factor(det.pd_ratio, r)
+        L, _ = likelihood_ratio_pairs(g, pd_r, rho / scale)
+        return L, miss_weight(r, det, self._p_d)
+
+    def _pmb_update(self, ids, r, x, P, z, rows, cols, L, miss, loud, det: ScanDetection):
         """PMB update of the Bernoullis ``(r, x, P)`` (ids ``ids``) by the returns ``z``.
 
         ``rows``/``cols``: the gated pairs (Bernoulli, return), ``L`` their
@@ -287,20 +481,61 @@ class _PoissonTracker(ScanTracker):
         core cluster by cluster under the package's budget
         (:meth:`~jointtrack.trackers.base.ScanTracker._pair_marginals`); each
         Bernoulli's mixture over its hypotheses is then merged to one Bernoulli
-        (Williams 2015 eq. (58)–(60)). Returns ``(r, x, P, taken, info)``:
+        (Williams 2015 eq. (58)–(60)). ``det``: the Bernoullis' detection over the
+        interval (:meth:`_detection`). Returns ``(r, x, P, taken, info, reports)``:
         the posterior Bernoullis, each return's probability of having come
-        from one of them, and the clusters' ``(sizes, seconds, methods,
-        fallbacks)``.
+        from one of them, the clusters' ``(sizes, seconds, methods,
+        fallbacks)`` and the reports each Bernoulli took given it exists.
         """
         # loud=False for PMB: fallbacks are logged at debug level and reported in the result
         pairs = _GatedPairs(len(r), len(z), rows, cols)
         beta0, w, _, info = self._pair_marginals(ids, pairs, L, miss, loud)
         taken = np.bincount(cols, w, minlength=len(z))
-        r_post, b0, wc = existence_update(r, beta0, w, rows, self._p_d)
+        if det.scan:
+            r_post, b0, wc = existence_update(r, beta0, w, rows, self._p_d)
+        else:
+            r_post, b0, wc = existence_update(r, beta0, w, rows, det.pdg, missed=det.missed)
         x_post, P_post = pda_pairs_update(x, P, z, b0, rows, cols, wc, **self._measurement_model())
-        return r_post, x_post, P_post, taken, info
+        # the reports each Bernoulli took, given it exists (its own reporting rate)
+        reports = np.bincount(rows, wc, minlength=len(r))
+        return r_post, x_post, P_post, taken, info, reports
 
     # --------------------------------------------------------------- checks
+    def _labelled_spec(self) -> dict:
+        """The state fields of the labelled Bernoullis (``_validate_common`` spec)."""
+        n = self.state_dim
+        return {
+            "labelled_r": ("f", ("K",)),
+            "labelled_x": ("f", ("K", n)),
+            "labelled_P": ("f", ("K", n, n)),
+            "labelled_ids": ("i", ("K",)),
+            "labelled_labels": ("U", ("K",)),
+            "labelled_born": ("f", ("K",)),
+            "labelled_reports": ("f", ("K",)),
+            "label_names": ("U", ("L",)),
+            "label_ids": ("i", ("L",)),
+        }
+
+    @staticmethod
+    def _validate_labelled(path, arrays) -> None:
+        """Values of the labelled Bernoullis and the label table a tracker can hold."""
+
+        def bad(what):
+            return StateFileError(f"{path}: {what}")
+
+        _check_existence(path, "labelled_r", arrays["labelled_r"])
+        labels = arrays["labelled_labels"]
+        if (labels == "").any() or len(np.unique(labels)) != len(labels):
+            raise bad("field 'labelled_labels' must hold distinct non-empty labels")
+        names = arrays["label_names"]
+        if (names == "").any() or (names[1:] <= names[:-1]).any():
+            raise bad("field 'label_names' must hold sorted, distinct, non-empty labels")
+        if not np.isin(labels, names).all():
+            raise bad("field 'labelled_labels' holds a label missing from 'label_names'")
+        for name in ("labelled_reports", "report_count", "sth_reports"):
+            if name in arrays and (arrays[name] < 0).any():
+                raise bad(f"field {name!r} has negative values")
+
     def _validate_common(self, path, arrays, spec, lengths):
         """Dtype/shape/finiteness of ``spec`` {name: (kind, shape with names)}."""
 
@@ -344,7 +579,18 @@ class PMBTracker(_PoissonTracker):
     """
 
     KIND = "pmb"
-    _ARRAYS = ("x", "P", "ids", "existence", "reported", *_PoissonTracker._POISSON)
+    _ARRAYS = (
+        "x",
+        "P",
+        "ids",
+        "existence",
+        "reported",
+        "born",
+        "report_count",
+        *_PoissonTracker._POISSON,
+        *_PoissonTracker._LABELLED,
+    )
+    _BERNOULLI = ("x", "P", "ids", "existence", "reported", "born", "report_count")
 
     def __init__(self, config=None, *, motion=None, sensor=None, sensors=None, keep_history=True):
         super().__init__(
@@ -355,64 +601,84 @@ class PMBTracker(_PoissonTracker):
         self.ids, self.existence = np.zeros(0, np.int64), np.zeros(0)
         # reported at some scan (r ≥ r_estimate): never recycled, so its id is kept
         self.reported = np.zeros(0, bool)
+        # birth time and (soft) number of reports of each Bernoulli: its own reporting
+        # rate (reporting = "async")
+        self.born, self.report_count = np.zeros(0), np.zeros(0)
 
-    def _step(self, t, z, same_time_ok=False) -> ScanResult:
+    def _keep_bernoullis(self, keep) -> None:
+        for name in self._BERNOULLI:
+            setattr(self, name, getattr(self, name)[keep])
+
+    def _step(self, t, z, same_time_ok=False, labels=None, velocities=None) -> ScanResult:
         c = self.config
         t, z, dt, n_coincident = self._check_scan(t, z, same_time_ok)
-        if dt is not None and dt > 0:
-            F, Q = self._motion.transition(dt), self._motion.noise(dt)
+        labels, repeated, velocities, n_coincident, step = self._begin_scan(
+            t, z, dt, n_coincident, labels, velocities
+        )
+        F = Q = None
+        if step > 0:
+            F, Q = self._motion.transition(step), self._motion.noise(step)
             if len(self.ids):
                 self.x, self.P = predict(self.x, self.P, F, Q)
-            self.existence = c.p_survive * self.existence
-            self._predict_poisson(F, Q)
-            # existence that underflowed to 0 is no Bernoulli (its L = r P_D g / ρ would be
-            # 0, a P_D of 0 to the association)
-            live = self.existence > 0
-            if not live.all():
-                self.x, self.P, self.existence = self.x[live], self.P[live], self.existence[live]
-                self.ids, self.reported = self.ids[live], self.reported[live]
-        rho, e, x_new, P_new = self._poisson_detection(z)
-        M, N = len(z), len(self.ids)
+            self._predict_poisson(F, Q, step)
+        det = self._detection(self.born, self.report_count)
+        self.existence = det.survival * self.existence
+        # existence that underflowed to 0 is no Bernoulli (its L = r P_D g / ρ would be
+        # 0, a P_D of 0 to the association)
+        live = self.existence > 0
+        if not live.all():
+            self._keep_bernoullis(live)
+            det = ScanDetection(*(a[live] for a in det[:5]), det.scan)
+        # labelled reports go to their own Bernoullis; the rest are associated here
+        z_index = self._labelled_scan(t, z, labels, repeated, velocities, F, Q)
+        zu = z[z_index]
+        rho, e, x_new, P_new = self._poisson_detection(zu)
+        if velocities is not None:
+            seed_velocities(x_new, P_new, velocities[z_index], c.dim, c.velocity_std)
+        M, N = len(zu), len(self.ids)
         taken = np.zeros(M)  # P(return j came from a prior Bernoulli)
         info = ([], [], [], [])
         gated = np.zeros(M, bool)
         if N and M:
-            g = self._gate(self.x, self.P, z)
-            L, miss = self._pair_weights(self.existence, g, rho)
-            self.existence, self.x, self.P, taken, info = self._pmb_update(
-                self.ids, self.existence, self.x, self.P, z, g.rows, g.cols, L, miss, False
+            g = self._gate(self.x, self.P, zu)
+            L, miss = self._pair_weights(self.existence, g, rho, det)
+            self.existence, self.x, self.P, taken, info, reports = self._pmb_update(
+                self.ids, self.existence, self.x, self.P, zu, g.rows, g.cols, L, miss, False, det
             )
+            self.report_count = self.report_count + reports
             gated[g.cols] = True
         elif N:  # nothing measured: every Bernoulli missed
-            r = self.existence
-            self.existence = r * (1.0 - self._p_d) / (1.0 - r * self._p_d)
+            self.existence = missed_existence(self.existence, det, self._p_d)
         r_new = np.clip(1.0 - taken, 0.0, 1.0) * e / rho
         x = np.concatenate([self.x, x_new])
         P = np.concatenate([self.P, P_new])
         r = np.concatenate([self.existence, r_new])
         ids = np.concatenate([self.ids, np.zeros(M, np.int64)])  # new: numbered below
         reported = np.concatenate([self.reported, np.zeros(M, bool)])
+        born = np.concatenate([self.born, np.full(M, float(t))])
+        report_count = np.concatenate([self.report_count, np.zeros(M)])
         weak = (r < c.r_recycle) & (r >= c.r_prune) & ~reported
         self._thin_and_prune_poisson((r[weak], x[weak], P[weak]))
         keep = (r >= c.r_prune) & (r > 0) & ~weak  # r = 0: no Bernoulli at all
         self.x, self.P, self.existence, ids = x[keep], P[keep], r[keep], ids[keep]
+        self.born, self.report_count = born[keep], report_count[keep]
         self.reported = reported[keep] | (self.existence >= c.r_estimate)
-        born = ids == 0
-        ids[born] = np.arange(self.next_id, self.next_id + int(born.sum()))
-        self.next_id += int(born.sum())
+        new = ids == 0
+        ids[new] = np.arange(self.next_id, self.next_id + int(new.sum()))
+        self.next_id += int(new.sum())
         self.ids = ids
         self.time = t
         self.n_scans += 1
         report = self.existence >= c.r_estimate
         sizes, seconds, methods, fallbacks = info
-        return ScanResult(
-            time=t,
-            ids=self.ids[report].copy(),
-            x=self.x[report].copy(),
-            P=self.P[report].copy(),
-            existence=self.existence[report].copy(),
+        return self._result(
+            t,
+            self.ids[report].copy(),
+            self.x[report].copy(),
+            self.P[report].copy(),
+            self.existence[report].copy(),
             n_tentative=int((~report).sum()),
-            n_measurements=M,
+            n_measurements=len(z),
             n_unassociated=int((~gated).sum()),
             cluster_sizes=sizes,
             cluster_seconds=seconds,
@@ -430,14 +696,19 @@ class PMBTracker(_PoissonTracker):
             "ids": ("i", ("N",)),
             "existence": ("f", ("N",)),
             "reported": ("b", ("N",)),
+            "born": ("f", ("N",)),
+            "report_count": ("f", ("N",)),
             "poisson_w": ("f", ("C",)),
             "poisson_m": ("f", ("C", n)),
             "poisson_P": ("f", ("C", n, n)),
             "undetected_density": ("f", (1,)),
+            **self._labelled_spec(),
         }
         self._validate_common(path, arrays, spec, {})
         _check_existence(path, "existence", arrays["existence"])
-        validate_counters(path, arrays["ids"], scalars)
+        self._validate_labelled(path, arrays)
+        ids = np.concatenate([arrays["ids"], arrays["labelled_ids"]])
+        validate_counters(path, ids, scalars)
 
 
 def _check_existence(path, name, r) -> None:
@@ -541,22 +812,34 @@ def _tuple_costs(tuples, start, miss, m):
 
 
 class _MergedChildren:
-    """Children made by merged clusters, numbered from ``first`` on: ``(r, x, P, track)``."""
+    """Children made by merged clusters, numbered from ``first`` on: ``(r, x, P, track,
+    born, reports)``."""
 
     def __init__(self, first: int, n: int):
         self.first, self.n, self.size, self.parts = first, n, 0, []
 
-    def add(self, r, x, P, track) -> np.ndarray:
+    def add(self, r, x, P, track, born, reports) -> np.ndarray:
         """Append children; returns their indices."""
         idx = self.first + self.size + np.arange(len(r))
-        self.parts.append((r, x, P, np.asarray(track, np.int64)))
+        k = len(r)
+        self.parts.append(
+            (
+                r,
+                x,
+                P,
+                np.asarray(track, np.int64),
+                np.broadcast_to(np.asarray(born, float), (k,)),
+                np.broadcast_to(np.asarray(reports, float), (k,)),
+            )
+        )
         self.size += len(r)
         return idx
 
     def arrays(self):
         if not self.parts:
             n = self.n
-            return np.zeros(0), np.zeros((0, n)), np.zeros((0, n, n)), np.zeros(0, np.int64)
+            none = np.zeros(0)
+            return none, np.zeros((0, n)), np.zeros((0, n, n)), np.zeros(0, np.int64), none, none
         return tuple(np.concatenate(a) for a in zip(*self.parts, strict=True))
 
 
@@ -583,11 +866,14 @@ class PMBMTracker(_PoissonTracker):
         "sth_x",
         "sth_P",
         "sth_track",
+        "sth_born",
+        "sth_reports",
         "track_ids",
         "track_reported",
         "hyp",
         "hyp_logw",
         *_PoissonTracker._POISSON,
+        *_PoissonTracker._LABELLED,
     )
 
     def __init__(self, config=None, *, motion=None, sensor=None, sensors=None, keep_history=True):
@@ -597,6 +883,8 @@ class PMBMTracker(_PoissonTracker):
         n = self.state_dim
         self.sth_r, self.sth_x, self.sth_P = np.zeros(0), np.zeros((0, n)), np.zeros((0, n, n))
         self.sth_track = np.zeros(0, np.int64)
+        # each STH's birth time and reports (its own reporting rate, reporting = "async")
+        self.sth_born, self.sth_reports = np.zeros(0), np.zeros(0)
         self.track_ids = np.zeros(0, np.int64)
         # reported at some scan (estimator 1): never recycled, so its id is kept
         self.track_reported = np.zeros(0, bool)
@@ -619,17 +907,33 @@ class PMBMTracker(_PoissonTracker):
         w = np.exp(self.hyp_logw - self.hyp_logw.max())
         return w / w.sum()
 
-    def _step(self, t, z, same_time_ok=False) -> ScanResult:
+    def _step(self, t, z, same_time_ok=False, labels=None, velocities=None) -> ScanResult:
         c = self.config
         t, z, dt, n_coincident = self._check_scan(t, z, same_time_ok)
-        if dt is not None and dt > 0:
-            F, Q = self._motion.transition(dt), self._motion.noise(dt)
+        labels, repeated, velocities, n_coincident, step = self._begin_scan(
+            t, z, dt, n_coincident, labels, velocities
+        )
+        F = Q = None
+        if step > 0:
+            F, Q = self._motion.transition(step), self._motion.noise(step)
             if len(self.sth_r):
                 self.sth_x, self.sth_P = predict(self.sth_x, self.sth_P, F, Q)
-            self.sth_r = c.p_survive * self.sth_r
-            self._predict_poisson(F, Q)
-            self._drop_void_hypotheses()
+            self._predict_poisson(F, Q, step)
+        # each single-target hypothesis' detection over the interval (its own reporting
+        # rate with reporting = "async"); scan-local, like the JPDA tracker's _scan_*
+        det = self._detection(self.sth_born, self.sth_reports)
+        self.sth_r = det.survival * self.sth_r
+        live = self._drop_void_hypotheses()
+        if live is not None:
+            det = ScanDetection(*(a[live] for a in det[:5]), det.scan)
+        self._det = det
+        # labelled reports go to their own Bernoullis; the rest are associated here
+        z_all = z
+        z_index = self._labelled_scan(t, z, labels, repeated, velocities, F, Q)
+        z = z[z_index]
         rho, e, x_new, P_new = self._poisson_detection(z)
+        if velocities is not None:
+            seed_velocities(x_new, P_new, velocities[z_index], c.dim, c.velocity_std)
         M, S, T = len(z), len(self.sth_r), len(self.track_ids)
         p_d = self._p_d
         # single-target hypotheses after the update (eq. (20)–(27)): children of STH s
@@ -639,10 +943,10 @@ class PMBMTracker(_PoissonTracker):
         if S and M:
             g = self._gate(self.sth_x, self.sth_P, z)
             rows, cols = g.rows, g.cols
-            L, miss = self._pair_weights(self.sth_r, g, rho)
+            L, miss = self._pair_weights(self.sth_r, g, rho, det)
         else:
             rows = cols = np.zeros(0, np.int64)
-            L, miss = np.zeros(0), 1.0 - p_d * self.sth_r
+            L, miss = np.zeros(0), miss_weight(self.sth_r, det, p_d)
         n_pairs = len(rows)
         with np.errstate(divide="ignore"):
             log_L = np.log(L)
@@ -664,7 +968,7 @@ class PMBMTracker(_PoissonTracker):
         # burst gates millions of pairs; Kalman updates of them all would not be used)
         ref = np.unique(hyp[hyp >= 0])
         hyp = np.where(hyp >= 0, np.searchsorted(ref, np.maximum(hyp, 0)), -1)
-        child_r, child_x, child_P, child_track = self._children(
+        child_r, child_x, child_P, child_track, child_born, child_reports = self._children(
             ref, S, T, z, rows, cols, (e / rho, x_new, P_new), merged
         )
         # Bernoullis too unlikely to exist are dropped from every hypothesis (r = 0 always:
@@ -694,6 +998,7 @@ class PMBMTracker(_PoissonTracker):
         self.hyp = np.where(hyp >= 0, sth_map[np.maximum(hyp, 0)], -1)
         self.hyp_logw = logw - logw.max()
         self.sth_r, self.sth_x, self.sth_P = child_r[used], child_x[used], child_P[used]
+        self.sth_born, self.sth_reports = child_born[used], child_reports[used]
         self.sth_track = track_map[child_track[used]]
         born = cols_kept[cols_kept >= T]
         new_ids = np.arange(self.next_id, self.next_id + len(born))
@@ -717,14 +1022,14 @@ class PMBMTracker(_PoissonTracker):
         gated = np.zeros(M, bool)
         gated[cols] = True
         sizes, seconds, methods, confirmed, fallbacks = clusters
-        return ScanResult(
-            time=t,
-            ids=self.track_ids[tracks].copy(),
-            x=self.sth_x[s].copy(),
-            P=self.sth_P[s].copy(),
-            existence=self.sth_r[s].copy(),
+        return self._result(
+            t,
+            self.track_ids[tracks].copy(),
+            self.sth_x[s].copy(),
+            self.sth_P[s].copy(),
+            self.sth_r[s].copy(),
             n_tentative=int(len(present) - len(s)),
-            n_measurements=M,
+            n_measurements=len(z_all),
             n_unassociated=int((~gated).sum()),
             cluster_sizes=sizes,
             cluster_seconds=seconds,
@@ -734,60 +1039,71 @@ class PMBMTracker(_PoissonTracker):
             n_coincident=n_coincident,
         )
 
-    def _drop_void_hypotheses(self) -> None:
+    def _drop_void_hypotheses(self):
         """Single-target hypotheses whose existence underflowed to 0 are no Bernoulli.
 
         Survival over a long gap (P_S^Δt) or many missed scans with ``r_prune = 0``
         can take r to 0; such an STH is removed from every global hypothesis (and from
         the state) before the update, whose likelihood ratios r P_D g / ρ would
-        otherwise hand the association a P_D of 0.
+        otherwise hand the association a P_D of 0. Returns the mask of the STHs
+        kept (None when all are).
         """
         live = self.sth_r > 0
         if live.all():
-            return
+            return None
         renumber = np.cumsum(live) - 1
         self.hyp = np.where(
             self.hyp >= 0, np.where(live, renumber, -1)[np.maximum(self.hyp, 0)], -1
         )
         self.sth_r, self.sth_x, self.sth_P = self.sth_r[live], self.sth_x[live], self.sth_P[live]
         self.sth_track = self.sth_track[live]
+        self.sth_born, self.sth_reports = self.sth_born[live], self.sth_reports[live]
+        return live
 
     def _children(self, ref, S, T, z, rows, cols, born, merged):
-        """``(r, x, P, track)`` of the child single-target hypotheses ``ref`` (sorted indices).
+        """``(r, x, P, track, born, reports)`` of the child single-target hypotheses ``ref``
+        (sorted indices).
 
         Index space of :meth:`_step`: ``s < S`` the missed child of STH s, ``S + p``
         the detection child of gated pair p (Kalman update of its STH with its
         return), ``S + P + j`` the new track of return j (``born``: existence, mean
         and covariance of each return's new Bernoulli), then the children of merged
-        clusters (``merged``: r, x, P, track).
+        clusters (``merged``: r, x, P, track, born, reports). A child keeps its
+        parent's birth time and reports (one more for a detection); a new track's
+        are the scan's time and none.
         """
         p_d = self._p_d
         n = self.state_dim
         n_pairs, M = len(rows), len(z)
         first_new, first_merged = S + n_pairs, S + n_pairs + M
         r_new, x_new, P_new = born
-        m_r, m_x, m_P, m_track = merged
+        m_r, m_x, m_P, m_track, m_born, m_reports = merged
         r = np.empty(len(ref))
         x = np.empty((len(ref), n))
         P = np.empty((len(ref), n, n))
         track = np.empty(len(ref), np.int64)
+        t_born, reports = np.empty(len(ref)), np.empty(len(ref))
         miss = ref < S
         s = ref[miss]
-        r_s = self.sth_r[s]
-        r[miss] = r_s * (1.0 - p_d) / (1.0 - p_d * r_s)
+        det = self._det
+        r[miss] = missed_existence(self.sth_r[s], det._replace(missed=det.missed[s]), p_d)
         x[miss], P[miss], track[miss] = self.sth_x[s], self.sth_P[s], self.sth_track[s]
-        det = (ref >= S) & (ref < first_new)
-        p = ref[det] - S
-        r[det] = 1.0
-        x[det], P[det] = self._pair_update(self.sth_x[rows[p]], self.sth_P[rows[p]], z[cols[p]])
-        track[det] = self.sth_track[rows[p]]
+        t_born[miss], reports[miss] = self.sth_born[s], self.sth_reports[s]
+        hit = (ref >= S) & (ref < first_new)
+        p = ref[hit] - S
+        r[hit] = 1.0
+        x[hit], P[hit] = self._pair_update(self.sth_x[rows[p]], self.sth_P[rows[p]], z[cols[p]])
+        track[hit] = self.sth_track[rows[p]]
+        t_born[hit], reports[hit] = self.sth_born[rows[p]], self.sth_reports[rows[p]] + 1.0
         new = (ref >= first_new) & (ref < first_merged)
         j = ref[new] - first_new
         r[new], x[new], P[new], track[new] = r_new[j], x_new[j], P_new[j], T + j
+        t_born[new], reports[new] = self._scan_t, 0.0
         mer = ref >= first_merged
         k = ref[mer] - first_merged
         r[mer], x[mer], P[mer], track[mer] = m_r[k], m_x[k], m_P[k], m_track[k]
-        return r, x, P, track
+        t_born[mer], reports[mer] = m_born[k], m_reports[k]
+        return r, x, P, track, t_born, reports
 
     def _recycle(self, hyp, logw, child_r, child_x, child_P):
         """Never-reported tracks with existence below ``r_recycle`` everywhere go to the intensity.
@@ -1108,6 +1424,8 @@ class PMBMTracker(_PoissonTracker):
             part = _TuplePairs(tuples[0], rows, cols, start)
             present, s = part.here, part.sths
             r, x, P = self.sth_r[s], self.sth_x[s], self.sth_P[s]
+            t_born, reports = self.sth_born[s], self.sth_reports[s]
+            det = ScanDetection(*(a[s] for a in self._det[:5]), self._det.scan)
             local_rows = part.row_local
             local_cols = np.searchsorted(returns, cols[part.pairs])
             L_m, miss_m = L[part.pairs], miss[s]
@@ -1119,17 +1437,28 @@ class PMBMTracker(_PoissonTracker):
             r_m, x_m, P_m = moment_match(w, tt, self.sth_x[s], self.sth_P[s], n_c)
             present = np.flatnonzero(r_m > 0)
             r, x, P = np.minimum(r_m[present], 1.0), x_m[present], P_m[present]
+            # the merged Bernoulli's age (its oldest hypothesis) and mean reports
+            t_born = np.full(n_c, np.inf)
+            np.minimum.at(t_born, tt, self.sth_born[s])
+            mass = np.bincount(tt, w, minlength=n_c)
+            reports = np.bincount(tt, w * self.sth_reports[s], minlength=n_c)
+            t_born, reports = t_born[present], reports[present] / mass[present]
+            det = self._detection(t_born, reports)
             g = self._gate(x, P, z[returns])
             local_rows, local_cols = g.rows, g.cols
-            L_m, miss_m = self._pair_weights(r, g, rho[returns])
+            L_m, miss_m = self._pair_weights(r, g, rho[returns], det)
         ids = self.track_ids[tracks[present]]
-        r_post, x_post, P_post, taken, info = self._pmb_update(
-            ids, r, x, P, z[returns], local_rows, local_cols, L_m, miss_m, loud
+        r_post, x_post, P_post, taken, info, heard = self._pmb_update(
+            ids, r, x, P, z[returns], local_rows, local_cols, L_m, miss_m, loud, det
         )
         r_born = np.clip(1.0 - taken, 0.0, 1.0) * e[returns] / rho[returns]
         child = np.full((1, n_c), -1, np.int64)
-        child[0, present] = merged.add(r_post, x_post, P_post, tracks[present])
-        born_idx = merged.add(r_born, x_new[returns], P_new[returns], T + returns)
+        child[0, present] = merged.add(
+            r_post, x_post, P_post, tracks[present], t_born, reports + heard
+        )
+        born_idx = merged.add(
+            r_born, x_new[returns], P_new[returns], T + returns, self._scan_t, 0.0
+        )
         _, _, methods, fallbacks = info
         tier = max(methods, key=_TIER_ORDER.index, default="exact")
         why = "; ".join(dict.fromkeys(f for f in fallbacks if f))
@@ -1192,6 +1521,8 @@ class PMBMTracker(_PoissonTracker):
             "sth_x": ("f", ("S", n)),
             "sth_P": ("f", ("S", n, n)),
             "sth_track": ("i", ("S",)),
+            "sth_born": ("f", ("S",)),
+            "sth_reports": ("f", ("S",)),
             "track_ids": ("i", ("T",)),
             "track_reported": ("b", ("T",)),
             "hyp": ("i", ("H", "T")),
@@ -1200,9 +1531,11 @@ class PMBMTracker(_PoissonTracker):
             "poisson_m": ("f", ("C", n)),
             "poisson_P": ("f", ("C", n, n)),
             "undetected_density": ("f", (1,)),
+            **self._labelled_spec(),
         }
         lengths: dict = {}
         self._validate_common(path, arrays, spec, lengths)
+        self._validate_labelled(path, arrays)
 
         def bad(what):
             return StateFileError(f"{path}: {what}")
@@ -1231,4 +1564,5 @@ class PMBMTracker(_PoissonTracker):
             raise bad("field 'hyp' puts a single-target hypothesis under another track")
         if arrays["hyp_logw"].max() != 0.0:
             raise bad("field 'hyp_logw' is not normalised to a best hypothesis of 0")
-        validate_counters(path, arrays["track_ids"], scalars, "track_ids")
+        ids = np.concatenate([arrays["track_ids"], arrays["labelled_ids"]])
+        validate_counters(path, ids, scalars, "track_ids")

@@ -31,7 +31,15 @@ BIRTH_MODELS = ("uniform", "gaussian")
 
 #: Settings added after PMBM state files were first written → the value under which an
 #: older state's run continues exactly as before (no ranking budget).
-_ADDED_SETTINGS = {"max_ranking_work": None}
+_ADDED_SETTINGS = {
+    "max_ranking_work": None,
+    # reporting targets (issue 32): a scanning sensor, survival per scan, as before
+    "reporting": "scan",
+    "report_interval": 60.0,
+    "p_survive_per": "scan",
+    "velocity_std": 1.0,
+    "r_labelled": 0.999,
+}
 
 #: Fields shared with TrackerConfig, checked by its field checks.
 _SHARED = (
@@ -52,6 +60,11 @@ _SHARED = (
     "max_acceleration",
     "p_survive",
     "seed",
+    "reporting",
+    "report_interval",
+    "p_survive_per",
+    "velocity_std",
+    "r_labelled",
 )
 
 
@@ -63,8 +76,18 @@ class PMBMConfig(ModelSettings):
     ----------
     dim, motion, process_noise, measurement_noise, sensor, sensor_position,
     range_noise, bearing_noise, p_d, p_survive, association, exact_max_tracks,
-    approximation, seed :
-        as in :class:`~jointtrack.trackers.config.TrackerConfig`.
+    approximation, seed, reporting, report_interval, p_survive_per, velocity_std,
+    r_labelled :
+        as in :class:`~jointtrack.trackers.config.TrackerConfig`. With
+        ``reporting = "async"`` (targets that report themselves one at a time:
+        AIS, ADS-B; it needs ``p_survive_per = "second"``) each Bernoulli is
+        detected with its own P_D,i over the interval since the previous scan
+        (:func:`~jointtrack.trackers.reporting.scan_detection`), an undetected
+        target reports at the rate p_d/``report_interval``, and
+        ``clutter_density`` and ``birth_density`` are per second.
+        ``velocity_std``: σ of the reported velocities that seed new
+        Bernoullis (``step(…, velocities=)``); ``r_labelled``: existence of a
+        Bernoulli detected by a labelled report (``step(…, labels=)``).
     p_g : gate probability P_G of the chi-square gates (default 0.9999: the
         Poisson multi-Bernoulli weights have no gate factor, so the gate only
         cuts pairs whose weight is negligible; 1 = no gating).
@@ -77,7 +100,8 @@ class PMBMConfig(ModelSettings):
         ``max_acceleration``/2 for ``motion = "ca"``); or ``"gaussian"`` — a
         Gaussian mixture ``birth_weights``, ``birth_means``, ``birth_covs`` in
         the state layout of the motion model (positions, then velocities).
-    birth_density : uniform births per unit area (volume) per scan.
+    birth_density : uniform births per unit area (volume) per scan (per second
+        with ``reporting = "async"``).
     birth_region : None (unbounded) or ``((xmin, xmax), (ymin, ymax)[, (zmin, zmax)])``.
     prior_density : undetected targets per unit area at the first scan
         (uniform model; None = the steady state of birth, survival and
@@ -158,6 +182,11 @@ class PMBMConfig(ModelSettings):
     hypothesis_prune: float = 1e-4
     max_ranking_work: int | None = 2**25
     seed: int | None = 0
+    reporting: str = "scan"
+    report_interval: float = 60.0
+    p_survive_per: str = "scan"
+    velocity_std: float = 1.0
+    r_labelled: float = 0.999
 
     def __post_init__(self):
         for name in _SHARED:
@@ -167,6 +196,13 @@ class PMBMConfig(ModelSettings):
         except ValueError as exc:
             raise ValueError(str(exc).replace("TrackerConfig:", "PMBMConfig:")) from None
         object.__setattr__(self, "measurement_noise", noise.measurement_noise)
+        if self.reporting == "async" and self.p_survive_per != "second":
+            raise _fail(
+                "p_survive_per",
+                "'second' with reporting = 'async' (a scan per report: survival per scan "
+                "would depend on how often other targets report)",
+                self.p_survive_per,
+            )
         if self.sensor != "position" and self.dim != 2:
             raise _fail("sensor", "'position' in 3-D (range-bearing is 2-D)", self.sensor)
         set_ = object.__setattr__

@@ -45,9 +45,9 @@ __all__ = [
 ]
 
 FORMAT = "jointtrack-tracker-state"
-VERSION = 5
+VERSION = 6
 #: Older versions still read, each upgraded by :func:`_upgrade` to this one.
-_READABLE = (3, 4, 5)
+_READABLE = (3, 4, 5, 6)
 #: JPDA settings of the interacting multiple model (version 5), and the values an
 #: older state's run continues under (its motion is "cv" or "ca": they are unused)
 _IMM_SETTINGS = {
@@ -202,6 +202,7 @@ def _read_verified(path):
             raise bad(f"header has no {key}")
     if version < VERSION:
         _upgrade(header, arrays)
+        _upgrade_poisson(header, arrays)
     _fill_added_settings(header)
     return header, arrays
 
@@ -262,6 +263,41 @@ def _upgrade(header: dict, arrays: dict) -> None:
     arrays.setdefault("mode_x", np.zeros((n, 0, 0)))
     arrays.setdefault("mode_P", np.zeros((n, 0, 0, 0)))
     arrays.setdefault("mode_log_prob", np.zeros((n, 0)))
+
+
+def _upgrade_poisson(header: dict, arrays: dict) -> None:
+    """Bring an intact PMB/PMBM state of version 5 or before to version 6, in place.
+
+    Version 6 (issue 32) gave the PMB/PMBM trackers reporting targets: each
+    Bernoulli's (PMBM: single-target hypothesis') birth time and reports
+    (``born``/``report_count``, ``sth_born``/``sth_reports``) and the labelled
+    Bernoullis with the label table (``labelled_*``, ``label_names``,
+    ``label_ids``). An older run used none of them (a scanning sensor, no labels:
+    its settings get ``reporting = "scan"`` from
+    :data:`~jointtrack.trackers.pmbm_config._ADDED_SETTINGS`), so they are filled
+    with values that continue it exactly: birth at the state's clock, no reports,
+    no labelled Bernoulli.
+    """
+    kind = header["scalars"].get("tracker", "jpda")
+    if kind not in ("pmb", "pmbm"):
+        return
+    clock = header["scalars"].get("time")
+    clock = float(clock) if isinstance(clock, int | float) else 0.0
+    count = "existence" if kind == "pmb" else "sth_r"
+    n = len(arrays[count]) if count in arrays else 0
+    born, reports = ("born", "report_count") if kind == "pmb" else ("sth_born", "sth_reports")
+    arrays.setdefault(born, np.full(n, clock))
+    arrays.setdefault(reports, np.zeros(n))
+    width = arrays["poisson_m"].shape[1] if arrays.get("poisson_m", np.zeros(0)).ndim == 2 else 0
+    arrays.setdefault("labelled_r", np.zeros(0))
+    arrays.setdefault("labelled_x", np.zeros((0, width)))
+    arrays.setdefault("labelled_P", np.zeros((0, width, width)))
+    arrays.setdefault("labelled_ids", np.zeros(0, np.int64))
+    arrays.setdefault("labelled_labels", np.zeros(0, dtype="U1"))
+    arrays.setdefault("labelled_born", np.zeros(0))
+    arrays.setdefault("labelled_reports", np.zeros(0))
+    arrays.setdefault("label_names", np.zeros(0, dtype="U1"))
+    arrays.setdefault("label_ids", np.zeros(0, np.int64))
 
 
 def read_run(path):
