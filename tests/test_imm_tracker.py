@@ -256,9 +256,10 @@ def test_failing_imm_stage_leaves_state_unchanged(stage, monkeypatch):
         ({"motion": "turn"}, "motion must be one of"),
     ],
 )
-def test_bad_imm_settings_name_the_key(kw, match):
+@pytest.mark.parametrize("config", [TrackerConfig, PMBMConfig])  # one validation, shared
+def test_bad_imm_settings_name_the_key(kw, match, config):
     with pytest.raises(ValueError, match=match):
-        TrackerConfig(**{"motion": "imm", **kw})
+        config(**{"motion": "imm", **kw})
 
 
 def test_imm_settings_unused_without_imm_are_not_cross_checked():
@@ -290,9 +291,11 @@ def test_stay_probability_and_toml_round_trip():
     assert check_field("imm_modes", ["ct"]) == ("ct",)
 
 
-def test_pmb_refuses_imm_naming_it():
-    with pytest.raises(ValueError, match="motion = 'imm' is available to the JPDA/JIPDA"):
-        PMBTracker(PMBMConfig(motion="imm", clutter_density=1e-6))
+def test_pmb_takes_imm():
+    """Since issue 32 the PMB/PMBM trackers take motion = "imm" (tests/test_pmbm_imm.py)."""
+    trk = PMBTracker(PMBMConfig(motion="imm", clutter_density=1e-6))
+    res = trk.step(0.0, np.zeros((1, 2)))
+    assert trk.mode_log_prob.shape == (len(trk.ids), 2) and res.mode_names == ("cv", "ct")
 
 
 # ----------------------------------------------------------------------------- run outputs
@@ -327,18 +330,19 @@ def test_imm_modes_object_of_another_dimension_is_refused():
         JPDATracker(TrackerConfig(dim=3, motion="imm", imm_modes=["cv"]), motion=modes)
 
 
-@pytest.mark.parametrize(
-    "overrides, match",
-    [
-        ({"motion": "imm"}, 'motion = "imm" is available to the JPDA/JIPDA tracker only'),
-        ({"imm_modes": ["cv"]}, "imm_modes"),
-    ],
-)
-def test_pmb_run_refuses_imm_settings_naming_them(tmp_path, overrides, match):
-    from jointtrack.experiments.run import RunConfigError, run_scenario
+@pytest.mark.parametrize("tracker", ["pmb", "pmbm"])
+def test_pmb_run_with_imm_writes_mode_columns_and_resumes_exactly(tmp_path, tracker):
+    """``jointtrack run --tracker pmb|pmbm`` with motion = "imm": the mode columns, and a
+    run stopped at scan 6 and resumed writes the uninterrupted run's tracks file."""
+    from jointtrack.experiments.run import run_scenario
+    from jointtrack.io import read_tracks
 
-    with pytest.raises(RunConfigError, match=match):
-        run_scenario(
-            "crossing", overrides, tmp_path, scenario_kwargs={"n_scans": 5}, tracker="pmb",
-            plots=False,
-        )  # fmt: skip
+    kw = dict(seed=2, scenario_kwargs={"n_scans": 12}, plots=False, tracker=tracker)
+    run_scenario("crossing", {"motion": "imm"}, tmp_path / "full", **kw)
+    cols = read_tracks(tmp_path / "full" / "tracks.csv")
+    assert list(cols)[-2:] == ["mode_cv", "mode_ct"] and len(cols["time"]) > 0
+    np.testing.assert_allclose(cols["mode_cv"] + cols["mode_ct"], 1.0, rtol=1e-12)
+    ck, part = tmp_path / "ck.npz", tmp_path / "part"
+    run_scenario("crossing", {"motion": "imm"}, part, checkpoint=ck, max_scans=6, **kw)
+    run_scenario("crossing", {"motion": "imm"}, part, resume=ck, checkpoint=ck, **kw)
+    assert (part / "tracks.csv").read_bytes() == (tmp_path / "full" / "tracks.csv").read_bytes()

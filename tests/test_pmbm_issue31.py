@@ -221,7 +221,7 @@ def _strip_track(arrays, track):
     """Remove every STH of ``track`` (consistently renumbered): a track with none."""
     keep = arrays["sth_track"] != track
     renumber = np.cumsum(keep) - 1
-    for name in ("sth_r", "sth_x", "sth_P", "sth_track", "sth_born", "sth_reports"):
+    for name in PMBMTracker._STH:
         arrays[name] = arrays[name][keep]
     hyp = arrays["hyp"]
     hyp[:, track] = -1
@@ -235,7 +235,7 @@ def test_a_track_without_single_target_hypotheses_is_refused(tmp_path):
         PMBMTracker.load(bad)
 
     def nothing_left(a, s):  # tracks, and not one STH (it was: IndexError)
-        for name in ("sth_r", "sth_x", "sth_P", "sth_track", "sth_born", "sth_reports"):
+        for name in PMBMTracker._STH:
             a[name] = a[name][:0]
         a["hyp"] = np.full_like(a["hyp"], -1)
 

@@ -369,12 +369,14 @@ def test_a_version_5_state_is_migrated_and_continues_exactly(kind, tmp_path, mon
     for t in range(6):
         trk.step(float(t), np.array([[10.0 * t, 0.0], [500.0, 3.0 * t]]))
     new = {"born", "report_count", "sth_born", "sth_reports", *kind._LABELLED}
+    new |= {p + k for p in ("", "sth_") for k in ("mode_x", "mode_P", "mode_log_prob")}
     arrays = {k: getattr(trk, trk._attr(k)) for k in kind._ARRAYS if k not in new}
-    config = {
-        k: v
-        for k, v in cfg.to_dict().items()
-        if k not in ("reporting", "report_interval", "p_survive_per", "velocity_std", "r_labelled")
-    }
+    from jointtrack.trackers.pmbm_config import _ADDED_SETTINGS
+
+    # the settings added in version 6: reporting targets and the IMM
+    added = set(_ADDED_SETTINGS) - {"max_ranking_work"}
+    assert {"reporting", "r_labelled", "imm_modes"} <= added
+    config = {k: v for k, v in cfg.to_dict().items() if k not in added}
     monkeypatch.setattr(state_io, "VERSION", 5)
     state_io.write_state(
         tmp_path / "old.npz", arrays, config, trk._saved_scalars(), trk.rng.bit_generator.state
@@ -454,3 +456,19 @@ def test_a_report_file_through_the_cli_with_pmbm_writes_lat_lon_tracks(tmp_path)
     assert s["tracks_per_identity"] == 1.0 and s["n_id_switches"] == 0, s
     assert s["coverage"] >= 0.95 and s["purity"] >= 0.99, s
     assert any("per second" in note for note in m["notes"]), m["notes"]
+
+
+@pytest.mark.parametrize("kind", [PMBTracker, PMBMTracker])
+def test_a_certain_target_always_detected_has_no_nan(kind):
+    """r = 1 and P_D = 1 (P_S = 1): "missed" has probability 0; its existence was 0/0 =
+    NaN in the Bernoulli update (existence_update) and the missed-Bernoulli rule."""
+    trk = kind(PMBMConfig(p_d=1.0, p_survive=1.0, clutter_density=1e-6, birth_density=0.0,
+                          prior_density=1e-7, r_recycle=0.0))  # fmt: skip
+    trk.step(0.0, np.array([[0.0, 0.0]]))
+    if kind is PMBTracker:
+        trk.existence[:] = 1.0
+    else:
+        trk.sth_r[:] = 1.0
+    for t in range(1, 4):
+        res = trk.step(float(t), np.array([[float(t), 0.0]]))
+        assert np.isfinite(res.x).all() and res.existence.tolist() == [1.0]

@@ -472,11 +472,6 @@ JPDA_ONLY_KEYS = (
     "merge_threshold",
     "miss_model",
     "exact_max_bits_tentative",
-    "imm_modes",
-    "imm_switching",
-    "imm_initial",
-    "turn_rate_std",
-    "max_turn_rate",
 )
 #: expected births per scan over the surveillance region when a scene states no birth
 #: model (every scene but ``many`` and ``coalescence``, and detection files)
@@ -525,11 +520,6 @@ def check_kind_keys(kind, tracker: Mapping, pmbm: Mapping, where: str | None) ->
                 f"{at}[tracker] key(s) {', '.join(bad)} set the JPDA track logic, which the "
                 f"{kind} tracker does not have; remove them (its own settings go in [pmbm]: "
                 f"{', '.join(_pmbm_only_keys())})"
-            )
-        if tracker.get("motion") == "imm":
-            raise RunConfigError(
-                f'{at}[tracker] motion = "imm" is available to the JPDA/JIPDA tracker only, '
-                f"not to the {kind} tracker"
             )
         return
     if pmbm and kind != "particle":

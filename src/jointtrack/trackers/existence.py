@@ -108,7 +108,8 @@ def existence_update(r, beta0, weights, rows, pdg, missed=None):
     # P(exists, no return) = β₀ · r(1 − P_D P_G) / (1 − r P_D P_G): the share of
     # "no return" in which the target exists but was missed
     missed = 1.0 - pdg if missed is None else missed
-    exists_missed = beta0 * r * missed / ((1.0 - r) + r * missed)
+    # r = 1 with P_D·P_G = 1: "no return" has probability 0 (it was 0/0 = NaN)
+    exists_missed = _missed_share(beta0 * r * missed, (1.0 - r) + r * missed)
     # P(a return is the track's) from the pair weights themselves, not as 1 − β₀:
     # for a track of existence ~1e-12 the weights are ~1e-12 and 1 − β₀ keeps only
     # their first few digits, so β₀ and the weights given existence summed to
@@ -123,6 +124,13 @@ def existence_update(r, beta0, weights, rows, pdg, missed=None):
         safe = np.where(none, 1.0, total)
         return r_post, np.where(none, 1.0, exists_missed / safe), weights / safe[rows]
     return r_post, exists_missed / total, weights / total[rows]
+
+
+def _missed_share(top, bottom):
+    """``top / bottom`` of a missed target's existence, 0 where ``bottom`` is 0 (a
+    target of existence 1 that is always detected is never missed: 0/0 was NaN)."""
+    top, bottom = np.asarray(top, float), np.asarray(bottom, float)
+    return np.divide(top, bottom, out=np.zeros(np.broadcast(top, bottom).shape), where=bottom > 0)
 
 
 #: Gauss–Legendre rules of the panels of :func:`_log_concave_integral`: 16 points,

@@ -102,6 +102,15 @@ rules the JIPDA tracker uses (:mod:`jointtrack.trackers.reporting`):
 * reported velocities seed the velocity of the Bernoullis the reports start
   (σ = ``velocity_std``); they are not measured.
 
+**Manoeuvres** (``motion = "imm"``): each Bernoulli (PMBM: each single-target
+hypothesis, labelled ones too) carries the modes of :mod:`jointtrack.filters.imm` —
+mixed and predicted per mode, its pairs weighed by the modes' mixture likelihood,
+updated by the IMM-PDA of its association probabilities (a detection child of
+PMBM by the IMM update with its return), reporting the combined position and
+velocity. The Poisson intensity moves with CV: it is a density of births, not a
+track; its first detection starts a Bernoulli with ``imm_initial``. A cluster
+merged past the ranking budget merges each mode across the hypotheses.
+
 What they cost, measured on the coalescence scene (10 runs, seeds 0–9, mean
 GOSPA c = 10, p = 2, α = 2; ``benchmarks/RESULTS.md``, "Issue 23"): with the
 defaults and gate P_G = 0.99, PMBM 2.294 ± 0.073 and PMB 2.701 ± 0.079. Turning each approximation
@@ -113,6 +122,7 @@ hypotheses 2.294 (3× slower), with 50 hypotheses 2.298 (2.4× faster).
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 import math
 import time
@@ -128,7 +138,18 @@ from jointtrack.association.budget import (
 from jointtrack.association.gating import likelihood_ratio_pairs
 from jointtrack.association.kbest import kbest_hypotheses
 from jointtrack.errors import InfeasibleAssignmentError
-from jointtrack.filters import ekf_update, pda_pairs_update, predict, update
+from jointtrack.filters import (
+    ekf_update,
+    imm_combine,
+    imm_pair_log_likelihoods,
+    imm_pda_pairs_update,
+    imm_predict,
+    pda_pairs_update,
+    predict,
+    update,
+)
+from jointtrack.filters.imm import IMMModes
+from jointtrack.models import ConstantVelocity
 from jointtrack.trackers.base import ScanResult, ScanTracker
 from jointtrack.trackers.existence import existence_update
 from jointtrack.trackers.pmbm_config import PMBMConfig
@@ -145,7 +166,12 @@ from jointtrack.trackers.reporting import (
     seed_velocities,
     undetected_detection,
 )
-from jointtrack.trackers.state_io import StateFileError, covariance_problem, validate_counters
+from jointtrack.trackers.state_io import (
+    StateFileError,
+    covariance_problem,
+    validate_counters,
+    validate_mode_arrays,
+)
 
 __all__ = ["PMBMConfig", "PMBMTracker", "PMBTracker"]
 
@@ -155,6 +181,7 @@ class _PoissonTracker(ScanTracker):
 
     CONFIG = PMBMConfig
     REPORT_FIELDS = ("labels", "velocities")
+    SUPPORTS_IMM = True
     _POISSON = ("poisson_w", "poisson_m", "poisson_P", "undetected_density")
     #: Bernoullis of labelled targets (``step(…, labels=)``) and the label → id table.
     #: A labelled report goes to the Bernoulli carrying its label (or starts one) and
@@ -168,9 +195,14 @@ class _PoissonTracker(ScanTracker):
         "labelled_labels",
         "labelled_born",
         "labelled_reports",
+        "labelled_mode_x",
+        "labelled_mode_P",
+        "labelled_mode_log_prob",
         "label_names",
         "label_ids",
     )
+    #: the per-Bernoulli fields of the labelled Bernoullis (_LABELLED without the table)
+    _LABELLED_ROWS = _LABELLED[:-2]
 
     def __init__(
         self,
@@ -224,6 +256,17 @@ class _PoissonTracker(ScanTracker):
         self.labelled_ids = np.zeros(0, np.int64)
         self.labelled_labels = np.zeros(0, dtype="U1")
         self.labelled_born, self.labelled_reports = np.zeros(0), np.zeros(0)
+        # motion = "imm": each Bernoulli's modes (state, covariance, log probability;
+        # zero modes otherwise) and x, P their combined position and velocity. The
+        # undetected targets' intensity moves with CV: it is a birth density, not a
+        # track, and its first detection starts a Bernoulli with imm_initial
+        self._imm = self._motion if isinstance(self._motion, IMMModes) else None
+        self._poisson_motion = self._motion
+        if self._imm is not None:
+            self._poisson_motion = ConstantVelocity(dim=c.dim, q=c.process_noise)
+        self.labelled_mode_x, self.labelled_mode_P, self.labelled_mode_log_prob = self._new_modes(
+            np.zeros((0, n)), np.zeros((0, n, n))
+        )
         # every label seen (sorted) and the id of its target's Bernoulli
         self.label_names, self.label_ids = np.zeros(0, dtype="U1"), np.zeros(0, np.int64)
         # the undetected targets' pair factor and miss probability of this scan
@@ -243,6 +286,66 @@ class _PoissonTracker(ScanTracker):
         self._scan_t, self._scan_dt = t, step
         self._u_pd_ratio, self._u_missed = undetected_detection(self.config, self._p_d, step)
         return labels, repeated, velocities, n_coincident, step
+
+    # ------------------------------------------------------------------ IMM
+    def _new_modes(self, x0, P0):
+        """Per-mode states ``(mode_x, mode_P, mode_log_prob)`` of Bernoullis started at
+        ``x0, P0`` (zero modes without an IMM)."""
+        c = self.config
+        if self._imm is None:
+            k = len(x0)
+            return np.zeros((k, 0, 0)), np.zeros((k, 0, 0, 0)), np.zeros((k, 0))
+        return self._imm.initial_states(
+            x0, P0, (c.max_acceleration / 2.0) ** 2, (c.max_turn_rate / 2.0) ** 2
+        )
+
+    def _combined(self, modes):
+        """``(x, P)``: the modes' combined position and velocity."""
+        k = self.state_dim
+        x, P = imm_combine(*modes)
+        return x[:, :k], P[:, :k, :k]
+
+    def _predict_set(self, x, P, modes, step, F, Q):
+        """Bernoullis ``(x, P, modes)`` predicted over ``step`` seconds (IMM: mixing and
+        mode-conditioned prediction, then combined; else ``F``, ``Q``)."""
+        if not len(x):
+            return x, P, modes
+        if self._imm is None:
+            x, P = predict(x, P, F, Q)
+            return x, P, modes
+        modes = imm_predict(*modes, self._imm, step)
+        return (*self._combined(modes), modes)
+
+    def _gate_set(self, x, P, modes, z):
+        """The gated pairs of Bernoullis and returns; with an IMM each pair weighs the
+        modes' mixture likelihood Σ_j c̄_j g_ij (the gate is the combined estimate's)."""
+        g = self._gate(x, P, z)
+        if self._imm is None or not len(g.rows):
+            return g
+        log_g, _ = imm_pair_log_likelihoods(
+            self._imm, *modes, z, g.rows, g.cols, **self._measurement_model()
+        )
+        return dataclasses.replace(g, log_g=log_g)
+
+    def _update_set(self, x, P, modes, z, beta0, rows, cols, w):
+        """PDA update of Bernoullis by association probabilities; IMM-PDA per mode
+        (each mode's PDA with its mode-conditioned β, Blom & Bloem 2000) and combined."""
+        if self._imm is None:
+            x, P = pda_pairs_update(x, P, z, beta0, rows, cols, w, **self._measurement_model())
+            return x, P, modes
+        modes = imm_pda_pairs_update(
+            self._imm, *modes, z, beta0, rows, cols, w, **self._measurement_model()
+        )
+        return (*self._combined(modes), modes)
+
+    def _detected_set(self, x, P, modes, z):
+        """Each Bernoulli ``k`` updated by its own return ``z[k]`` (Kalman / EKF, or the
+        IMM update: each mode's, μ_j ∝ c̄_j g_j)."""
+        if self._imm is None or not len(x):
+            x, P = self._pair_update(x, P, z)
+            return x, P, modes
+        k = np.arange(len(x))
+        return self._update_set(x, P, modes, z, np.zeros(len(x)), k, k, np.ones(len(x)))
 
     def _detection(self, born, reports, labelled=False) -> ScanDetection:
         """Detection and survival of Bernoullis born at ``born`` with ``reports`` (soft)
@@ -273,7 +376,7 @@ class _PoissonTracker(ScanTracker):
             P[:, a, a] = (c.max_acceleration / 2.0) ** 2
         return seed_velocities(x, P, velocities, d, c.velocity_std)
 
-    def _labelled_scan(self, t, z, labels, repeated, velocities, F=None, Q=None):
+    def _labelled_scan(self, t, z, labels, repeated, velocities, step=0.0, F=None, Q=None):
         """The labelled Bernoullis through one scan; returns the unlabelled returns' columns.
 
         Predicted with ``F``, ``Q`` (None: no time passed) and survival; a labelled
@@ -285,8 +388,11 @@ class _PoissonTracker(ScanTracker):
         missed with its own P_D,i (no gate: the label decides).
         """
         c = self.config
-        if F is not None and len(self.labelled_r):
-            self.labelled_x, self.labelled_P = predict(self.labelled_x, self.labelled_P, F, Q)
+        modes = (self.labelled_mode_x, self.labelled_mode_P, self.labelled_mode_log_prob)
+        if step > 0:
+            self.labelled_x, self.labelled_P, modes = self._predict_set(
+                self.labelled_x, self.labelled_P, modes, step, F, Q
+            )
         det = self._detection(self.labelled_born, self.labelled_reports, labelled=True)
         self.labelled_r = self.labelled_r * det.survival
         if labels is None:
@@ -300,18 +406,23 @@ class _PoissonTracker(ScanTracker):
         self.labelled_r[~heard] = missed_existence(
             self.labelled_r[~heard], det._replace(missed=det.missed[~heard]), self._p_d
         )
+        modes = tuple(a.copy() for a in modes)
         if len(rows):
             x, P = self.labelled_x[rows], self.labelled_P[rows]
             g = self._gate(x, P, z[cols], dense=True)
             inside = np.diagonal(g.mask)
-            x_new, P_new = self._pair_update(x, P, z[cols])
+            x_new, P_new, m_new = self._detected_set(x, P, tuple(a[rows] for a in modes), z[cols])
             x_jump, P_jump = self._report_states(
                 z[cols], None if velocities is None else velocities[cols]
             )
+            m_jump = self._new_modes(x_jump, P_jump)
             self.labelled_x[rows] = np.where(inside[:, None], x_new, x_jump)
             self.labelled_P[rows] = np.where(inside[:, None, None], P_new, P_jump)
+            for a, new, jump in zip(modes, m_new, m_jump, strict=True):
+                a[rows] = np.where(inside.reshape(-1, *([1] * (a.ndim - 1))), new, jump)
             self.labelled_r[rows] = c.r_labelled
             self.labelled_reports[rows] += 1.0
+        self.labelled_mode_x, self.labelled_mode_P, self.labelled_mode_log_prob = modes
         if len(open_cols):
             x0, P0 = self._report_states(
                 z[open_cols], None if velocities is None else velocities[open_cols]
@@ -328,31 +439,33 @@ class _PoissonTracker(ScanTracker):
             self.labelled_labels = np.concatenate([self.labelled_labels, labels[open_cols]])
             self.labelled_born = np.concatenate([self.labelled_born, np.full(k, float(t))])
             self.labelled_reports = np.concatenate([self.labelled_reports, np.zeros(k)])
+            for name, a in zip(
+                ("labelled_mode_x", "labelled_mode_P", "labelled_mode_log_prob"),
+                self._new_modes(x0, P0),
+                strict=True,
+            ):
+                setattr(self, name, np.concatenate([getattr(self, name), a]))
         keep = (self.labelled_r >= c.r_prune) & (self.labelled_r > 0)
         if not keep.all():
-            for name in self._LABELLED[:7]:
+            for name in self._LABELLED_ROWS:
                 setattr(self, name, getattr(self, name)[keep])
         return z_index
 
-    def _labelled_estimates(self):
-        """``(ids, x, P, r)`` of the labelled Bernoullis reported (r ≥ r_estimate)."""
+    def _result(self, t, ids, x, P, r, log_mu, **fields) -> ScanResult:
+        """The scan's :class:`ScanResult`: the unlabelled estimates (``log_mu`` their log
+        mode probabilities), then the labelled ones with r ≥ r_estimate."""
         on = self.labelled_r >= self.config.r_estimate
-        return (
-            self.labelled_ids[on],
-            self.labelled_x[on],
-            self.labelled_P[on],
-            self.labelled_r[on],
-        )
-
-    def _result(self, t, ids, x, P, r, **fields) -> ScanResult:
-        """The scan's :class:`ScanResult`: the unlabelled estimates, then the labelled."""
-        lab = self._labelled_estimates()
+        imm = {}
+        if self._imm is not None:
+            log_mu = np.concatenate([log_mu, self.labelled_mode_log_prob[on]])
+            imm = {"mode_names": self._imm.names, "mode_probabilities": np.exp(log_mu)}
         return ScanResult(
             time=t,
-            ids=np.concatenate([ids, lab[0]]),
-            x=np.concatenate([x, lab[1]]),
-            P=np.concatenate([P, lab[2]]),
-            existence=np.concatenate([r, lab[3]]),
+            ids=np.concatenate([ids, self.labelled_ids[on]]),
+            x=np.concatenate([x, self.labelled_x[on]]),
+            P=np.concatenate([P, self.labelled_P[on]]),
+            existence=np.concatenate([r, self.labelled_r[on]]),
+            **imm,
             **fields,
         )
 
@@ -472,7 +585,7 @@ class _PoissonTracker(ScanTracker):
         L, _ = likelihood_ratio_pairs(g, pd_r, rho / scale)
         return L, miss_weight(r, det, self._p_d)
 
-    def _pmb_update(self, ids, r, x, P, z, rows, cols, L, miss, loud, det: ScanDetection):
+    def _pmb_update(self, ids, r, x, P, z, rows, cols, L, miss, loud, det: ScanDetection, modes):
         """PMB update of the Bernoullis ``(r, x, P)`` (ids ``ids``) by the returns ``z``.
 
         ``rows``/``cols``: the gated pairs (Bernoulli, return), ``L`` their
@@ -482,10 +595,11 @@ class _PoissonTracker(ScanTracker):
         (:meth:`~jointtrack.trackers.base.ScanTracker._pair_marginals`); each
         Bernoulli's mixture over its hypotheses is then merged to one Bernoulli
         (Williams 2015 eq. (58)–(60)). ``det``: the Bernoullis' detection over the
-        interval (:meth:`_detection`). Returns ``(r, x, P, taken, info, reports)``:
-        the posterior Bernoullis, each return's probability of having come
-        from one of them, the clusters' ``(sizes, seconds, methods,
-        fallbacks)`` and the reports each Bernoulli took given it exists.
+        interval (:meth:`_detection`); ``modes`` their IMM modes (zero modes without
+        one). Returns ``(r, x, P, taken, info, reports, modes)``: the posterior
+        Bernoullis, each return's probability of having come from one of them, the
+        clusters' ``(sizes, seconds, methods, fallbacks)``, the reports each
+        Bernoulli took given it exists, and the posterior modes.
         """
         # loud=False for PMB: fallbacks are logged at debug level and reported in the result
         pairs = _GatedPairs(len(r), len(z), rows, cols)
@@ -495,10 +609,10 @@ class _PoissonTracker(ScanTracker):
             r_post, b0, wc = existence_update(r, beta0, w, rows, self._p_d)
         else:
             r_post, b0, wc = existence_update(r, beta0, w, rows, det.pdg, missed=det.missed)
-        x_post, P_post = pda_pairs_update(x, P, z, b0, rows, cols, wc, **self._measurement_model())
+        x_post, P_post, modes = self._update_set(x, P, modes, z, b0, rows, cols, wc)
         # the reports each Bernoulli took, given it exists (its own reporting rate)
         reports = np.bincount(rows, wc, minlength=len(r))
-        return r_post, x_post, P_post, taken, info, reports
+        return r_post, x_post, P_post, taken, info, reports, modes
 
     # --------------------------------------------------------------- checks
     def _labelled_spec(self) -> dict:
@@ -516,8 +630,7 @@ class _PoissonTracker(ScanTracker):
             "label_ids": ("i", ("L",)),
         }
 
-    @staticmethod
-    def _validate_labelled(path, arrays) -> None:
+    def _validate_labelled(self, path, arrays) -> None:
         """Values of the labelled Bernoullis and the label table a tracker can hold."""
 
         def bad(what):
@@ -535,6 +648,8 @@ class _PoissonTracker(ScanTracker):
         for name in ("labelled_reports", "report_count", "sth_reports"):
             if name in arrays and (arrays[name] < 0).any():
                 raise bad(f"field {name!r} has negative values")
+        count = len(arrays["labelled_r"])
+        validate_mode_arrays(path, arrays, self._imm, prefix="labelled_", count=count)
 
     def _validate_common(self, path, arrays, spec, lengths):
         """Dtype/shape/finiteness of ``spec`` {name: (kind, shape with names)}."""
@@ -587,10 +702,24 @@ class PMBTracker(_PoissonTracker):
         "reported",
         "born",
         "report_count",
+        "mode_x",
+        "mode_P",
+        "mode_log_prob",
         *_PoissonTracker._POISSON,
         *_PoissonTracker._LABELLED,
     )
-    _BERNOULLI = ("x", "P", "ids", "existence", "reported", "born", "report_count")
+    _BERNOULLI = (
+        "x",
+        "P",
+        "ids",
+        "existence",
+        "reported",
+        "born",
+        "report_count",
+        "mode_x",
+        "mode_P",
+        "mode_log_prob",
+    )
 
     def __init__(self, config=None, *, motion=None, sensor=None, sensors=None, keep_history=True):
         super().__init__(
@@ -604,6 +733,13 @@ class PMBTracker(_PoissonTracker):
         # birth time and (soft) number of reports of each Bernoulli: its own reporting
         # rate (reporting = "async")
         self.born, self.report_count = np.zeros(0), np.zeros(0)
+        self.mode_x, self.mode_P, self.mode_log_prob = self._new_modes(self.x, self.P)
+
+    def _modes(self):
+        """The Bernoullis' IMM modes (without an IMM: zero modes, one row per Bernoulli)."""
+        if self._imm is None:
+            return self._new_modes(self.x, self.P)
+        return self.mode_x, self.mode_P, self.mode_log_prob
 
     def _keep_bernoullis(self, keep) -> None:
         for name in self._BERNOULLI:
@@ -615,11 +751,12 @@ class PMBTracker(_PoissonTracker):
         labels, repeated, velocities, n_coincident, step = self._begin_scan(
             t, z, dt, n_coincident, labels, velocities
         )
+        self.mode_x, self.mode_P, self.mode_log_prob = self._modes()
         F = Q = None
         if step > 0:
-            F, Q = self._motion.transition(step), self._motion.noise(step)
-            if len(self.ids):
-                self.x, self.P = predict(self.x, self.P, F, Q)
+            F, Q = self._poisson_motion.transition(step), self._poisson_motion.noise(step)
+            self.x, self.P, modes = self._predict_set(self.x, self.P, self._modes(), step, F, Q)
+            self.mode_x, self.mode_P, self.mode_log_prob = modes
             self._predict_poisson(F, Q, step)
         det = self._detection(self.born, self.report_count)
         self.existence = det.survival * self.existence
@@ -630,7 +767,7 @@ class PMBTracker(_PoissonTracker):
             self._keep_bernoullis(live)
             det = ScanDetection(*(a[live] for a in det[:5]), det.scan)
         # labelled reports go to their own Bernoullis; the rest are associated here
-        z_index = self._labelled_scan(t, z, labels, repeated, velocities, F, Q)
+        z_index = self._labelled_scan(t, z, labels, repeated, velocities, step, F, Q)
         zu = z[z_index]
         rho, e, x_new, P_new = self._poisson_detection(zu)
         if velocities is not None:
@@ -640,11 +777,14 @@ class PMBTracker(_PoissonTracker):
         info = ([], [], [], [])
         gated = np.zeros(M, bool)
         if N and M:
-            g = self._gate(self.x, self.P, zu)
+            g = self._gate_set(self.x, self.P, self._modes(), zu)
             L, miss = self._pair_weights(self.existence, g, rho, det)
-            self.existence, self.x, self.P, taken, info, reports = self._pmb_update(
-                self.ids, self.existence, self.x, self.P, zu, g.rows, g.cols, L, miss, False, det
+            r, x, P, ids = self.existence, self.x, self.P, self.ids
+            r, x, P, taken, info, reports, modes = self._pmb_update(
+                ids, r, x, P, zu, g.rows, g.cols, L, miss, False, det, self._modes()
             )
+            self.existence, self.x, self.P = r, x, P
+            self.mode_x, self.mode_P, self.mode_log_prob = modes
             self.report_count = self.report_count + reports
             gated[g.cols] = True
         elif N:  # nothing measured: every Bernoulli missed
@@ -657,11 +797,16 @@ class PMBTracker(_PoissonTracker):
         reported = np.concatenate([self.reported, np.zeros(M, bool)])
         born = np.concatenate([self.born, np.full(M, float(t))])
         report_count = np.concatenate([self.report_count, np.zeros(M)])
+        modes = [
+            np.concatenate([a, b])
+            for a, b in zip(self._modes(), self._new_modes(x_new, P_new), strict=True)
+        ]
         weak = (r < c.r_recycle) & (r >= c.r_prune) & ~reported
         self._thin_and_prune_poisson((r[weak], x[weak], P[weak]))
         keep = (r >= c.r_prune) & (r > 0) & ~weak  # r = 0: no Bernoulli at all
         self.x, self.P, self.existence, ids = x[keep], P[keep], r[keep], ids[keep]
         self.born, self.report_count = born[keep], report_count[keep]
+        self.mode_x, self.mode_P, self.mode_log_prob = (a[keep] for a in modes)
         self.reported = reported[keep] | (self.existence >= c.r_estimate)
         new = ids == 0
         ids[new] = np.arange(self.next_id, self.next_id + int(new.sum()))
@@ -677,6 +822,7 @@ class PMBTracker(_PoissonTracker):
             self.x[report].copy(),
             self.P[report].copy(),
             self.existence[report].copy(),
+            self.mode_log_prob[report],
             n_tentative=int((~report).sum()),
             n_measurements=len(z),
             n_unassociated=int((~gated).sum()),
@@ -707,6 +853,7 @@ class PMBTracker(_PoissonTracker):
         self._validate_common(path, arrays, spec, {})
         _check_existence(path, "existence", arrays["existence"])
         self._validate_labelled(path, arrays)
+        validate_mode_arrays(path, arrays, self._imm)
         ids = np.concatenate([arrays["ids"], arrays["labelled_ids"]])
         validate_counters(path, ids, scalars)
 
@@ -815,10 +962,11 @@ class _MergedChildren:
     """Children made by merged clusters, numbered from ``first`` on: ``(r, x, P, track,
     born, reports)``."""
 
-    def __init__(self, first: int, n: int):
-        self.first, self.n, self.size, self.parts = first, n, 0, []
+    def __init__(self, first: int, n: int, modes):
+        # ``modes``: empty mode arrays of the tracker (their trailing shapes)
+        self.first, self.n, self.size, self.parts, self.modes = first, n, 0, [], modes
 
-    def add(self, r, x, P, track, born, reports) -> np.ndarray:
+    def add(self, r, x, P, track, born, reports, modes) -> np.ndarray:
         """Append children; returns their indices."""
         idx = self.first + self.size + np.arange(len(r))
         k = len(r)
@@ -830,6 +978,7 @@ class _MergedChildren:
                 np.asarray(track, np.int64),
                 np.broadcast_to(np.asarray(born, float), (k,)),
                 np.broadcast_to(np.asarray(reports, float), (k,)),
+                *modes,
             )
         )
         self.size += len(r)
@@ -839,7 +988,9 @@ class _MergedChildren:
         if not self.parts:
             n = self.n
             none = np.zeros(0)
-            return none, np.zeros((0, n)), np.zeros((0, n, n)), np.zeros(0, np.int64), none, none
+            modes = tuple(np.zeros((0, *a.shape[1:])) for a in self.modes)
+            return (none, np.zeros((0, n)), np.zeros((0, n, n)), np.zeros(0, np.int64), none,
+                    none, *modes)  # fmt: skip
         return tuple(np.concatenate(a) for a in zip(*self.parts, strict=True))
 
 
@@ -868,6 +1019,9 @@ class PMBMTracker(_PoissonTracker):
         "sth_track",
         "sth_born",
         "sth_reports",
+        "sth_mode_x",
+        "sth_mode_P",
+        "sth_mode_log_prob",
         "track_ids",
         "track_reported",
         "hyp",
@@ -875,6 +1029,8 @@ class PMBMTracker(_PoissonTracker):
         *_PoissonTracker._POISSON,
         *_PoissonTracker._LABELLED,
     )
+    _STH = ("sth_r", "sth_x", "sth_P", "sth_track", "sth_born", "sth_reports", "sth_mode_x",
+            "sth_mode_P", "sth_mode_log_prob")  # fmt: skip
 
     def __init__(self, config=None, *, motion=None, sensor=None, sensors=None, keep_history=True):
         super().__init__(
@@ -885,11 +1041,20 @@ class PMBMTracker(_PoissonTracker):
         self.sth_track = np.zeros(0, np.int64)
         # each STH's birth time and reports (its own reporting rate, reporting = "async")
         self.sth_born, self.sth_reports = np.zeros(0), np.zeros(0)
+        self.sth_mode_x, self.sth_mode_P, self.sth_mode_log_prob = self._new_modes(
+            self.sth_x, self.sth_P
+        )
         self.track_ids = np.zeros(0, np.int64)
         # reported at some scan (estimator 1): never recycled, so its id is kept
         self.track_reported = np.zeros(0, bool)
         self.hyp = np.zeros((1, 0), np.int64)  # one global hypothesis with no track
         self.hyp_logw = np.zeros(1)
+
+    def _sth_modes(self, rows=slice(None)):
+        """The STHs' IMM modes (without an IMM: zero modes, one row per STH)."""
+        if self._imm is None:
+            return self._new_modes(self.sth_x[rows], self.sth_P[rows])
+        return self.sth_mode_x[rows], self.sth_mode_P[rows], self.sth_mode_log_prob[rows]
 
     def _lbp_work(self) -> int:
         """A merged cluster's sparse LBP works within ``max_ranking_work`` too (at most
@@ -913,11 +1078,14 @@ class PMBMTracker(_PoissonTracker):
         labels, repeated, velocities, n_coincident, step = self._begin_scan(
             t, z, dt, n_coincident, labels, velocities
         )
+        self.sth_mode_x, self.sth_mode_P, self.sth_mode_log_prob = self._sth_modes()
         F = Q = None
         if step > 0:
-            F, Q = self._motion.transition(step), self._motion.noise(step)
-            if len(self.sth_r):
-                self.sth_x, self.sth_P = predict(self.sth_x, self.sth_P, F, Q)
+            F, Q = self._poisson_motion.transition(step), self._poisson_motion.noise(step)
+            self.sth_x, self.sth_P, modes = self._predict_set(
+                self.sth_x, self.sth_P, self._sth_modes(), step, F, Q
+            )
+            self.sth_mode_x, self.sth_mode_P, self.sth_mode_log_prob = modes
             self._predict_poisson(F, Q, step)
         # each single-target hypothesis' detection over the interval (its own reporting
         # rate with reporting = "async"); scan-local, like the JPDA tracker's _scan_*
@@ -929,7 +1097,7 @@ class PMBMTracker(_PoissonTracker):
         self._det = det
         # labelled reports go to their own Bernoullis; the rest are associated here
         z_all = z
-        z_index = self._labelled_scan(t, z, labels, repeated, velocities, F, Q)
+        z_index = self._labelled_scan(t, z, labels, repeated, velocities, step, F, Q)
         z = z[z_index]
         rho, e, x_new, P_new = self._poisson_detection(z)
         if velocities is not None:
@@ -941,7 +1109,7 @@ class PMBMTracker(_PoissonTracker):
         # with hypothesis S + P + j; clusters merged past the ranking budget add
         # theirs after that (_hypotheses_after)
         if S and M:
-            g = self._gate(self.sth_x, self.sth_P, z)
+            g = self._gate_set(self.sth_x, self.sth_P, self._sth_modes(), z)
             rows, cols = g.rows, g.cols
             L, miss = self._pair_weights(self.sth_r, g, rho, det)
         else:
@@ -968,9 +1136,8 @@ class PMBMTracker(_PoissonTracker):
         # burst gates millions of pairs; Kalman updates of them all would not be used)
         ref = np.unique(hyp[hyp >= 0])
         hyp = np.where(hyp >= 0, np.searchsorted(ref, np.maximum(hyp, 0)), -1)
-        child_r, child_x, child_P, child_track, child_born, child_reports = self._children(
-            ref, S, T, z, rows, cols, (e / rho, x_new, P_new), merged
-        )
+        children = self._children(ref, S, T, z, rows, cols, (e / rho, x_new, P_new), merged)
+        child_r, child_x, child_P, child_track, child_born, child_reports, child_modes = children
         # Bernoullis too unlikely to exist are dropped from every hypothesis (r = 0 always:
         # with r_prune = 0, a return outside birth_region would start a track that never goes)
         r_child = child_r[np.maximum(hyp, 0)]
@@ -999,6 +1166,7 @@ class PMBMTracker(_PoissonTracker):
         self.hyp_logw = logw - logw.max()
         self.sth_r, self.sth_x, self.sth_P = child_r[used], child_x[used], child_P[used]
         self.sth_born, self.sth_reports = child_born[used], child_reports[used]
+        self.sth_mode_x, self.sth_mode_P, self.sth_mode_log_prob = (a[used] for a in child_modes)
         self.sth_track = track_map[child_track[used]]
         born = cols_kept[cols_kept >= T]
         new_ids = np.arange(self.next_id, self.next_id + len(born))
@@ -1028,6 +1196,7 @@ class PMBMTracker(_PoissonTracker):
             self.sth_x[s].copy(),
             self.sth_P[s].copy(),
             self.sth_r[s].copy(),
+            self.sth_mode_log_prob[s],
             n_tentative=int(len(present) - len(s)),
             n_measurements=len(z_all),
             n_unassociated=int((~gated).sum()),
@@ -1055,30 +1224,32 @@ class PMBMTracker(_PoissonTracker):
         self.hyp = np.where(
             self.hyp >= 0, np.where(live, renumber, -1)[np.maximum(self.hyp, 0)], -1
         )
-        self.sth_r, self.sth_x, self.sth_P = self.sth_r[live], self.sth_x[live], self.sth_P[live]
-        self.sth_track = self.sth_track[live]
-        self.sth_born, self.sth_reports = self.sth_born[live], self.sth_reports[live]
+        for name in self._STH:
+            setattr(self, name, getattr(self, name)[live])
         return live
 
     def _children(self, ref, S, T, z, rows, cols, born, merged):
-        """``(r, x, P, track, born, reports)`` of the child single-target hypotheses ``ref``
-        (sorted indices).
+        """``(r, x, P, track, born, reports, modes)`` of the child single-target hypotheses
+        ``ref`` (sorted indices).
 
         Index space of :meth:`_step`: ``s < S`` the missed child of STH s, ``S + p``
         the detection child of gated pair p (Kalman update of its STH with its
         return), ``S + P + j`` the new track of return j (``born``: existence, mean
         and covariance of each return's new Bernoulli), then the children of merged
-        clusters (``merged``: r, x, P, track, born, reports). A child keeps its
+        clusters (``merged``: r, x, P, track, born, reports, modes). A child keeps its
         parent's birth time and reports (one more for a detection); a new track's
-        are the scan's time and none.
+        are the scan's time and none. With an IMM a missed child keeps its parent's
+        predicted modes, a detection child is the IMM update by its return and a new
+        track starts with ``imm_initial``.
         """
         p_d = self._p_d
         n = self.state_dim
         n_pairs, M = len(rows), len(z)
         first_new, first_merged = S + n_pairs, S + n_pairs + M
         r_new, x_new, P_new = born
-        m_r, m_x, m_P, m_track, m_born, m_reports = merged
+        m_r, m_x, m_P, m_track, m_born, m_reports, *m_modes = merged
         r = np.empty(len(ref))
+        modes = tuple(np.empty((len(ref), *a.shape[1:])) for a in self._sth_modes())
         x = np.empty((len(ref), n))
         P = np.empty((len(ref), n, n))
         track = np.empty(len(ref), np.int64)
@@ -1089,21 +1260,31 @@ class PMBMTracker(_PoissonTracker):
         r[miss] = missed_existence(self.sth_r[s], det._replace(missed=det.missed[s]), p_d)
         x[miss], P[miss], track[miss] = self.sth_x[s], self.sth_P[s], self.sth_track[s]
         t_born[miss], reports[miss] = self.sth_born[s], self.sth_reports[s]
+        for a, parent in zip(modes, self._sth_modes(s), strict=True):
+            a[miss] = parent
         hit = (ref >= S) & (ref < first_new)
         p = ref[hit] - S
         r[hit] = 1.0
-        x[hit], P[hit] = self._pair_update(self.sth_x[rows[p]], self.sth_P[rows[p]], z[cols[p]])
+        x[hit], P[hit], hit_modes = self._detected_set(
+            self.sth_x[rows[p]], self.sth_P[rows[p]], self._sth_modes(rows[p]), z[cols[p]]
+        )
+        for a, child in zip(modes, hit_modes, strict=True):
+            a[hit] = child
         track[hit] = self.sth_track[rows[p]]
         t_born[hit], reports[hit] = self.sth_born[rows[p]], self.sth_reports[rows[p]] + 1.0
         new = (ref >= first_new) & (ref < first_merged)
         j = ref[new] - first_new
         r[new], x[new], P[new], track[new] = r_new[j], x_new[j], P_new[j], T + j
         t_born[new], reports[new] = self._scan_t, 0.0
+        for a, child in zip(modes, self._new_modes(x_new[j], P_new[j]), strict=True):
+            a[new] = child
         mer = ref >= first_merged
         k = ref[mer] - first_merged
         r[mer], x[mer], P[mer], track[mer] = m_r[k], m_x[k], m_P[k], m_track[k]
         t_born[mer], reports[mer] = m_born[k], m_reports[k]
-        return r, x, P, track, t_born, reports
+        for a, child in zip(modes, m_modes, strict=True):
+            a[mer] = child[k]
+        return r, x, P, track, t_born, reports, modes
 
     def _recycle(self, hyp, logw, child_r, child_x, child_P):
         """Never-reported tracks with existence below ``r_recycle`` everywhere go to the intensity.
@@ -1189,7 +1370,7 @@ class PMBMTracker(_PoissonTracker):
         quiet[pair_tracks] = False
         hq = hyp[:, quiet]
         const = np.where(hq >= 0, log_miss[np.maximum(hq, 0)], 0.0).sum(axis=1)
-        merged = _MergedChildren(S + n_pairs + M, self.state_dim)
+        merged = _MergedChildren(S + n_pairs + M, self.state_dim, self._sth_modes())
         clusters = ([], [], [], [], [])  # sizes, seconds, methods, confirmed, fallbacks
         born_as = []  # (returns, child index) of the new tracks of merged clusters
         ranked = []  # per cluster: (tracks, inverse (H,), [(w, child, taken) per tuple])
@@ -1425,6 +1606,7 @@ class PMBMTracker(_PoissonTracker):
             present, s = part.here, part.sths
             r, x, P = self.sth_r[s], self.sth_x[s], self.sth_P[s]
             t_born, reports = self.sth_born[s], self.sth_reports[s]
+            modes = self._sth_modes(s)
             det = ScanDetection(*(a[s] for a in self._det[:5]), self._det.scan)
             local_rows = part.row_local
             local_cols = np.searchsorted(returns, cols[part.pairs])
@@ -1443,27 +1625,47 @@ class PMBMTracker(_PoissonTracker):
             mass = np.bincount(tt, w, minlength=n_c)
             reports = np.bincount(tt, w * self.sth_reports[s], minlength=n_c)
             t_born, reports = t_born[present], reports[present] / mass[present]
+            modes = self._merged_modes(w, tt, s, n_c, present)
             det = self._detection(t_born, reports)
-            g = self._gate(x, P, z[returns])
+            g = self._gate_set(x, P, modes, z[returns])
             local_rows, local_cols = g.rows, g.cols
             L_m, miss_m = self._pair_weights(r, g, rho[returns], det)
         ids = self.track_ids[tracks[present]]
-        r_post, x_post, P_post, taken, info, heard = self._pmb_update(
-            ids, r, x, P, z[returns], local_rows, local_cols, L_m, miss_m, loud, det
+        r_post, x_post, P_post, taken, info, heard, modes_post = self._pmb_update(
+            ids, r, x, P, z[returns], local_rows, local_cols, L_m, miss_m, loud, det, modes
         )
         r_born = np.clip(1.0 - taken, 0.0, 1.0) * e[returns] / rho[returns]
         child = np.full((1, n_c), -1, np.int64)
         child[0, present] = merged.add(
-            r_post, x_post, P_post, tracks[present], t_born, reports + heard
+            r_post, x_post, P_post, tracks[present], t_born, reports + heard, modes_post
         )
+        born_modes = self._new_modes(x_new[returns], P_new[returns])
         born_idx = merged.add(
-            r_born, x_new[returns], P_new[returns], T + returns, self._scan_t, 0.0
+            r_born, x_new[returns], P_new[returns], T + returns, self._scan_t, 0.0, born_modes
         )
         _, _, methods, fallbacks = info
         tier = max(methods, key=_TIER_ORDER.index, default="exact")
         why = "; ".join(dict.fromkeys(f for f in fallbacks if f))
         lists = [(np.zeros(1), child, np.full((1, n_c), -1, np.int64))]
         return lists, np.zeros(len(self.hyp), np.int64), born_idx, (tier, why)
+
+    def _merged_modes(self, w, tt, s, n_c, present):
+        """IMM modes of the Bernoullis merged across global hypotheses: per track and
+        mode, the moment match of its STHs' mode states with weights w_h r_h μ_hj, and
+        the mode probabilities Σ_h w_h r_h μ_hj / Σ_h w_h r_h (zero modes without one)."""
+        if self._imm is None:
+            k = len(present)
+            return np.zeros((k, 0, 0)), np.zeros((k, 0, 0, 0)), np.zeros((k, 0))
+        mx, mP, ml = self._sth_modes(s)
+        r, nc = ml.shape[1], mx.shape[2]
+        wm = (w[:, None] * np.exp(ml)).reshape(-1)
+        groups = (tt[:, None] * r + np.arange(r)).reshape(-1)
+        mass, x, P = moment_match(wm, groups, mx.reshape(-1, nc), mP.reshape(-1, nc, nc), n_c * r)
+        mass = mass.reshape(n_c, r)[present]
+        with np.errstate(divide="ignore"):  # a mode's mass underflowed: its log is floored
+            log_mu = np.log(np.maximum(mass / mass.sum(axis=1, keepdims=True), 1e-300))
+        log_mu -= np.log(np.exp(log_mu).sum(axis=1, keepdims=True))
+        return x.reshape(n_c, r, nc)[present], P.reshape(n_c, r, nc, nc)[present], log_mu
 
     @staticmethod
     def _rank_cluster(tup, k, rows, cols, L, log_L, log_miss, start, S):
@@ -1536,6 +1738,7 @@ class PMBMTracker(_PoissonTracker):
         lengths: dict = {}
         self._validate_common(path, arrays, spec, lengths)
         self._validate_labelled(path, arrays)
+        validate_mode_arrays(path, arrays, self._imm, prefix="sth_", count=len(arrays["sth_r"]))
 
         def bad(what):
             return StateFileError(f"{path}: {what}")

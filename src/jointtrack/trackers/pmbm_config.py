@@ -39,6 +39,12 @@ _ADDED_SETTINGS = {
     "p_survive_per": "scan",
     "velocity_std": 1.0,
     "r_labelled": 0.999,
+    # the interacting multiple model (issue 32; unused by the CV/CA runs of older states)
+    "imm_modes": ("cv", "ct"),
+    "imm_switching": 0.95,
+    "imm_initial": None,
+    "turn_rate_std": 0.02,
+    "max_turn_rate": 0.2,
 }
 
 #: Fields shared with TrackerConfig, checked by its field checks.
@@ -65,6 +71,11 @@ _SHARED = (
     "p_survive_per",
     "velocity_std",
     "r_labelled",
+    "imm_modes",
+    "imm_switching",
+    "imm_initial",
+    "turn_rate_std",
+    "max_turn_rate",
 )
 
 
@@ -77,8 +88,13 @@ class PMBMConfig(ModelSettings):
     dim, motion, process_noise, measurement_noise, sensor, sensor_position,
     range_noise, bearing_noise, p_d, p_survive, association, exact_max_tracks,
     approximation, seed, reporting, report_interval, p_survive_per, velocity_std,
-    r_labelled :
-        as in :class:`~jointtrack.trackers.config.TrackerConfig`. With
+    r_labelled, imm_modes, imm_switching, imm_initial, turn_rate_std, max_turn_rate :
+        as in :class:`~jointtrack.trackers.config.TrackerConfig` (and checked by it).
+        ``motion = "imm"``: each Bernoulli (PMBM: each single-target hypothesis)
+        carries the modes' states and probabilities of
+        :mod:`jointtrack.filters.imm`; the Poisson intensity of undetected targets
+        moves with the CV model (a birth density, not a track: its first detection
+        starts a Bernoulli with ``imm_initial``). With
         ``reporting = "async"`` (targets that report themselves one at a time:
         AIS, ADS-B; it needs ``p_survive_per = "second"``) each Bernoulli is
         detected with its own P_D,i over the interval since the previous scan
@@ -187,6 +203,11 @@ class PMBMConfig(ModelSettings):
     p_survive_per: str = "scan"
     velocity_std: float = 1.0
     r_labelled: float = 0.999
+    imm_modes: tuple = ("cv", "ct")
+    imm_switching: float | tuple = 0.95
+    imm_initial: tuple | None = None
+    turn_rate_std: float = 0.02
+    max_turn_rate: float = 0.2
 
     def __post_init__(self):
         for name in _SHARED:
@@ -196,6 +217,11 @@ class PMBMConfig(ModelSettings):
         except ValueError as exc:
             raise ValueError(str(exc).replace("TrackerConfig:", "PMBMConfig:")) from None
         object.__setattr__(self, "measurement_noise", noise.measurement_noise)
+        if self.motion == "imm":  # the IMM settings against each other, as TrackerConfig's
+            try:
+                self._jpda_twin()
+            except ValueError as exc:
+                raise ValueError(str(exc).replace("TrackerConfig:", "PMBMConfig:")) from None
         if self.reporting == "async" and self.p_survive_per != "second":
             raise _fail(
                 "p_survive_per",
@@ -267,6 +293,23 @@ class PMBMConfig(ModelSettings):
         set_(self, "birth_weights", tuple(float(v) for v in wa))
         set_(self, "birth_means", tuple(tuple(float(v) for v in row) for row in ma))
         set_(self, "birth_covs", tuple(tuple(tuple(float(v) for v in r) for r in C) for C in Pa))
+
+    def _jpda_twin(self) -> TrackerConfig:
+        """The TrackerConfig of this configuration's motion (its IMM checks and matrices)."""
+        return TrackerConfig(
+            dim=self.dim,
+            motion=self.motion,
+            process_noise=self.process_noise,
+            imm_modes=self.imm_modes,
+            imm_switching=self.imm_switching,
+            imm_initial=self.imm_initial,
+            turn_rate_std=self.turn_rate_std,
+            max_turn_rate=self.max_turn_rate,
+        )
+
+    def imm_switching_matrix(self) -> np.ndarray:
+        """The (r, r) switching matrix of ``imm_switching`` for the ``imm_modes``."""
+        return self._jpda_twin().imm_switching_matrix()
 
     def measurement_covariance(self) -> np.ndarray:
         """R of the position sensor as a (dim, dim) array (from ``measurement_noise``)."""

@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 from jointtrack.assignment._checks import _as_real_array
-from jointtrack.trackers.existence import silence_outcomes
+from jointtrack.trackers.existence import _missed_share, silence_outcomes
 
 __all__ = [
     "ScanDetection",
@@ -168,10 +168,11 @@ def miss_weight(r, det: ScanDetection, p_d):
 
 
 def missed_existence(r, det: ScanDetection, p_d):
-    """Existence of a Bernoulli ``r`` that took no return: r(1 − P_D)/(1 − r P_D)."""
+    """Existence of a Bernoulli ``r`` that took no return: r(1 − P_D)/(1 − r P_D) (0 for
+    r = 1 and P_D = 1: such a target cannot go unheard)."""
     if det.scan:
-        return r * (1.0 - p_d) / (1.0 - p_d * r)
-    return r * det.missed / ((1.0 - r) + r * det.missed)
+        return _missed_share(r * (1.0 - p_d), 1.0 - p_d * r)
+    return _missed_share(r * det.missed, (1.0 - r) + r * det.missed)
 
 
 def check_report_fields(dim, z, labels, velocities, kept, n_coincident):

@@ -298,6 +298,12 @@ def _upgrade_poisson(header: dict, arrays: dict) -> None:
     arrays.setdefault("labelled_reports", np.zeros(0))
     arrays.setdefault("label_names", np.zeros(0, dtype="U1"))
     arrays.setdefault("label_ids", np.zeros(0, np.int64))
+    # zero IMM modes: the CV/CA trackers every older state holds
+    modes = "mode_" if kind == "pmb" else "sth_mode_"
+    for prefix, k in ((modes, n), ("labelled_mode_", 0)):
+        arrays.setdefault(prefix + "x", np.zeros((k, 0, 0)))
+        arrays.setdefault(prefix + "P", np.zeros((k, 0, 0, 0)))
+        arrays.setdefault(prefix + "log_prob", np.zeros((k, 0)))
 
 
 def read_run(path):
@@ -379,8 +385,11 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
         raise bad("field 'label_ids' holds ids the tracker never issued")
 
 
-def validate_mode_arrays(path, arrays: dict, modes) -> None:
-    """Check the IMM fields ``mode_x``, ``mode_P``, ``mode_log_prob`` of a JPDA state.
+def validate_mode_arrays(path, arrays: dict, modes, prefix: str = "", count=None) -> None:
+    """Check the IMM fields ``mode_x``, ``mode_P``, ``mode_log_prob`` of a state.
+
+    ``prefix``: of the field names (the PMB/PMBM trackers' ``labelled_``, ``sth_``);
+    ``count``: how many tracks they hold (default: the length of ``ids``).
 
     ``modes``: the tracker's :class:`~jointtrack.filters.imm.IMMModes`, or None
     (then every track has zero modes). Each mode's state must be finite and zero
@@ -392,12 +401,13 @@ def validate_mode_arrays(path, arrays: dict, modes) -> None:
     def bad(what: str) -> StateFileError:
         return StateFileError(f"{path}: {what}")
 
-    N = len(arrays["ids"])
+    N = len(arrays["ids"]) if count is None else count
     r, n = (modes.n_modes, modes.state_dim) if modes is not None else (0, 0)
+    x_name, P_name, lp_name = (prefix + k for k in ("mode_x", "mode_P", "mode_log_prob"))
     for name, shape in (
-        ("mode_x", (N, r, n)),
-        ("mode_P", (N, r, n, n)),
-        ("mode_log_prob", (N, r)),
+        (x_name, (N, r, n)),
+        (P_name, (N, r, n, n)),
+        (lp_name, (N, r)),
     ):
         if name not in arrays:
             raise bad(f"missing field {name!r}")
@@ -411,20 +421,20 @@ def validate_mode_arrays(path, arrays: dict, modes) -> None:
             raise bad(f"field {name!r} has non-finite values")
     if modes is None or N == 0:
         return
-    mx, mP, lp = arrays["mode_x"], arrays["mode_P"], arrays["mode_log_prob"]
+    mx, mP, lp = arrays[x_name], arrays[P_name], arrays[lp_name]
     for j, idx in enumerate(modes.mode_indices):
         other = np.setdiff1d(np.arange(n), idx)
         outside = mP[:, j][:, other].any() or mP[:, j][:, :, other].any()
         if outside or mx[:, j, other].any():
-            raise bad(f"field 'mode_x'/'mode_P': mode {j} has components outside its model")
+            raise bad(f"field '{x_name}'/'{P_name}': mode {j} has components outside its model")
         problem = covariance_problem(mP[:, j][:, idx[:, None], idx[None, :]])
         if problem:
-            raise bad(f"field 'mode_P' holds a covariance of mode {j} that {problem}")
+            raise bad(f"field '{P_name}' holds a covariance of mode {j} that {problem}")
     top = lp.max(axis=1, keepdims=True)
     tot = np.log(np.exp(lp - top).sum(axis=1)) + top[:, 0]
     if (np.abs(tot) > 1e-9).any():
         i = int(np.argmax(np.abs(tot) > 1e-9))
-        raise bad(f"field 'mode_log_prob': the mode probabilities of track {i} do not sum to 1")
+        raise bad(f"field '{lp_name}': the mode probabilities of track {i} do not sum to 1")
 
 
 def validate_counters(path, ids: np.ndarray, scalars: dict, field: str = "ids") -> None:
