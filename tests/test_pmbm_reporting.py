@@ -472,3 +472,15 @@ def test_a_certain_target_always_detected_has_no_nan(kind):
     for t in range(1, 4):
         res = trk.step(float(t), np.array([[float(t), 0.0]]))
         assert np.isfinite(res.x).all() and res.existence.tolist() == [1.0]
+
+
+@pytest.mark.parametrize("key", ["measure_velocity", "max_coast"])
+def test_jpda_only_reporting_keys_are_refused_for_pmb_naming_them(key):
+    """[tracker] measure_velocity / max_coast with --tracker pmb|pmbm: the Poisson
+    trackers have neither, so the key is refused by name, not silently ignored."""
+    from jointtrack.experiments.config import RunConfigError, check_kind_keys
+
+    for kind in ("pmb", "pmbm"):
+        with pytest.raises(RunConfigError, match=f"{key}.*{kind} tracker does not have"):
+            check_kind_keys(kind, {key: True if key == "measure_velocity" else 60.0}, {}, None)
+    check_kind_keys("jipda", {key: True if key == "measure_velocity" else 60.0}, {}, None)

@@ -472,6 +472,10 @@ JPDA_ONLY_KEYS = (
     "merge_threshold",
     "miss_model",
     "exact_max_bits_tentative",
+    # not in the Poisson trackers (yet): they seed new Bernoullis with reported
+    # velocities but do not measure them, and delete by existence, not by time
+    "measure_velocity",
+    "max_coast",
 )
 #: expected births per scan over the surveillance region when a scene states no birth
 #: model (every scene but ``many`` and ``coalescence``, and detection files)
