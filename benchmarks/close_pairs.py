@@ -11,8 +11,9 @@ clutter returns per scan over the region, σ = 50 m. For each separation and
 * ``jipda-imm``     JIPDA, ``motion = "imm"`` (CV + coordinated turn, main's defaults)
 * ``jipda-imm*``    the same with JPDA*
 * ``pmbm``          PMBM (CV, the same q), :func:`jointtrack.bench.tracking_runs.poisson_config`
-* ``ss-gnn``, ``ss-jpda``  Stone Soup's tutorial tracker (CV, the same q) with
-  GNN (``GNNWith2DAssignment``) or its JPDA (``JPDAwithEHM2``) (``--stonesoup``)
+* ``ss-gnn``, ``ss-jpda``  Stone Soup's ADS-B trackers of ``bench realdata`` (CV,
+  q = 20) with GNN (``GNNWith2DAssignment``) or its JPDA (``JPDAwithEHM2``)
+  (``--stonesoup``)
 
 Scored per run by :func:`jointtrack.metrics.track_statistics` (GOSPA
 assignment per scan, gate ``--gate`` = 500 m, the c of the issue's scorer):
@@ -28,14 +29,17 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import datetime
 import statistics
 import time
 
 import numpy as np
 
 from jointtrack.bench.tracking_runs import (
+    TrackRun,
     physical_config,
     poisson_config,
+    rows_to_run,
     run_jointtrack,
     run_poisson,
 )
@@ -75,6 +79,34 @@ def pair_scores(sc, run, gate: float) -> dict:
     }
 
 
+def run_stonesoup(sc, config: str) -> TrackRun:
+    """Stone Soup's ADS-B trackers of ``bench realdata``
+    (:func:`jointtrack.bench.stonesoup_realdata.build_tracker`: CV q = 20, GNN or
+    JPDA) on the scene's scans."""
+    from stonesoup.types.detection import Detection
+
+    from jointtrack.bench.stonesoup_realdata import build_tracker
+
+    tracker, mm = build_tracker(
+        config,
+        measurement_noise=float(sc.R[0, 0]),
+        p_d=sc.p_d,
+        clutter_density=sc.clutter_density,
+    )
+    epoch = datetime.datetime(2000, 1, 1)
+    labels: dict = {}
+    rows = []
+    for t, Z in zip(sc.times, sc.detections, strict=True):
+        ts = epoch + datetime.timedelta(seconds=float(t))
+        dets = {Detection(z.reshape(-1, 1), timestamp=ts, measurement_model=mm) for z in Z}
+        _, tracks = tracker.update_tracker(ts, dets)
+        rows += [
+            (float(t), labels.setdefault(trk.id, len(labels)), *trk.state_vector[[0, 2], 0])
+            for trk in tracks
+        ]
+    return rows_to_run(rows, 0.0, sc.n_scans)
+
+
 def runners(q: float, stonesoup: bool):
     """``{kind: run(scene) -> TrackRun}``."""
 
@@ -90,23 +122,8 @@ def runners(q: float, stonesoup: bool):
         "pmbm": lambda sc: run_poisson(sc, "pmbm", poisson_config(sc, p_g=0.9999)),
     }
     if stonesoup:
-        from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
-
-        from jointtrack.bench import stonesoup_tracker as sst
-
-        def ss(assoc):
-            def run(sc):
-                make = sst.stonesoup_tracker
-                sst.stonesoup_tracker = lambda s: make(s, data_associator=assoc)
-                try:
-                    return sst.run_stonesoup(sc)
-                finally:
-                    sst.stonesoup_tracker = make
-
-            return run
-
-        kinds["ss-gnn"] = ss(GNNWith2DAssignment)
-        kinds["ss-jpda"] = ss(None)
+        kinds["ss-gnn"] = lambda sc: run_stonesoup(sc, "gnn")
+        kinds["ss-jpda"] = lambda sc: run_stonesoup(sc, "jpda")
     return kinds
 
 
