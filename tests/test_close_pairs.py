@@ -243,3 +243,20 @@ def test_close_pairs_is_seeded_and_checks_its_arguments():
     ):
         with pytest.raises(ValueError, match=name):
             close_pairs(0, **kw)
+
+
+def test_state_written_before_the_switch_loads_without_it(tmp_path):
+    """A state file of main before ``coalescence_avoidance`` existed (same version, no
+    such key) loads as plain JPDA and continues identically."""
+    from jointtrack.trackers.state_io import read_state, write_state
+
+    trk = _two_close_tracks()
+    z = np.array([[2000.0, 10.0], [2000.0, 90.0]])
+    trk.step(10.0, z)
+    arrays, config, scalars, rng = read_state(trk.save(tmp_path / "now.npz"))
+    config.pop("coalescence_avoidance")
+    write_state(tmp_path / "before.npz", arrays, config, scalars, rng)
+    loaded = JPDATracker.load(tmp_path / "before.npz")
+    assert loaded.config.coalescence_avoidance is False
+    z2 = z + [2000.0, 0.0]
+    np.testing.assert_array_equal(loaded.step(20.0, z2).x, trk.step(20.0, z2).x)
