@@ -260,3 +260,19 @@ def test_state_written_before_the_switch_loads_without_it(tmp_path):
     assert loaded.config.coalescence_avoidance is False
     z2 = z + [2000.0, 0.0]
     np.testing.assert_array_equal(loaded.step(20.0, z2).x, trk.step(20.0, z2).x)
+
+
+def test_cluster_past_the_jpda_star_budget_keeps_jpda_and_is_counted(monkeypatch):
+    import jointtrack.trackers.jpda as jpda_module
+
+    def too_many(L, miss):
+        raise ExactLimitError("jpda_star: this cluster has 1e6 feasible joint hypotheses")
+
+    monkeypatch.setattr(jpda_module, "jpda_star_marginals", too_many)
+    z = np.array([[2000.0, 10.0], [2000.0, 90.0]])
+    star, plain = _two_close_tracks(coalescence_avoidance=True), _two_close_tracks()
+    r_star, r_plain = star.step(10.0, z), plain.step(10.0, z)
+    assert r_star.cluster_methods == ["exact"]
+    assert r_star.cluster_fallbacks[0].startswith("jpda_star_budget: ")
+    assert star.fallback_counts == {"jpda_star_budget": 1}
+    np.testing.assert_array_equal(r_star.x, r_plain.x)
