@@ -13,9 +13,9 @@ the two are within two standard deviations of each other at every scan.
 
 Set-up (defaults)
 -----------------
-* Scan interval 10 s, ``n_scans`` = 3 phases: ``straight_scans`` straight,
-  ``orbit_scans`` orbiting, ``straight_scans`` straight again (30 + 36 + 30
-  = 96 scans; 36 scans at 4°/s is four full orbits).
+* Scan interval 10 s; ``straight_scans`` intervals straight, ``orbit_scans``
+  orbiting, ``straight_scans`` straight again: 30 + 36 + 30 intervals, 97 scan
+  times from t = 0 (36 scans at 4°/s = 1440°, four full orbits).
 * Per pair (drawn from the seed): speed uniform in [150, 250] m/s, turn rate
   magnitude uniform in [3, 5] °/s with a random sign, initial heading uniform.
   The turn is a coordinated turn of constant rate ω: position
