@@ -13,7 +13,11 @@ Entry point: :func:`marginals` with ``method`` one of :data:`METHODS`:
 ``"mcmc"``       Oh–Russell–Sastry MCMC data association
 ``"kbest"``      k best joint events (Murty)
 
-Gating, clustering, clutter density, lbp, mcmc and kbest live in their own
+JPDA* (:func:`~jointtrack.association.coalescence.jpda_star`, Blom & Bloem:
+of the events that differ only by a permutation, the most likely) is not a
+method of the same marginals but another estimator, in its own module.
+
+Gating, clustering, clutter density, lbp, mcmc, kbest and JPDA* live in their own
 modules; their public names are re-exported here lazily (imported on first use).
 """
 
@@ -41,7 +45,7 @@ from jointtrack.association.pda import pda_marginals, pda_pair_marginals
 from jointtrack.errors import InfeasibleAssignmentError
 
 # Public names of the sibling modules (gating, clustering, clutter, lbp, mcmc,
-# kbest), resolved lazily by __getattr__ so that importing this package stays
+# kbest, coalescence), resolved lazily by __getattr__ so that importing this package stays
 # cheap and does not depend on all of them being importable.
 _LAZY = {
     "Gating": "gating",
@@ -71,8 +75,11 @@ _LAZY = {
     "KBestHypotheses": "kbest",
     "kbest_hypotheses": "kbest",
     "kbest_marginals": "kbest",
+    "JPDAStarResult": "coalescence",
+    "jpda_star": "coalescence",
+    "jpda_star_marginals": "coalescence",
 }
-_SIBLINGS = ("gating", "clustering", "clutter", "lbp", "mcmc", "kbest")
+_SIBLINGS = ("gating", "clustering", "clutter", "lbp", "mcmc", "kbest", "coalescence")
 
 
 def __getattr__(name: str):

@@ -465,6 +465,7 @@ JPDA_ONLY_KEYS = (
     "delete_misses",
     "max_position_std",
     "existence",
+    "coalescence_avoidance",
     "r_init",
     "r_confirm",
     "r_delete",

@@ -5,6 +5,8 @@
 * :func:`abreast` — targets abreast on parallel lanes at one speed (issue 11).
 * :func:`crossing` — two targets crossing in an X.
 * :func:`many_targets` — ≥ 100 NCV targets with births and deaths in clutter.
+* :func:`close_pairs` — aircraft pairs 0.1–2 km apart that fly straight and orbit
+  together at 3–5 °/s, 10 s scanning sensor (issue 32; not a run/sweep name).
 * :func:`coalescence` — Williams' four targets that meet mid-run, one dying
   there (the PMBM papers' scenario, with their filter model in ``info``).
 * :func:`acoustic` — 3–5 targets read by a 5 × 5 grid of superpositional
@@ -16,6 +18,7 @@
 """
 
 from jointtrack.scenarios.acoustic import AcousticScenario, acoustic
+from jointtrack.scenarios.close_pairs import close_pairs
 from jointtrack.scenarios.coalescence import coalescence
 from jointtrack.scenarios.generators import abreast, bojilov, crossing, many_targets, nominal_gate
 from jointtrack.scenarios.simulate import (
@@ -55,6 +58,7 @@ __all__ = [
     "abreast",
     "acoustic",
     "bojilov",
+    "close_pairs",
     "coalescence",
     "crossing",
     "many_targets",

@@ -243,6 +243,14 @@ class TrackerConfig(ModelSettings):
         rad/s per √s (its variance grows by turn_rate_std²·Δt); ≥ 0.
     max_turn_rate : largest turn rate, rad/s: a new track's turn rate starts at 0
         with σ = max_turn_rate/2 (``"ct"`` mode). Default 0.2 rad/s (11°/s).
+    coalescence_avoidance : JPDA* (Blom & Bloem 2000,
+        :mod:`jointtrack.association.coalescence`) for clusters of confirmed
+        tracks: of the joint events that differ only by which detected track took
+        which return, only the most likely is kept, so two close targets' tracks
+        do not coalesce (and swap ids). Clusters with more feasible events than
+        ``jointtrack.association.coalescence.JPDA_STAR_MAX_HYPOTHESES`` use
+        ``association`` instead (a counted fallback, ``jpda_star_budget``).
+        Default false (plain JPDA β).
     """
 
     p_g: float = 0.99
@@ -279,6 +287,7 @@ class TrackerConfig(ModelSettings):
     imm_initial: tuple | None = None
     turn_rate_std: float = 0.02
     max_turn_rate: float = 0.2
+    coalescence_avoidance: bool = False
 
     def __post_init__(self):
         for f in fields(self):
@@ -769,6 +778,7 @@ _CHECKS = {
     "imm_initial": _imm_initial,
     "turn_rate_std": _non_negative,
     "max_turn_rate": _positive,
+    "coalescence_avoidance": _bool,
 }
 
 

@@ -19,13 +19,16 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import time
 
 import numpy as np
 
 from jointtrack.assignment._checks import _as_real_array, as_float
 from jointtrack.association.clustering import clusters
 from jointtrack.association.clutter import cluster_heuristic_densities
+from jointtrack.association.coalescence import jpda_star_marginals
 from jointtrack.association.gating import likelihood_ratio_pairs
+from jointtrack.errors import ExactLimitError
 from jointtrack.filters import (
     imm_combine,
     imm_pair_log_likelihoods,
@@ -437,6 +440,28 @@ class JPDATracker(ScanTracker):
             self.x[rows], self.P[rows] = self._initial_states(z_new, velocities)
             modes = self._mode_states(self.x[rows], self.P[rows])
             self.mode_x[rows], self.mode_P[rows], self.mode_log_prob[rows] = modes
+
+    def _cluster_marginals(self, Lc, mc, loud):
+        """β of one multi-track cluster: JPDA* for confirmed tracks with
+        ``coalescence_avoidance`` (:func:`~jointtrack.association.coalescence.jpda_star`),
+        else (and past JPDA*'s event budget, a counted fallback) the configured method.
+
+        Only confirmed tracks: coalescence is what loses the ids of the targets
+        being reported, and clusters of clutter-born tentative tracks are the
+        large ones, where enumerating events would not pay.
+        """
+        if not (loud and self.config.coalescence_avoidance):
+            return super()._cluster_marginals(Lc, mc, loud)
+        t0 = time.perf_counter()
+        try:
+            beta = jpda_star_marginals(Lc, mc)
+        except ExactLimitError as exc:
+            beta, method, reason, _ = super()._cluster_marginals(Lc, mc, loud)
+            own = f"jpda_star_budget: {exc}"
+            if not reason:
+                self._log_fallback(len(Lc), Lc.shape[1], loud, own, method)
+            return beta, method, reason or own, time.perf_counter() - t0
+        return beta, "jpda*", "", time.perf_counter() - t0
 
     def _exact_budget(self, loud):
         """Confirmed tracks (``loud``): ``exact_max_tracks``; tentative ones: the

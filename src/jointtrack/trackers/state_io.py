@@ -213,10 +213,13 @@ def _fill_added_settings(header: dict) -> None:
     ``exact_max_bits_tentative`` (issue 25) gets None: tentative clusters budgeted
     by ``exact_max_tracks`` like confirmed ones, as every earlier jointtrack did, so
     the continued run is identical (not the new default, which would change it).
+    ``coalescence_avoidance`` gets False (plain JPDA β), what every earlier state ran.
     """
     if header["scalars"].get("tracker", "jpda") != "jpda":
         return
     header["config"].setdefault("exact_max_bits_tentative", None)
+    # coalescence_avoidance (JPDA*, issue 32) came after version 5: plain JPDA, as written
+    header["config"].setdefault("coalescence_avoidance", False)
     if header["version"] < 5:  # the IMM settings (issue 32) did not exist
         for key, value in _IMM_SETTINGS.items():
             header["config"].setdefault(key, value)
