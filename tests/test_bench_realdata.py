@@ -633,7 +633,11 @@ def test_a_refused_bare_run_is_recorded_not_raised(monkeypatch, tmp_path):
     assert "report files" in r.error and not r.completed and len(r.track_ids) == 0
     realdata.score_run(scene, r)
     assert r.score is None and r.score_error
-    assert realdata.run_figures(r, scene.duration)["coverage"] is None
+    figures = realdata.run_figures(r, scene.scan_times)
+    assert figures["coverage"] is None and figures["x_real_time"] is None
+    # a run stopped after 10 of the 20 scans: × real time over the 90 s it covered
+    r.error, r.scans_done, r.cpu = None, 10, 3.0
+    assert realdata.run_figures(r, scene.scan_times)["x_real_time"] == 30.0
     from jointtrack.bench.jointtrack_realdata import run_bare
 
     with pytest.raises(ValueError, match="tracker"):

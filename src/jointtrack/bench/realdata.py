@@ -714,11 +714,15 @@ FIGURES = (
     ("peak_rss_mib", "peak RSS MiB", ".0f"),
 )
 
+#: the figures of :data:`FIGURES` that are costs (defined without a score)
+_COSTS = ("cpu_s", "x_real_time", "peak_rss_mib")
 
-def run_figures(result: RunResult, duration: float) -> dict:
+
+def run_figures(result: RunResult, scan_times) -> dict:
     """The table's figures of one run (keys of :data:`FIGURES`; None where undefined):
-    the scores, lost truth points in % per class, CPU, × real time (``duration`` of the
-    scene over the CPU) and peak RSS in MiB."""
+    the scores, lost truth points in % per class, CPU, × real time (the span of the
+    scans the run completed, of the scene's ``scan_times``, over its CPU) and peak RSS
+    in MiB."""
     score = result.score or {}
     out = {}
     for key, _, _ in FIGURES:
@@ -727,10 +731,12 @@ def run_figures(result: RunResult, duration: float) -> dict:
             v = 100.0 * v
         out[key] = v
     out["cpu_s"] = float(result.cpu)
-    out["x_real_time"] = duration / result.cpu if result.cpu > 0 and result.completed else None
+    done = min(int(result.scans_done), len(scan_times))
+    span = float(scan_times[done - 1] - scan_times[0]) if done else 0.0
+    out["x_real_time"] = span / result.cpu if result.cpu > 0 and span > 0 else None
     out["peak_rss_mib"] = result.peak_rss / 2**20 if result.peak_rss else None
     if result.score is None:  # not scored: no figure of the tracks means anything
-        out = {k: (v if k in ("cpu_s", "peak_rss_mib") else None) for k, v in out.items()}
+        out = {k: (v if k in _COSTS else None) for k, v in out.items()}
     return out
 
 
@@ -1019,7 +1025,7 @@ def run(
                     pass  # score_run says why
             score_run(scene, result, truth)
             run_dict = result.as_dict()
-            run_dict["figures"] = run_figures(result, scene.duration)
+            run_dict["figures"] = run_figures(result, scene.scan_times)
             runs = entry["runs"].setdefault(name, {"per_seed": {}, "spread": {}})
             runs["per_seed"][key] = run_dict
             if first:
