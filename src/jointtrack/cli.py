@@ -135,7 +135,7 @@ def data_fetch(
 @bench_app.command("realdata", cls=_Command)
 def bench_realdata(
     quick: bool = typer.Option(
-        False, "--quick", help="Solent's first 30 scans; ADS-B quickstart instead of switzerland."
+        False, "--quick", help="Solent's first 30 scans; the ADS-B scenes' first 30 minutes."
     ),
     out: str = typer.Option(
         None, "--out", help="Folder for realdata.json, the track tables and the RSS plots."
