@@ -455,3 +455,50 @@ def test_a_slow_or_stationary_target_is_not_manoeuvring_and_thresholds_are_named
     ]:
         with pytest.raises((ValueError, TypeError), match=key):
             score_self_reports(*truth, *empty, window=10.0, c=C, **{key: bad})
+
+
+_coord = st.one_of(
+    st.just(0.0),
+    st.floats(5e-324, 1e300),
+    st.floats(-1e300, -5e-324),
+    st.floats(-1e4, 1e4),
+)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    xy=st.lists(st.tuples(_coord, _coord), min_size=9, max_size=9),
+    k=st.integers(-30, 30),
+)
+def test_classes_at_any_magnitude_warn_nothing_and_scale_by_powers_of_two(xy, k):
+    # three identities with three reports each at values from subnormal to 1e300 and
+    # zeros: no warning, every point classified, counts adding up; scaling positions,
+    # pair_distance and min_speed by 2**k (exact) changes no class where nothing
+    # over- or underflows
+    import warnings
+
+    t = np.tile([0.0, 30.0, 60.0], 3)
+    ids = np.repeat([1, 2, 3], 3)
+    pos = np.array(xy, dtype=np.float64)
+    empty = (np.zeros(0), np.zeros(0, int), np.zeros((0, 2)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        s = score_self_reports(t, ids, pos, *empty, window=30.0, c=C)
+    assert set(s.class_of.tolist()) <= {0, 1, 2} and s.class_of.size == s.n_identity_instants
+    assert s.n_straight + s.n_manoeuvre + s.n_close_pair == s.n_identity_instants == 9
+    assert s.coverage_straight in (0.0,) or math.isnan(s.coverage_straight)
+    if np.all((np.abs(pos) < 1e200) & ((pos == 0) | (np.abs(pos) > 1e-200))):
+        f = 2.0**k
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            s2 = score_self_reports(
+                t,
+                ids,
+                pos * f,
+                *empty,
+                window=30.0,
+                c=C * f,
+                pair_distance=2000.0 * f,
+                min_speed=1.0 * f,
+            )
+        assert s2.class_of.tolist() == s.class_of.tolist()

@@ -428,16 +428,18 @@ def _manoeuvring(tau, pos, T, X, max_gap, turn_span, min_speed, turn_rate):
     before_ok, before = _interpolate(tau, pos, T - turn_span, max_gap)
     after_ok, after = _interpolate(tau, pos, T + turn_span, max_gap)
     both = before_ok & after_ok
-    with np.errstate(over="ignore", invalid="ignore"):  # inf chords: no heading, below
+    # a chord of inf or NaN length (coordinates near ±1e308) has no heading: not moving
+    with np.errstate(over="ignore", invalid="ignore"):
         a = X[both, :2] - before[both[before_ok], :2]
         b = after[both[after_ok], :2] - X[both, :2]
-    na, nb = np.hypot(*a.T), np.hypot(*b.T)
-    moving = (np.minimum(na, nb) >= min_speed * turn_span) & (na > 0) & (nb > 0)
-    moving &= np.isfinite(na) & np.isfinite(nb)
-    # unit chords: products of coordinates up to 1e300 would overflow
-    ua = a / np.where(moving, na, 1.0)[:, None]
-    ub = b / np.where(moving, nb, 1.0)[:, None]
-    angle = np.abs(np.arctan2(ua[:, 0] * ub[:, 1] - ua[:, 1] * ub[:, 0], np.sum(ua * ub, axis=1)))
+        na, nb = np.hypot(*a.T), np.hypot(*b.T)
+        moving = (np.minimum(na, nb) >= min_speed * turn_span) & (na > 0) & (nb > 0)
+        moving &= np.isfinite(na) & np.isfinite(nb)
+        # unit chords: products of coordinates up to 1e300 would overflow
+        ua = a / np.where(moving, na, 1.0)[:, None]
+        ub = b / np.where(moving, nb, 1.0)[:, None]
+        cross = ua[:, 0] * ub[:, 1] - ua[:, 1] * ub[:, 0]
+        angle = np.abs(np.arctan2(cross, np.sum(ua * ub, axis=1)))
     out[both] = moving & (angle > turn_rate * turn_span)
     return out
 
