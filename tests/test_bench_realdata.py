@@ -607,6 +607,8 @@ def test_bare_runner_runs_the_plain_file_through_the_default_run_path(tmp_path, 
     order = np.argsort(scene.times, kind="stable")
     np.testing.assert_allclose(back, scene.positions[order], rtol=0, atol=1e-6)
     assert r.runner == "jointtrack-bare" and r.error is None and r.completed
+    # the run's own peak (its samples), not this process's peak so far (ru_maxrss)
+    assert r.peak_rss == max(r.rss) > 0
     assert "no config" in r.details["command"]
     # tracks back on the scene's clock (its origin is 0.5 s before the file's first
     # timestamp would be if shifted) and frame: both aircraft held, on their tracks
