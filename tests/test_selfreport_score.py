@@ -465,7 +465,7 @@ _coord = st.one_of(
 )
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=25, deadline=None)
 @given(
     xy=st.lists(st.tuples(_coord, _coord), min_size=9, max_size=9),
     k=st.integers(-30, 30),
