@@ -336,6 +336,10 @@ def test_cli_bad_cache_dir_exits_non_zero_with_one_line(tmp_path):
     assert result.exit_code == 2 and "--scene" in result.output
     result = CliRunner().invoke(app, ["bench", "realdata", "--stamp", "now"])
     assert result.exit_code == 2 and "--stamp" in result.output
+    result = CliRunner().invoke(app, ["bench", "realdata", "--seeds", "0"])
+    assert result.exit_code == 2 and "--seeds" in result.output
+    result = CliRunner().invoke(app, ["bench", "realdata", "--bare-tracker", "gnn"])
+    assert result.exit_code == 2 and "--bare-tracker" in result.output
 
 
 # ------------------------------------------------------------------ harness
@@ -373,7 +377,7 @@ def tiny_scene(labels=False):
         clutter_density=1e-9,
         window=60.0,
         truth=lambda: (truth_t, truth_ids, truth_xy),
-        default_runners=("stonesoup-nn", "jointtrack-jipda"),
+        default_runners=("stonesoup-nn", "jointtrack-handset"),
     )
 
 
@@ -416,14 +420,15 @@ def test_run_writes_json_tracks_and_plot_and_lists_unrun_runners(monkeypatch, tm
     monkeypatch.setattr(realdata_data, "fetch_realdata", lambda *a, **k: {})
     monkeypatch.setattr(realdata, "build_scenes", lambda *a, **k: [scene])
     monkeypatch.setitem(realdata.RUNNERS, "stonesoup-nn", in_process("nn"))
-    monkeypatch.setitem(realdata.RUNNERS, "jointtrack-jipda", not_yet)
-    report = realdata.run(
+    monkeypatch.setitem(realdata.RUNNERS, "jointtrack-handset", not_yet)
+    report = realdata.run(  # jointtrack-jipda: the handset runner's former name
         out=str(tmp_path / "out"), runners=["stonesoup-nn", "jointtrack-jipda", "stonesoup-demo"]
     )
     entry = report["scenes"]["tiny"]
-    assert entry["not_run"]["jointtrack-jipda"].startswith("not implemented")
+    assert entry["not_run"]["jointtrack-handset"].startswith("not implemented")
     assert "labels" in entry["not_run"]["stonesoup-demo"]
-    nn = entry["runs"]["stonesoup-nn"]
+    assert list(entry["runs"]["stonesoup-nn"]["per_seed"]) == ["unseeded"]
+    nn = entry["runs"]["stonesoup-nn"]["per_seed"]["unseeded"]
     assert nn["n_track_ids"] == 2 and nn["completed"]
     out = tmp_path / "out"
     assert json.loads((out / "realdata.json").read_text())["scenes"]["tiny"]["runs"]
@@ -545,3 +550,172 @@ def test_rss_sampler_sees_an_allocation():
     assert len(s.times) == len(s.rss) >= 5 and np.all(np.diff(s.times) > 0)
     assert max(s.rss) - s.rss[0] > 48 * 2**20
     assert s.peak >= max(s.rss)
+
+
+# ------------------------------------------------------------------ issue 32.6: runners, seeds
+
+
+def moving_scene(labels=False, seed=None, name="moving"):
+    """Two aircraft flying straight and level 20 km apart, seen by a perfect 10 s scanning
+    sensor (1 m noise) for 20 scans, in a real local frame about 47 °N 8 °E."""
+    from jointtrack.io.geodetic import LocalFrame
+
+    scan_times = 10.0 * np.arange(20)
+    start = np.array([[0.0, 0.0], [20_000.0, 0.0]])
+    vel = np.array([[15.0, 5.0], [-10.0, 12.0]])
+    rng = np.random.default_rng(7)
+    rows = [(k, v, start[v] + vel[v] * t) for k, t in enumerate(scan_times) for v in (0, 1)]
+    scan_index = np.array([r[0] for r in rows])
+    truth_xy = np.array([r[2] for r in rows])
+    truth_ids = np.array([r[1] for r in rows])
+    return realdata.Scene(
+        name=name,
+        description="two aircraft",
+        time_origin="2020-06-01T10:00:00.5Z",
+        frame=LocalFrame(47.0, 8.0),
+        times=scan_times[scan_index],
+        positions=truth_xy + rng.normal(0.0, 1.0, truth_xy.shape),
+        labels=np.array([f"a{v}" for v in truth_ids]) if labels else None,
+        scan_index=scan_index,
+        scan_times=scan_times,
+        measurement_noise=1.0,
+        p_d=1.0,
+        clutter_density=0.0,
+        window=10.0,
+        truth=lambda: (scan_times[scan_index], truth_ids, truth_xy),
+        stamp="scan",
+        seed=seed,
+    )
+
+
+@pytest.mark.parametrize("labels", [False, True])
+def test_bare_runner_runs_the_plain_file_through_the_default_run_path(tmp_path, labels):
+    from jointtrack.bench.jointtrack_realdata import run_bare
+    from jointtrack.io import read_detections
+
+    scene = moving_scene(labels=labels)
+    r = run_bare(scene, wall_cap=60.0, workdir=tmp_path)
+    # the plain file: time, lat, lon (+ label where the scene has labels), the rows' own
+    # positions and times, read back by the detections reader into the same places
+    head = (tmp_path / "plain.csv").read_text().splitlines()[0]
+    assert head == ("time,lat,lon,label" if labels else "time,lat,lon")
+    det = read_detections(tmp_path / "plain.csv")
+    assert det.n_detections == len(scene.times) and (det.labels is not None) == labels
+    # rows in time order (stable): the file's scans hold the scene's rows in that order
+    frame = det.geo_frame()
+    back = scene.frame.to_local(*frame.to_geodetic(np.concatenate(det.scans))[:2])
+    order = np.argsort(scene.times, kind="stable")
+    np.testing.assert_allclose(back, scene.positions[order], rtol=0, atol=1e-6)
+    assert r.runner == "jointtrack-bare" and r.error is None and r.completed
+    # the run's own peak (its samples), not this process's peak so far (ru_maxrss)
+    assert r.peak_rss == max(r.rss) > 0
+    assert "no config" in r.details["command"]
+    # tracks back on the scene's clock (its origin is 0.5 s before the file's first
+    # timestamp would be if shifted) and frame: both aircraft held, on their tracks
+    assert set(np.round(r.track_times, 6)) <= set(scene.scan_times)
+    realdata.score_run(scene, r)
+    assert r.score["coverage"] >= 0.8 and r.score["tracks_per_identity"] == 1.0
+    assert r.score["gospa_localisation"] ** 0.5 < 50.0
+
+
+def test_a_refused_bare_run_is_recorded_not_raised(monkeypatch, tmp_path):
+    from jointtrack.experiments import run as run_mod
+    from jointtrack.experiments.config import RunConfigError
+
+    calls = []
+
+    def refuse(detections, **kwargs):
+        calls.append(kwargs.get("tracker"))
+        raise RunConfigError("tracker = 'pmbm' does not run on report files")
+
+    monkeypatch.setattr(run_mod, "run_detections", refuse)
+    scene = moving_scene()
+    r = realdata.RUNNERS["jointtrack-bare-pmbm"](scene, wall_cap=60.0)
+    assert calls == ["pmbm"] and r.runner == "jointtrack-bare-pmbm"
+    assert "report files" in r.error and not r.completed and len(r.track_ids) == 0
+    realdata.score_run(scene, r)
+    assert r.score is None and r.score_error
+    figures = realdata.run_figures(r, scene.scan_times)
+    assert figures["coverage"] is None and figures["x_real_time"] is None
+    # a run stopped after 10 of the 20 scans: × real time over the 90 s it covered
+    r.error, r.scans_done, r.cpu = None, 10, 3.0
+    assert realdata.run_figures(r, scene.scan_times)["x_real_time"] == 30.0
+    from jointtrack.bench.jointtrack_realdata import run_bare
+
+    with pytest.raises(ValueError, match="tracker"):
+        run_bare(scene, tracker="gnn", wall_cap=1.0)
+
+
+def _keep_every(k_of_seed):
+    """A runner reporting the scene's truth as tracks at every k-th instant (k by seed),
+    one track id per identity: coverage 1/k, known per seed."""
+
+    def runner(scene, *, wall_cap, workdir=None, progress=None):
+        t, ids, xy = scene.truth()
+        k = k_of_seed[scene.seed]
+        keep = np.searchsorted(scene.scan_times, t) % k == 0
+        return realdata.RunResult(
+            runner="keep",
+            scene=scene.name,
+            wall=1.0,
+            cpu=float(k),
+            peak_rss=2**20 * k,
+            scans_done=scene.n_scans,
+            scans_total=scene.n_scans,
+            rss_times=np.array([0.0]),
+            rss=np.array([2**20]),
+            track_times=t[keep],
+            track_ids=ids[keep] + 100,
+            track_positions=xy[keep],
+        )
+
+    return runner
+
+
+def test_seeds_give_per_seed_figures_their_spread_the_table_and_the_class_chart(
+    monkeypatch, tmp_path
+):
+    builds = []
+
+    def build(names, paths, *, quick=False, seed=0):
+        builds.append((tuple(names), seed))
+        return [moving_scene(seed=seed, name="air")]
+
+    monkeypatch.setattr(realdata_data, "fetch_realdata", lambda *a, **k: {})
+    monkeypatch.setattr(realdata, "build_scenes", build)
+    monkeypatch.setitem(realdata.RUNNERS, "keep", _keep_every({3: 1, 4: 2, 5: 4}))
+    out = tmp_path / "out"
+    report = realdata.run(out=str(out), scenes=["air"], runners=["keep"], seed=3, seeds=3)
+    assert builds == [(("air",), 3), (("air",), 4), (("air",), 5)]
+    entry = report["scenes"]["air"]
+    assert entry["seeds"] == [3, 4, 5]
+    runs = entry["runs"]["keep"]
+    cov = {s: runs["per_seed"][s]["figures"]["coverage"] for s in ("3", "4", "5")}
+    assert cov == {"3": 1.0, "4": 0.5, "5": 0.25}
+    assert runs["spread"]["coverage"] == {"mean": 1.75 / 3, "min": 0.25, "max": 1.0, "n": 3}
+    # both aircraft fly straight and 20 km apart: every truth point is straight flight
+    assert runs["spread"]["coverage_straight"] == runs["spread"]["coverage"]
+    assert runs["spread"]["coverage_manoeuvre"] is None
+    assert runs["spread"]["lost_straight"]["max"] == 75.0  # in %
+    # × real time = 190 s of scene / CPU (1, 2, 4 s)
+    assert runs["spread"]["x_real_time"] == {
+        "mean": (190 + 95 + 47.5) / 3,
+        "min": 47.5,
+        "max": 190.0,
+        "n": 3,
+    }
+    saved = json.loads((out / "realdata.json").read_text())
+    assert saved["scenes"]["air"]["runs"]["keep"]["per_seed"]["5"]["figures"]["coverage"] == 0.25
+    md = (out / "realdata.md").read_text()
+    row = next(ln for ln in md.splitlines() if ln.startswith("| air | keep |"))
+    assert "0.583 (0.250–1.000)" in row and "| 3 |" in row
+    assert (out / "coverage_classes.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert {p.name for p in out.glob("tracks_air_keep_s*.csv")} == {
+        "tracks_air_keep_s3.csv",
+        "tracks_air_keep_s4.csv",
+        "tracks_air_keep_s5.csv",
+    }
+    with pytest.raises(ValueError, match="seeds"):
+        realdata.run(scenes=["air"], runners=["keep"], seeds=0)
+    with pytest.raises(ValueError, match="bare_trackers"):
+        realdata.run(scenes=["air"], runners=["keep"], bare_trackers=("gnn",))

@@ -119,7 +119,13 @@ def test_duplicate_reports_are_averaged_and_no_extrapolation():
     np.testing.assert_array_equal(p_s, [[0, 0], [1, 2], [1, 2]])
     assert s.identity_instants.tolist() == [3, 0]
     d = s.as_dict()
-    assert d["per_identity"]["4"] == {"instants": 0, "coverage": None, "tracks": 0, "switches": 0}
+    assert d["per_identity"]["4"] == {
+        "instants": 0,
+        "coverage": None,
+        "tracks": 0,
+        "tracks_held": 0,
+        "switches": 0,
+    }
 
 
 def test_false_track_and_rate():
@@ -327,3 +333,172 @@ def _replace(i, value):
 def test_bad_tables(args, match):
     with pytest.raises(ValueError, match=match):
         score_self_reports(*args, window=10.0, c=C)
+
+
+# ----------------------------------------------------------------------------- issue 32.6:
+# ids held ≥ 1 min, and coverage split into straight / manoeuvre / close pair
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    lengths=st.lists(st.integers(1, 12), min_size=1, max_size=6),
+    gap=st.integers(0, 3),
+    hold=st.sampled_from([10.0, 30.0, 60.0, 120.0]),
+)
+def test_ids_held_counts_only_ids_associated_for_hold_seconds(lengths, gap, hold):
+    # one identity reported every 10 s on a line; consecutive track segments of the
+    # drawn lengths (in instants), each with a new id, with `gap` untracked instants
+    # between them: an id is held when its length · 10 s ≥ hold
+    n = sum(lengths) + gap * len(lengths)
+    t = 10.0 * np.arange(n)
+    truth = (t, np.ones(n, int), np.c_[200.0 * t, 0.0 * t])
+    rows, k = [], 0
+    for seg, length in enumerate(lengths):
+        rows += [(10.0 * j, 100 + seg, 2000.0 * j, 0.0) for j in range(k, k + length)]
+        k += length + gap
+    s = score_self_reports(*truth, *_rows(rows), window=10.0, c=C, hold=hold)
+    held = sum(10.0 * length >= hold for length in lengths)
+    assert s.tracks_per_identity == len(lengths)
+    assert s.identity_tracks_held.tolist() == [held]
+    assert s.n_identities_held == (held > 0)
+    if held:
+        assert s.tracks_per_identity_held == held
+    else:
+        assert math.isnan(s.tracks_per_identity_held)
+    d = s.as_dict()
+    assert d["per_identity"]["1"]["tracks_held"] == held and d["hold"] == hold
+
+
+def _circle(t, speed, omega, centre):
+    """Positions on a constant-rate turn (rad/s) at constant speed about ``centre``."""
+    r = speed / abs(omega)
+    a = omega * t
+    return np.c_[centre[0] + r * np.sin(a), centre[1] - np.sign(omega) * r * np.cos(a)]
+
+
+@settings(max_examples=30, deadline=None)
+@example(n=8, speed=20.0, heading=0.0, omega_deg=1.5, pair=(0, 1), dist=1999.0, partner=1, seed=0)
+@given(
+    n=st.integers(8, 30),
+    speed=st.floats(20.0, 300.0),
+    heading=st.floats(-math.pi, math.pi),
+    omega_deg=st.floats(1.5, 5.5) | st.floats(-5.5, -1.5),
+    pair=st.tuples(st.integers(0, 29), st.integers(1, 30)),
+    dist=st.floats(100.0, 1999.0),
+    partner=st.sampled_from([0, 1]),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_coverage_split_by_class_matches_the_construction(
+    n, speed, heading, omega_deg, pair, dist, partner, seed
+):
+    # A (id 1) flies straight; B (id 2) turns at omega (> 1 °/s) 1,000 km away; C (id 3)
+    # flies at a constant offset `dist` (< 2 km) from A or B over instants [k1, k2) only.
+    # Reports every 10 s on the instants, so t ± 30 s are report times and B's chords
+    # turn by exactly omega · 30 s. Tracks sit on the truth at a random subset of points.
+    k1 = min(pair[0], n - 1)
+    k2 = min(max(pair[1], k1 + 1), n)
+    t = 10.0 * np.arange(n)
+    a = np.c_[speed * np.cos(heading) * t, speed * np.sin(heading) * t]
+    b = _circle(t, speed, math.radians(omega_deg), (1e6, 0.0))
+    off = dist * np.array([math.cos(heading + 1.0), math.sin(heading + 1.0)])
+    c = (a if partner == 0 else b)[k1:k2] + off
+    times = np.r_[t, t, t[k1:k2]]
+    ids = np.r_[np.full(n, 1), np.full(n, 2), np.full(k2 - k1, 3)]
+    pos = np.r_[a, b, c]
+    # by construction: 0 straight, 1 manoeuvre, 2 close pair
+    cls_a = np.zeros(n, int)
+    cls_b = np.zeros(n, int)
+    cls_b[3 : n - 3] = 1  # B's points with both t ± 30 s inside its reports
+    (cls_a if partner == 0 else cls_b)[k1:k2] = 2
+    expected = np.r_[cls_a, cls_b, np.full(k2 - k1, 2)]
+    tracked = np.random.default_rng(seed).random(times.size) < 0.6
+    tracks = (times[tracked], 100 + ids[tracked], pos[tracked])
+    s = score_self_reports(times, ids, pos, *tracks, window=10.0, c=50.0)
+    # the score's class of every truth point, matched to the construction by (id, time)
+    got = {
+        (int(i), float(x)): int(k)
+        for i, x, k in zip(s.truth_sampled[1], s.truth_sampled[0], s.class_of, strict=True)
+    }
+    want = {(int(i), float(x)): int(k) for i, x, k in zip(ids, times, expected, strict=True)}
+    assert got == want
+    for k, name in enumerate(("straight", "manoeuvre", "close_pair")):
+        n_k = int(np.sum(expected == k))
+        hit = int(np.sum(tracked & (expected == k)))
+        assert getattr(s, f"n_{name}") == n_k
+        if n_k:
+            assert getattr(s, f"coverage_{name}") == hit / n_k
+            assert getattr(s, f"lost_{name}") == (n_k - hit) / n_k
+        else:
+            assert math.isnan(getattr(s, f"coverage_{name}"))
+            assert s.as_dict()[f"coverage_{name}"] is None
+    assert s.n_straight + s.n_manoeuvre + s.n_close_pair == s.n_identity_instants
+
+
+def test_a_slow_or_stationary_target_is_not_manoeuvring_and_thresholds_are_named():
+    # a vessel at anchor jittering by metres: its heading swings wildly but it moves
+    # < min_speed along its chords; at min_speed = 0 the same jitter is a "manoeuvre"
+    t = 10.0 * np.arange(20)
+    jitter = np.random.default_rng(5).normal(0.0, 3.0, (20, 2))
+    truth = (t, np.ones(20, int), jitter)
+    empty = (np.zeros(0), np.zeros(0, int), np.zeros((0, 2)))
+    s = score_self_reports(*truth, *empty, window=10.0, c=C)
+    assert s.n_manoeuvre == 0 and s.n_straight == 20
+    s0 = score_self_reports(*truth, *empty, window=10.0, c=C, min_speed=0.0)
+    assert s0.n_manoeuvre > 0
+    for key, bad in [
+        ("hold", 0.0),
+        ("turn_rate", -1.0),
+        ("turn_span", math.nan),
+        ("min_speed", -0.5),
+        ("pair_distance", True),
+        ("turn_rate", 1j),
+    ]:
+        with pytest.raises((ValueError, TypeError), match=key):
+            score_self_reports(*truth, *empty, window=10.0, c=C, **{key: bad})
+
+
+_coord = st.one_of(
+    st.just(0.0),
+    st.floats(5e-324, 1e300),
+    st.floats(-1e300, -5e-324),
+    st.floats(-1e4, 1e4),
+)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    xy=st.lists(st.tuples(_coord, _coord), min_size=9, max_size=9),
+    k=st.integers(-30, 30),
+)
+def test_classes_at_any_magnitude_warn_nothing_and_scale_by_powers_of_two(xy, k):
+    # three identities with three reports each at values from subnormal to 1e300 and
+    # zeros: no warning, every point classified, counts adding up; scaling positions,
+    # pair_distance and min_speed by 2**k (exact) changes no class where nothing
+    # over- or underflows
+    import warnings
+
+    t = np.tile([0.0, 30.0, 60.0], 3)
+    ids = np.repeat([1, 2, 3], 3)
+    pos = np.array(xy, dtype=np.float64)
+    empty = (np.zeros(0), np.zeros(0, int), np.zeros((0, 2)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        s = score_self_reports(t, ids, pos, *empty, window=30.0, c=C)
+    assert set(s.class_of.tolist()) <= {0, 1, 2} and s.class_of.size == s.n_identity_instants
+    assert s.n_straight + s.n_manoeuvre + s.n_close_pair == s.n_identity_instants == 9
+    assert s.coverage_straight in (0.0,) or math.isnan(s.coverage_straight)
+    if np.all((np.abs(pos) < 1e200) & ((pos == 0) | (np.abs(pos) > 1e-200))):
+        f = 2.0**k
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            s2 = score_self_reports(
+                t,
+                ids,
+                pos * f,
+                *empty,
+                window=30.0,
+                c=C * f,
+                pair_distance=2000.0 * f,
+                min_speed=1.0 * f,
+            )
+        assert s2.class_of.tolist() == s.class_of.tolist()

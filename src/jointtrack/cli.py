@@ -135,7 +135,7 @@ def data_fetch(
 @bench_app.command("realdata", cls=_Command)
 def bench_realdata(
     quick: bool = typer.Option(
-        False, "--quick", help="Solent's first 30 scans; ADS-B quickstart instead of switzerland."
+        False, "--quick", help="Solent's first 30 scans; the ADS-B scenes' first 30 minutes."
     ),
     out: str = typer.Option(
         None, "--out", help="Folder for realdata.json, the track tables and the RSS plots."
@@ -143,7 +143,8 @@ def bench_realdata(
     scene: Annotated[
         list[str] | None,
         typer.Option(
-            "--scene", help="solent-labels, solent, adsb or all (repeatable; default all)."
+            "--scene",
+            help="solent-labels, solent, adsb, adsb-quickstart or all (repeatable; default all).",
         ),
     ] = None,
     runner: Annotated[
@@ -155,6 +156,16 @@ def bench_realdata(
     ),
     cap: float = typer.Option(600.0, "--cap", help="Wall-time cap of each run, seconds."),
     seed: int = typer.Option(0, "--seed", help="Seed of the ADS-B degradation and noise."),
+    seeds: int = typer.Option(
+        1, "--seeds", help="ADS-B degradation seeds SEED … SEED+N-1 (table: mean, min–max)."
+    ),
+    bare_tracker: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--bare-tracker",
+            help="Also the bare run with tracker= jipda, pmb or pmbm (repeatable).",
+        ),
+    ] = None,
     stamp: str = typer.Option(
         None,
         "--stamp",
@@ -175,6 +186,11 @@ def bench_realdata(
         _fail(f"--cap must be > 0 seconds, got {cap}")
     if stamp is not None and stamp not in realdata.STAMPS:
         _fail(f"--stamp must be one of {', '.join(realdata.STAMPS)}, got {stamp!r}")
+    if seeds < 1:
+        _fail(f"--seeds must be ≥ 1, got {seeds}")
+    bad = [k for k in bare_tracker or () if k not in realdata.BARE_TRACKERS]
+    if bad:
+        _fail(f"--bare-tracker must be among {', '.join(realdata.BARE_TRACKERS)}, got {bad}")
     try:
         realdata.run(
             quick=quick,
@@ -184,6 +200,8 @@ def bench_realdata(
             cache_dir=cache_dir,
             wall_cap=cap,
             seed=seed,
+            seeds=seeds,
+            bare_trackers=tuple(bare_tracker or ()),
             stamp=stamp,
         )
     except RealDataError as exc:

@@ -1,9 +1,10 @@
 """Real AIS and ADS-B data end to end: jointtrack beside Stone Soup's own demo trackers.
 
-Run as ``jointtrack bench realdata [--quick] [--scene solent|adsb|all] [--out DIR]``
-or ``python benchmarks/realdata.py``. The data (public, from the package
-registry) is fetched on first use by :func:`jointtrack.bench.realdata_data.fetch_realdata`
-into ``--cache-dir`` (default ``$JOINTTRACK_DATA`` or ``~/.cache/jointtrack/realdata``).
+Run as ``jointtrack bench realdata [--quick] [--scene NAME|all] [--seeds N]
+[--bare-tracker jipda|pmb|pmbm] [--out DIR]`` or ``python benchmarks/realdata.py``. The
+data (public, from the package registry) is fetched on first use by
+:func:`jointtrack.bench.realdata_data.fetch_realdata` into ``--cache-dir`` (default
+``$JOINTTRACK_DATA`` or ``~/.cache/jointtrack/realdata``).
 
 Scenes (:func:`build_scenes`)
 -----------------------------
@@ -19,9 +20,10 @@ Scenes (:func:`build_scenes`)
     Each report keeps its own time; a scan is the feeder's one-minute window.
     Scored against every report of the file (the vessels' self-reports) at
     one-minute instants, c = 500 m. ``--quick``: the first 30 scans.
-``adsb``
-    traffic's ``switzerland.json.gz`` (about 17 h, 842 aircraft; ``--quick``:
-    ``quickstart.json.gz``, 3 h, 213 aircraft) through
+``adsb`` / ``adsb-quickstart``
+    traffic's ``switzerland.json.gz`` (about 17 h, 842 aircraft: the scene the
+    hand-set settings were tuned on) / ``quickstart.json.gz`` (3 h, 213 other
+    aircraft, manoeuvring: held out, never tuned on) through
     :class:`jointtrack.io.reports.Reports`, seen by a synthetic sensor scanning
     every 10 s (:func:`scanning_sensor`): at each scan time each aircraft at its
     reported positions interpolated to that time (not the last report before it:
@@ -30,7 +32,10 @@ Scenes (:func:`build_scenes`)
     the reports' lat/lon box, identities stripped (``Reports.degrade``, seeded),
     and position noise of 50 m (σ per axis, seeded) added to every row. Every row
     carries its scan's time. Scored against all the undegraded reports at 10 s instants,
-    c = 500 m.
+    c = 500 m. ``--seeds N`` builds each ADS-B scene with the degradation seeds
+    ``--seed`` … ``--seed + N − 1`` (detection draws, clutter and noise); the table
+    shows the mean and the spread (min–max) over them and ``realdata.json`` keeps every
+    seed's figures. ``--quick``: the first :data:`QUICK_ADSB_SCANS` scans (30 min).
 
 Detection times. Stone Soup's Solent demo keeps each report's own time (its
 ``TimeSyncFeeder`` groups reports but does not re-stamp them), and so does the
@@ -47,9 +52,15 @@ Runners (:data:`RUNNERS`)
 ``stonesoup-demo`` (labels), ``stonesoup-nn``, ``stonesoup-gnn``, ``stonesoup-jpda``:
 :mod:`jointtrack.bench.stonesoup_realdata` (the configurations and their sources
 are listed there), each in a child process capped at ``--cap`` seconds (600)
-whose RSS is sampled every 0.5 s. jointtrack's runners (``jointtrack-jipda``,
-``jointtrack-pmbm``) are registered with :func:`register_runner`; every runner
-returns a :class:`RunResult` with the same figures.
+whose RSS is sampled every 0.5 s. ``jointtrack-handset`` (formerly
+``jointtrack-jipda``, still accepted): JIPDA with the settings a person chose for
+these data; ``jointtrack-bare``: the bare ``jointtrack run --detections FILE`` with
+no config on the scene's rows written as a plain ``time, lat, lon`` file, and
+``jointtrack-bare-<kind>`` the same with ``tracker=<kind>`` (``--bare-tracker``;
+a refusal is recorded as that run's result) —
+:mod:`jointtrack.bench.jointtrack_realdata`. More runners are registered with
+:func:`register_runner`; every runner returns a :class:`RunResult` with the same
+figures.
 
 Figures
 -------
@@ -57,10 +68,16 @@ Wall and CPU time (of the whole run: the child's life for Stone Soup), peak
 RSS, scans done / total, and the scores of
 :func:`jointtrack.metrics.selfreport.score_self_reports` (coverage, purity,
 tracks per identity, identity switches, false tracks per hour, mean GOSPA)
-on every track state the runner reported. ``--out DIR`` writes
-``realdata.json`` (figures, RSS series), each run's track table as CSV,
-``rss_<scene>.png`` (RSS over time) and ``map_<scene>_<runner>.png`` (the
-tracks over the self-reports in lon/lat, :mod:`jointtrack.experiments.map_plot`).
+on every track state the runner reported, with its splits: ids per identity
+counted two ways (all ids; ids held ≥ 1 min) and coverage and lost truth points
+per class of truth point — straight flight, manoeuvre (> 1 °/s), close pair
+(another identity within 2 km) — as defined there; × real time = the scene's
+duration / the run's CPU. ``--out DIR`` writes ``realdata.json`` (figures per
+seed and their spread, RSS series), ``realdata.md`` (the table in Markdown),
+``coverage_classes.png`` (coverage per class per runner, min–max over seeds),
+each run's track table as CSV, ``rss_<scene>.png`` (RSS over time) and
+``map_<scene>_<runner>.png`` (the tracks over the self-reports in lon/lat,
+:mod:`jointtrack.experiments.map_plot`; first seed).
 """
 
 from __future__ import annotations
@@ -90,6 +107,7 @@ __all__ = [
 
 SOLENT_WINDOW = 60.0  # s: the demo's TimeSyncFeeder window, and the scoring instants
 QUICK_SOLENT_SCANS = 30
+QUICK_ADSB_SCANS = 180  # the first 30 minutes of 10 s scans
 ADSB_SCAN = 10.0  # s
 ADSB_NOISE_SD = 50.0  # m, per axis
 ADSB_P_D = 0.9
@@ -98,7 +116,11 @@ CUTOFF = 500.0  # m: GOSPA cut-off and association gate of the scores
 MAX_GAP = 600.0  # s: a self-report gap longer than this is not interpolated
 WALL_CAP = 600.0  # s
 SEED = 0
-SCENE_NAMES = ("solent-labels", "solent", "adsb")
+SCENE_NAMES = ("solent-labels", "solent", "adsb", "adsb-quickstart")
+#: the ADS-B scenes' data files (keys of fetch_realdata)
+ADSB_FILES = {"adsb": "switzerland", "adsb-quickstart": "quickstart"}
+#: old runner names still accepted
+RUNNER_ALIASES = {"jointtrack-jipda": "jointtrack-handset"}
 STAMPS = ("report", "scan")
 
 
@@ -140,6 +162,8 @@ class Scene:
     #: (R, 2) east/north velocities the reports carry (AIS speed and course), NaN
     #: where unknown, or None; runners may use them (Stone Soup's demo does not)
     velocities: np.ndarray | None = None
+    #: the degradation seed the scene was built with (None: the scene draws nothing)
+    seed: int | None = None
 
     def stamps(self, stamp: str | None = None) -> np.ndarray:
         """Per-report times for Stone Soup under ``stamp`` (default the scene's)."""
@@ -173,6 +197,7 @@ class Scene:
             "score_window_s": self.window,
             "cutoff_m": self.cutoff,
             "stonesoup_detection_times": self.stamp,
+            "seed": self.seed,
             **self.info,
         }
 
@@ -351,14 +376,14 @@ def solent_scenes(path, *, quick: bool = False) -> list[Scene]:
             name="solent-labels",
             description="Solent AIS, demo pipeline (60 s), MMSI labels given",
             labels=labels,
-            default_runners=("jointtrack-jipda", "stonesoup-demo"),
+            default_runners=("jointtrack-handset", "jointtrack-bare", "stonesoup-demo"),
             **common,
         ),
         Scene(
             name="solent",
             description="Solent AIS, demo pipeline (60 s), no labels",
             labels=None,
-            default_runners=("jointtrack-jipda", "jointtrack-pmbm", "stonesoup-nn"),
+            default_runners=("jointtrack-handset", "jointtrack-bare", "stonesoup-nn"),
             **common,
         ),
     ]
@@ -418,13 +443,22 @@ def scanning_sensor(reports, frame, scan: float, max_gap: float):
     return sensor, scan_times
 
 
-def adsb_scene(path, *, seed: int = SEED) -> Scene:
-    """``adsb`` (module docstring) from a traffic records file, via jointtrack.io.reports."""
+def adsb_scene(
+    path, *, seed: int = SEED, name: str = "adsb", max_scans: int | None = None
+) -> Scene:
+    """``adsb`` (module docstring) from a traffic records file, via jointtrack.io.reports,
+    called ``name``; ``max_scans``: only the first that many scans (and the reports up to
+    the last of them)."""
     from jointtrack.io.reports import read_traffic_records
 
     reports = read_traffic_records(path)
     frame = reports.frame()
     sensor, scan_times = scanning_sensor(reports, frame, ADSB_SCAN, MAX_GAP)
+    if max_scans is not None and max_scans < len(scan_times):
+        scan_times = scan_times[:max_scans]
+        last = float(scan_times[-1])
+        sensor = sensor.subset(sensor.times <= last)
+        reports = reports.subset(reports.times <= last + MAX_GAP)
     degraded = sensor.degrade(
         p_d=ADSB_P_D,
         # io.reports counts clutter in false reports per second of data
@@ -458,12 +492,15 @@ def adsb_scene(path, *, seed: int = SEED) -> Scene:
     clutter_density = n_clutter / (len(scan_times) * box) if box > 0 else 1e-12
     times = scan_times[scan_index]
 
+    last_scan = float(scan_times[-1])
+
     def truth():
         t, ids, xy = truth_arrays(reports.truth(frame))
-        return t, ids, xy
+        keep = t <= last_scan
+        return t[keep], ids[keep], xy[keep]
 
     return Scene(
-        name="adsb",
+        name=name,
         description=(
             f"ADS-B {Path(path).name}: identities stripped, P_D {ADSB_P_D}, "
             f"{ADSB_CLUTTER_PER_SCAN:g} false returns per {ADSB_SCAN:g} s scan, "
@@ -483,11 +520,12 @@ def adsb_scene(path, *, seed: int = SEED) -> Scene:
         window=ADSB_SCAN,
         truth=truth,
         default_runners=(
-            "jointtrack-jipda",
-            "jointtrack-pmbm",
+            "jointtrack-handset",
+            "jointtrack-bare",
             "stonesoup-gnn",
             "stonesoup-jpda",
         ),
+        seed=seed,
         info={
             "data": Path(path).name,
             "raw_reports": int(len(reports.times)),
@@ -500,15 +538,18 @@ def adsb_scene(path, *, seed: int = SEED) -> Scene:
 
 
 def build_scenes(names, paths: dict, *, quick: bool = False, seed: int = SEED) -> list[Scene]:
-    """The scenes called ``names`` (of :data:`SCENE_NAMES`) from the fetched files."""
+    """The scenes called ``names`` (of :data:`SCENE_NAMES`) from the fetched files; the
+    ADS-B ones degraded with ``seed``."""
     unknown = [n for n in names if n not in SCENE_NAMES]
     if unknown:
         raise ValueError(f"scene must be among {SCENE_NAMES}, got {unknown}")
     scenes = []
     if {"solent", "solent-labels"} & set(names):
         scenes += [s for s in solent_scenes(paths["solent_ais"], quick=quick) if s.name in names]
-    if "adsb" in names:
-        scenes.append(adsb_scene(paths["quickstart" if quick else "switzerland"], seed=seed))
+    for name, key in ADSB_FILES.items():
+        if name in names:
+            limit = QUICK_ADSB_SCANS if quick else None
+            scenes.append(adsb_scene(paths[key], seed=seed, name=name, max_scans=limit))
     return scenes
 
 
@@ -577,7 +618,25 @@ def _run_jointtrack(scene: Scene, *, wall_cap: float, workdir=None, progress=Non
     return run_jointtrack(scene, wall_cap=wall_cap, workdir=workdir, progress=progress)
 
 
-RUNNERS["jointtrack-jipda"] = _run_jointtrack
+def _bare_runner(tracker: str | None):
+    def runner(scene: Scene, *, wall_cap: float, workdir=None, progress=None) -> RunResult:
+        from jointtrack.bench.jointtrack_realdata import run_bare
+
+        return run_bare(
+            scene, tracker=tracker, wall_cap=wall_cap, workdir=workdir, progress=progress
+        )
+
+    runner.__name__ = "run_bare" + ("" if tracker is None else f"_{tracker}")
+    return runner
+
+
+#: ``--bare-tracker`` kinds: ``jointtrack-bare-<kind>`` passes ``tracker=<kind>``
+BARE_TRACKERS = ("jipda", "pmb", "pmbm")
+
+RUNNERS["jointtrack-handset"] = _run_jointtrack
+RUNNERS["jointtrack-bare"] = _bare_runner(None)
+for _kind in BARE_TRACKERS:
+    RUNNERS[f"jointtrack-bare-{_kind}"] = _bare_runner(_kind)
 
 
 def register_runner(name: str, runner: Callable) -> None:
@@ -636,37 +695,154 @@ def score_run(scene: Scene, result: RunResult, truth=None) -> RunResult:
 
 # --------------------------------------------------------------------------- output
 
-#: (column title, score key, format)
-SCORE_COLUMNS = (
-    ("coverage", "coverage", ".3f"),
+#: the figures of the table, per run: (key, column title, format); ``lost_*`` in %
+FIGURES = (
+    ("coverage", "cov", ".3f"),
+    ("coverage_straight", "cov straight", ".3f"),
+    ("coverage_manoeuvre", "cov manoeuvre", ".3f"),
+    ("coverage_close_pair", "cov close pair", ".3f"),
+    ("lost_straight", "lost % straight", ".1f"),
+    ("lost_manoeuvre", "lost % manoeuvre", ".1f"),
+    ("lost_close_pair", "lost % close pair", ".1f"),
     ("purity", "purity", ".3f"),
-    ("tracks / id", "tracks_per_identity", ".2f"),
-    ("switches", "n_id_switches", "d"),
-    ("false tracks / h", "false_tracks_per_hour", ".1f"),
-    ("GOSPA", "gospa_mean", ".0f"),
+    ("tracks_per_identity", "ids / target", ".2f"),
+    ("tracks_per_identity_held", "ids ≥ 1 min", ".2f"),
+    ("false_tracks_per_hour", "false / h", ".1f"),
+    ("gospa_mean", "GOSPA", ".0f"),
+    ("cpu_s", "CPU s", ".1f"),
+    ("x_real_time", "× real time", ".0f"),
+    ("peak_rss_mib", "peak RSS MiB", ".0f"),
 )
 
+#: the figures of :data:`FIGURES` that are costs (defined without a score)
+_COSTS = ("cpu_s", "x_real_time", "peak_rss_mib")
 
-def table(results: list[RunResult], title: str = "real data"):
-    """The side-by-side rich table of the runs."""
+
+def run_figures(result: RunResult, scan_times) -> dict:
+    """The table's figures of one run (keys of :data:`FIGURES`; None where undefined):
+    the scores, lost truth points in % per class, CPU, × real time (the span of the
+    scans the run completed, of the scene's ``scan_times``, over its CPU) and peak RSS
+    in MiB."""
+    score = result.score or {}
+    out = {}
+    for key, _, _ in FIGURES:
+        v = score.get(key)
+        if key.startswith("lost_") and v is not None:
+            v = 100.0 * v
+        out[key] = v
+    out["cpu_s"] = float(result.cpu)
+    done = min(int(result.scans_done), len(scan_times))
+    span = float(scan_times[done - 1] - scan_times[0]) if done else 0.0
+    out["x_real_time"] = span / result.cpu if result.cpu > 0 and span > 0 else None
+    out["peak_rss_mib"] = result.peak_rss / 2**20 if result.peak_rss else None
+    if result.score is None:  # not scored: no figure of the tracks means anything
+        out = {k: (v if k in _COSTS else None) for k, v in out.items()}
+    return out
+
+
+def spread(values: list) -> dict | None:
+    """``{"mean", "min", "max", "n"}`` of the defined values (None for none)."""
+    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    if not v:
+        return None
+    return {"mean": sum(v) / len(v), "min": min(v), "max": max(v), "n": len(v)}
+
+
+def _cell(s: dict | None, fmt: str) -> str:
+    if s is None:
+        return "—"
+    if s["n"] < 2 or s["min"] == s["max"]:
+        return format(s["mean"], fmt)
+    return f"{format(s['mean'], fmt)} ({format(s['min'], fmt)}–{format(s['max'], fmt)})"
+
+
+def _rows(report: dict):
+    """(scene, runner, seeds text, scans text, {key: cell}, errors) per scene and runner."""
+    for scene, entry in report["scenes"].items():
+        for runner, run_entry in entry["runs"].items():
+            per_seed = run_entry["per_seed"]
+            scans = {f"{r['scans_done']}/{r['scans_total']}" for r in per_seed.values()}
+            cells = {key: _cell(run_entry["spread"].get(key), fmt) for key, _, fmt in FIGURES}
+            errors = sorted({r["error"] for r in per_seed.values() if r["error"]})
+            yield scene, runner, len(per_seed), ", ".join(sorted(scans)), cells, errors
+
+
+def table(report: dict, title: str = "real data"):
+    """The rich table of a :func:`run` report: per scene and runner, the mean and the
+    spread (min–max) over the seeds of every figure of :data:`FIGURES`."""
     from rich.table import Table
 
     t = Table(title=title)
-    for col in ("scene", "runner", "scans", "wall s", "CPU s", "peak RSS MiB"):
+    for col in ("scene", "runner", "seeds", "scans"):
         t.add_column(col, justify="left" if col in ("scene", "runner") else "right")
-    for name, _, _ in SCORE_COLUMNS:
+    for _, name, _ in FIGURES:
         t.add_column(name, justify="right")
-    for r in results:
-        scans = f"{r.scans_done}/{r.scans_total}" + (f" ({r.stopped_by})" if r.stopped_by else "")
-        row = [r.scene, r.runner, scans, f"{r.wall:.1f}", f"{r.cpu:.1f}"]
-        row.append(f"{r.peak_rss / 2**20:.0f}" if r.peak_rss else "—")
-        for _, key, fmt in SCORE_COLUMNS:
-            v = None if r.score is None else r.score.get(key)
-            row.append(
-                "—" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
-            )
-        t.add_row(*row)
+    for scene, runner, n, scans, cells, _ in _rows(report):
+        t.add_row(scene, runner, str(n), scans, *(cells[k] for k, _, _ in FIGURES))
     return t
+
+
+def markdown_table(report: dict) -> str:
+    """The table of :func:`table` in Markdown (for ``RESULTS.md``), with each run's
+    error under it."""
+    head = ["scene", "runner", "seeds", "scans", *(name for _, name, _ in FIGURES)]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    notes = []
+    for scene, runner, n, scans, cells, errors in _rows(report):
+        lines.append(
+            "| "
+            + " | ".join([scene, runner, str(n), scans, *(cells[k] for k, _, _ in FIGURES)])
+            + " |"
+        )
+        notes += [f"- {scene} / {runner}: {e}" for e in errors]
+    return "\n".join(lines + ([""] + notes if notes else [])) + "\n"
+
+
+def plot_coverage_classes(report: dict, path) -> Path | None:
+    """Bar chart: per scene (one panel each), per runner, the coverage overall and per
+    class (straight, manoeuvre, close pair), the bars at the mean over the seeds with
+    min–max whiskers. None when no run was scored."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    keys = (
+        ("coverage", "all"),
+        ("coverage_straight", "straight"),
+        ("coverage_manoeuvre", "manoeuvre"),
+        ("coverage_close_pair", "close pair"),
+    )
+    scenes = [(n, e) for n, e in report["scenes"].items() if e["runs"]]
+    if not scenes:
+        return None
+    fig, axes = plt.subplots(
+        len(scenes), 1, figsize=(9, 3.2 * len(scenes)), constrained_layout=True, squeeze=False
+    )
+    width = 0.8 / len(keys)
+    for ax, (name, entry) in zip(axes[:, 0], scenes, strict=True):
+        runners = list(entry["runs"])
+        x = np.arange(len(runners))
+        for j, (key, label) in enumerate(keys):
+            stats = [entry["runs"][r]["spread"].get(key) for r in runners]
+            mean = np.array([np.nan if s is None else s["mean"] for s in stats])
+            lo = np.array([0.0 if s is None else s["mean"] - s["min"] for s in stats])
+            hi = np.array([0.0 if s is None else s["max"] - s["mean"] for s in stats])
+            ax.bar(x + (j - 1.5) * width, np.nan_to_num(mean), width, label=label)
+            ax.errorbar(
+                x + (j - 1.5) * width, np.nan_to_num(mean), yerr=[lo, hi], fmt="none", c="k", lw=1
+            )
+        ax.set_xticks(x, runners, fontsize=8)
+        ax.set_ylim(0, 1.05)
+        ax.set_ylabel("coverage")
+        seeds = entry.get("seeds") or []
+        ax.set_title(f"{name}" + (f" (seeds {seeds}: mean, min–max)" if len(seeds) > 1 else ""))
+        ax.grid(True, axis="y", alpha=0.3)
+    axes[0, 0].legend(fontsize=8, ncol=4)
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 def plot_rss(results: list[RunResult], path) -> Path:
@@ -739,11 +915,13 @@ def run(
     quick: bool = False,
     out: str | None = None,
     *,
-    scenes=("solent-labels", "solent", "adsb"),
+    scenes=("solent-labels", "solent", "adsb", "adsb-quickstart"),
     runners=None,
     cache_dir=None,
     wall_cap: float = WALL_CAP,
     seed: int = SEED,
+    seeds: int = 1,
+    bare_trackers=(),
     stamp: str | None = None,
     console=None,
 ) -> dict:
@@ -752,21 +930,36 @@ def run(
     ``runners`` (names of :data:`RUNNERS`) restricts every scene to those among
     its defaults (``None``: all of them); a named runner that is no built scene's
     default runs on every scene (e.g. ``stonesoup-nn`` on ``adsb``). A runner that is not
-    registered (jointtrack's, until the benchmark script registers them) is
-    listed as not run. ``stamp`` (``"report"`` / ``"scan"``) overrides every scene's
-    :attr:`Scene.stamp` for the Stone Soup runners. Returns the results as a JSON-ready
-    dict; with ``out``
-    also writes ``out/realdata.json``, ``out/tracks_<scene>_<runner>.csv`` and
-    ``out/rss_<scene>.png``.
+    registered is listed as not run. ``bare_trackers`` (of :data:`BARE_TRACKERS`) adds
+    ``jointtrack-bare-<kind>`` to every scene. ``seeds``: the scenes built with a
+    degradation seed (the ADS-B ones) are built and run with the seeds ``seed`` …
+    ``seed + seeds − 1``. ``stamp`` (``"report"`` / ``"scan"``) overrides every scene's
+    :attr:`Scene.stamp` for the Stone Soup runners.
+
+    Returns the results as a JSON-ready dict: per scene, ``scene`` (its description,
+    first seed), ``seeds``, ``not_run``, and per runner ``per_seed`` (``str(seed)``, or
+    ``"unseeded"``: the run's figures, :meth:`RunResult.as_dict`) and ``spread`` (per
+    figure of :data:`FIGURES`, mean/min/max/n over the seeds). With ``out`` also writes
+    ``out/realdata.json``, ``out/realdata.md``, ``out/coverage_classes.png``,
+    ``out/tracks_<scene>_<runner>[_s<seed>].csv`` and ``out/rss_<scene>.png``.
     """
     from jointtrack._console import progress_bar
     from jointtrack.bench.realdata_data import fetch_realdata
 
     if stamp is not None and stamp not in STAMPS:
         raise ValueError(f"stamp must be one of {STAMPS}, got {stamp!r}")
+    if isinstance(seeds, bool) or not isinstance(seeds, int | np.integer) or seeds < 1:
+        raise ValueError(f"seeds must be a whole number ≥ 1, got {seeds!r}")
+    bad = [k for k in bare_trackers if k not in BARE_TRACKERS]
+    if bad:
+        raise ValueError(f"bare_trackers must be among {BARE_TRACKERS}, got {bad}")
+    if runners is not None:
+        runners = [RUNNER_ALIASES.get(r, r) for r in runners]
+    extra_runners = [f"jointtrack-bare-{k}" for k in bare_trackers]
     console = console or make_console()
     paths = fetch_realdata(cache_dir, progress=console.print)
-    built = build_scenes(list(scenes), paths, quick=quick, seed=seed)
+    seed_list = [seed + k for k in range(int(seeds))]
+    built = build_scenes(list(scenes), paths, quick=quick, seed=seed_list[0])
     folder = Path(out) if out else None
     if folder:
         folder.mkdir(parents=True, exist_ok=True)
@@ -774,20 +967,33 @@ def run(
         "quick": quick,
         "wall_cap_s": wall_cap,
         "seed": seed,
+        "seeds": seed_list,
         "stamp": stamp,
+        "bare_trackers": list(bare_trackers),
         "scenes": {},
     }
-    all_results: list[RunResult] = []
     defaults = {r for scene in built for r in scene.default_runners}
-    for scene in built:
+    rss_results: dict = {}
+
+    def scene_runs(scene: Scene):
+        """Run every wanted runner on one built scene (one seed) into the report."""
         wanted = [r for r in scene.default_runners if runners is None or r in runners]
         if runners is not None:  # a runner no built scene has by default runs on every scene
             wanted += [r for r in runners if r not in wanted and r not in defaults]
-        not_run = {r: "not registered" for r in wanted if r not in RUNNERS}
+        wanted += [r for r in extra_runners if r not in wanted]
+        entry = report["scenes"].setdefault(
+            scene.name,
+            {"scene": scene.describe(), "seeds": [], "not_run": {}, "runs": {}},
+        )
+        if scene.seed is not None:
+            entry["seeds"].append(scene.seed)
+        key = "unseeded" if scene.seed is None else str(scene.seed)
+        first = len(entry["seeds"]) <= 1
+        not_run = entry["not_run"]
+        not_run.update({r: "not registered" for r in wanted if r not in RUNNERS})
         if scene.labels is None and "stonesoup-demo" in wanted:
             not_run["stonesoup-demo"] = "gates on labels; this scene has none"
         todo = [r for r in wanted if r not in not_run]
-        entry = {"scene": scene.describe(), "runs": {}, "not_run": not_run}
         ref = entry["scene"]["reference_lat_lon_alt"]
         console.print(
             f"[bold]{scene.name}[/]: {scene.description}; {len(scene.times)} reports "
@@ -795,7 +1001,6 @@ def run(
             + (f"; local frame about {ref[0]:.5f}°N {ref[1]:.5f}°E" if ref else "")
         )
         truth = None
-        results = []
         for name in todo:
             with progress_bar(console, transient=True) as bar:
                 task = bar.add_task(f"{scene.name}: {name}", total=scene.n_scans)
@@ -819,24 +1024,52 @@ def run(
                 except ImportError:
                     pass  # score_run says why
             score_run(scene, result, truth)
-            results.append(result)
-            entry["runs"][name] = result.as_dict()
+            run_dict = result.as_dict()
+            run_dict["figures"] = run_figures(result, scene.scan_times)
+            runs = entry["runs"].setdefault(name, {"per_seed": {}, "spread": {}})
+            runs["per_seed"][key] = run_dict
+            if first:
+                rss_results.setdefault(scene.name, []).append(result)
             if folder:
-                _write_tracks(result, folder / f"tracks_{scene.name}_{name}.csv")
-                if truth is not None and len(result.track_ids):
+                suffix = "" if scene.seed is None else f"_s{scene.seed}"
+                _write_tracks(result, folder / f"tracks_{scene.name}_{name}{suffix}.csv")
+                if first and truth is not None and len(result.track_ids):
                     png = plot_map(scene, result, truth, folder / f"map_{scene.name}_{name}.png")
-                    entry["runs"][name]["map_png"] = None if png is None else png.name
-        if folder and results:
-            entry["rss_png"] = plot_rss(results, folder / f"rss_{scene.name}.png").name
-        if not_run:
-            console.print(f"  not run: {not_run}", markup=False)
-        report["scenes"][scene.name] = entry
-        all_results += results
-    console.print(table(all_results))
-    unscored = {r.score_error for r in all_results if r.score_error}
-    for reason in unscored:
-        console.print(f"not scored: {reason}", markup=False)
+                    run_dict["map_png"] = None if png is None else png.name
+            console.print(
+                f"  {name}{'' if scene.seed is None else f' (seed {scene.seed})'}: "
+                + (result.score_error or "")
+                + (
+                    ""
+                    if result.score is None
+                    else "coverage {}, ids/target {}, CPU {:.1f} s".format(
+                        _cell(spread([result.score["coverage"]]), ".3f"),
+                        _cell(spread([result.score["tracks_per_identity"]]), ".2f"),
+                        result.cpu,
+                    )
+                ),
+                markup=False,
+            )
+
+    for scene in built:
+        scene_runs(scene)
+        if scene.seed is not None:  # the other degradation seeds of the same data
+            for s in seed_list[1:]:
+                for again in build_scenes([scene.name], paths, quick=quick, seed=s):
+                    scene_runs(again)
+    for name, entry in report["scenes"].items():
+        for runs in entry["runs"].values():
+            figs = [r["figures"] for r in runs["per_seed"].values()]
+            runs["spread"] = {k: spread([f[k] for f in figs]) for k, _, _ in FIGURES}
+        if entry["not_run"]:
+            console.print(f"  {name} not run: {entry['not_run']}", markup=False)
+    console.print(table(report))
     if folder:
+        for name, results in rss_results.items():
+            report["scenes"][name]["rss_png"] = plot_rss(results, folder / f"rss_{name}.png").name
+        png = plot_coverage_classes(report, folder / "coverage_classes.png")
+        report["coverage_png"] = None if png is None else png.name
+        (folder / "realdata.md").write_text(markdown_table(report))
         (folder / "realdata.json").write_text(json.dumps(report, indent=1))
         console.print(f"wrote {folder / 'realdata.json'}")
     return report

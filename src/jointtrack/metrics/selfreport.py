@@ -65,6 +65,37 @@ track_statistics pairs it with a track there. Then:
 * **confirmed track ids**: the distinct ids of the track table given (every
   row is taken as a confirmed track's estimate), and how many of them are
   present at some instant.
+* **ids held** (fragmentation counted the second way): a track id is *held*
+  by an identity when it is associated with it at instants covering at least
+  ``hold`` seconds (count × ``window`` ≥ ``hold``; default 60 s, i.e. six
+  10 s instants or one 60 s instant). ``tracks_per_identity_held`` is the mean
+  number of held ids over the identities that hold at least one
+  (``n_identities_held`` of them): brief fragments a tracker starts and drops
+  at once count in ``tracks_per_identity`` but not here.
+
+Classes of identity-instants. Every sampled truth point (an identity at an
+instant) is in exactly one class, decided from the self-reports alone (not
+from any track):
+
+* **close pair** when another identity is present at the same instant within
+  ``pair_distance`` (default 2,000 position units — 2 km in metres) of it
+  (Euclidean, all coordinates);
+* else **manoeuvre** when its turn rate exceeds ``turn_rate`` (default
+  1 °/s). The turn rate at instant t is the angle between the two chords
+  ``p(t) − p(t − turn_span)`` and ``p(t + turn_span) − p(t)`` of the
+  interpolated truth (the same interpolation as the reference; in the first
+  two coordinates), divided by ``turn_span`` (default 30 s) — exact for a
+  constant-rate turn at constant speed. It is taken only where the identity
+  is present at both t ± turn_span and moves at ≥ ``min_speed`` (default
+  1 unit/s) along both chords; a slower or stationary target, or one at the
+  start or end of its reports, has no heading to turn and is not a manoeuvre;
+* else **straight** (every other instant).
+
+Close pair wins over manoeuvre. Per class: ``n_<class>`` identity-instants,
+``coverage_<class>`` the share of them associated, and ``lost_<class>`` the
+share not associated (1 − coverage_<class>; both NaN for an empty class),
+with ``class_of`` the class of each sampled truth point (0 straight,
+1 manoeuvre, 2 close pair).
 
 Undefined figures (no instants, no identity-instants, no associated track,
 a zero span) are NaN on :class:`SelfReportScore` and ``None`` in
@@ -93,8 +124,14 @@ _SCALARS = (
     "n_identities n_identities_tracked tracks_per_identity n_id_switches purity "
     "purity_unweighted n_false_tracks false_tracks_per_hour n_confirmed_track_ids "
     "n_tracks_present gospa_mean gospa_localisation gospa_missed gospa_false "
-    "missed_per_instant false_per_instant"
+    "missed_per_instant false_per_instant hold tracks_per_identity_held n_identities_held "
+    "turn_rate turn_span min_speed pair_distance "
+    "n_straight n_manoeuvre n_close_pair coverage_straight coverage_manoeuvre "
+    "coverage_close_pair lost_straight lost_manoeuvre lost_close_pair"
 ).split()
+
+#: the classes of identity-instants, in the order of ``SelfReportScore.class_of``
+CLASSES = ("straight", "manoeuvre", "close_pair")
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,6 +176,24 @@ class SelfReportScore:
     gospa_false: float
     missed_per_instant: float
     false_per_instant: float
+    hold: float
+    tracks_per_identity_held: float
+    n_identities_held: int
+    turn_rate: float
+    turn_span: float
+    min_speed: float
+    pair_distance: float
+    n_straight: int
+    n_manoeuvre: int
+    n_close_pair: int
+    coverage_straight: float
+    coverage_manoeuvre: float
+    coverage_close_pair: float
+    lost_straight: float
+    lost_manoeuvre: float
+    lost_close_pair: float
+    class_of: np.ndarray
+    identity_tracks_held: np.ndarray
     instants: np.ndarray
     gospa_per_instant: np.ndarray
     n_truths_per_instant: np.ndarray
@@ -164,7 +219,7 @@ class SelfReportScore:
         identity-instants, purity with no associated track, a rate over a
         zero span) are ``None``; ``max_gap`` = ∞ is ``None`` too (JSON has no
         infinity). ``per_identity`` maps ``str(identity id)`` to its
-        ``instants``, ``coverage``, ``tracks`` and ``switches``.
+        ``instants``, ``coverage``, ``tracks``, ``tracks_held`` and ``switches``.
         """
         out = {k: _plain(getattr(self, k)) for k in _SCALARS}
         out["per_identity"] = {
@@ -172,13 +227,15 @@ class SelfReportScore:
                 "instants": int(n),
                 "coverage": _plain(cov),
                 "tracks": int(nt),
+                "tracks_held": int(nh),
                 "switches": int(sw),
             }
-            for i, n, cov, nt, sw in zip(
+            for i, n, cov, nt, nh, sw in zip(
                 self.identity_ids,
                 self.identity_instants,
                 self.identity_coverage,
                 self.identity_tracks,
+                self.identity_tracks_held,
                 self.identity_switches,
                 strict=True,
             )
@@ -195,7 +252,10 @@ class SelfReportScore:
         return (
             f"{self.n_instants} instants of {self.window:g} s: coverage {f(self.coverage, '.3f')}, "
             f"purity {f(self.purity, '.3f')}, tracks/identity "
-            f"{f(self.tracks_per_identity, '.2f')}, {self.n_id_switches} id switches, "
+            f"{f(self.tracks_per_identity, '.2f')} (held ≥ {self.hold:g} s: "
+            f"{f(self.tracks_per_identity_held, '.2f')}), {self.n_id_switches} id switches, "
+            f"coverage straight/manoeuvre/close pair {f(self.coverage_straight, '.3f')}/"
+            f"{f(self.coverage_manoeuvre, '.3f')}/{f(self.coverage_close_pair, '.3f')}, "
             f"{self.n_false_tracks} false tracks ({f(self.false_tracks_per_hour, '.2f')}/h) "
             f"of {self.n_confirmed_track_ids} confirmed ids, GOSPA mean "
             f"{f(self.gospa_mean, '.1f')} (c = {self.c:g})"
@@ -301,42 +361,111 @@ def _groups(ids: np.ndarray, times: np.ndarray):
 # ----------------------------------------------------------------------------- sampling
 
 
-def _sample_truth(times, ids, P, instants, max_gap):
-    """The reports of every identity at the instants (module docstring)."""
-    out_t, out_i, out_p = [], [], []
+def _report_tracks(times, ids, P):
+    """Each identity's reports: ``(identity, τ sorted unique, positions)``, reports of one
+    identity at one time averaged (real AIS files hold such duplicates)."""
     order, bounds = _groups(ids, times)
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         rows = order[a:b]
         tau, pos = times[rows], P[rows]
-        # reports of one identity at one time: their mean position
         tau, inv = np.unique(tau, return_inverse=True)
         if tau.size < rows.size:
             pos = (
                 np.stack([np.bincount(inv, weights=col) for col in pos.T], axis=1)
                 / np.bincount(inv)[:, None]
             )
+        yield ids[rows[0]], tau, pos
+
+
+def _interpolate(tau, pos, T, max_gap):
+    """An identity's reference at the times ``T`` (sorted, any values): ``(present, X)``
+    with ``X`` the rows of ``T[present]`` (module docstring: reported position at a
+    report time, linear interpolation across a gap ≤ ``max_gap``, absent elsewhere)."""
+    inside = (T >= tau[0]) & (T <= tau[-1])
+    Ti = T[inside]
+    j = np.searchsorted(tau, Ti, side="right") - 1  # tau[j] <= t, j in [0, n-1]
+    exact = tau[j] == Ti
+    nxt = np.minimum(j + 1, tau.size - 1)
+    gap = tau[nxt] - tau[j]
+    ok = exact | (gap <= max_gap)
+    # a rounded gap equal to max_gap may hide an exact gap just above it (rounding is
+    # monotone, so only ties are in doubt): decide those in rationals
+    for k in np.flatnonzero(~exact & (gap == max_gap)):
+        exact_gap = Fraction(float(tau[nxt[k]])) - Fraction(float(tau[j[k]]))
+        ok[k] = exact_gap <= Fraction(max_gap)
+    j, nxt, gap, exact, Ti = j[ok], nxt[ok], gap[ok], exact[ok], Ti[ok]
+    w = np.where(exact, 0.0, (Ti - tau[j]) / np.where(exact, 1.0, gap))
+    present = inside.copy()
+    present[inside] = ok
+    return present, pos[j] + w[:, None] * (pos[nxt] - pos[j])
+
+
+def _sample_truth(times, ids, P, instants, max_gap, turn_span, min_speed, turn_rate):
+    """The reports of every identity at the instants (module docstring), and whether
+    each sampled point is a manoeuvre (turn rate above ``turn_rate`` rad/s)."""
+    out_t, out_i, out_p, out_m = [], [], [], []
+    for ident, tau, pos in _report_tracks(times, ids, P):
         lo = np.searchsorted(instants, tau[0], side="left")
         hi = np.searchsorted(instants, tau[-1], side="right")
-        T = instants[lo:hi]
+        present, X = _interpolate(tau, pos, instants[lo:hi], max_gap)
+        T = instants[lo:hi][present]
         if T.size == 0:
             continue
-        j = np.searchsorted(tau, T, side="right") - 1  # tau[j] <= t, j in [0, n-1]
-        exact = tau[j] == T
-        nxt = np.minimum(j + 1, tau.size - 1)
-        gap = tau[nxt] - tau[j]
-        present = exact | (gap <= max_gap)
-        # a rounded gap equal to max_gap may hide an exact gap just above it (rounding is
-        # monotone, so only ties are in doubt): decide those in rationals
-        for k in np.flatnonzero(~exact & (gap == max_gap)):
-            exact_gap = Fraction(float(tau[nxt[k]])) - Fraction(float(tau[j[k]]))
-            present[k] = exact_gap <= Fraction(max_gap)
-        T, j, nxt, gap, exact = T[present], j[present], nxt[present], gap[present], exact[present]
-        w = np.where(exact, 0.0, (T - tau[j]) / np.where(exact, 1.0, gap))
-        X = pos[j] + w[:, None] * (pos[nxt] - pos[j])
         out_t.append(T)
-        out_i.append(np.full(T.size, ids[rows[0]], dtype=np.int64))
+        out_i.append(np.full(T.size, ident, dtype=np.int64))
         out_p.append(X)
-    return out_t, out_i, out_p
+        out_m.append(_manoeuvring(tau, pos, T, X, max_gap, turn_span, min_speed, turn_rate))
+    return (out_t, out_i, out_p), out_m
+
+
+def _manoeuvring(tau, pos, T, X, max_gap, turn_span, min_speed, turn_rate):
+    """Turn rate above ``turn_rate`` (rad/s) at the times ``T`` (positions ``X``): the
+    angle between the chords over [t − span, t] and [t, t + span] / span (module
+    docstring); False where either end is absent or a chord is slower than min_speed."""
+    out = np.zeros(T.size, dtype=bool)
+    if pos.shape[1] < 2:
+        return out
+    before_ok, before = _interpolate(tau, pos, T - turn_span, max_gap)
+    after_ok, after = _interpolate(tau, pos, T + turn_span, max_gap)
+    both = before_ok & after_ok
+    # a chord of inf or NaN length (coordinates near ±1e308) has no heading: not moving
+    with np.errstate(over="ignore", invalid="ignore"):
+        a = X[both, :2] - before[both[before_ok], :2]
+        b = after[both[after_ok], :2] - X[both, :2]
+        na, nb = np.hypot(*a.T), np.hypot(*b.T)
+        moving = (np.minimum(na, nb) >= min_speed * turn_span) & (na > 0) & (nb > 0)
+        moving &= np.isfinite(na) & np.isfinite(nb)
+        # unit chords: products of coordinates up to 1e300 would overflow
+        ua = a / np.where(moving, na, 1.0)[:, None]
+        ub = b / np.where(moving, nb, 1.0)[:, None]
+        cross = ua[:, 0] * ub[:, 1] - ua[:, 1] * ub[:, 0]
+        angle = np.abs(np.arctan2(cross, np.sum(ua * ub, axis=1)))
+    out[both] = moving & (angle > turn_rate * turn_span)
+    return out
+
+
+def _close_pairs(times, positions, pair_distance):
+    """Whether another row at the same time lies within ``pair_distance`` of each row."""
+    out = np.zeros(times.size, dtype=bool)
+    order = np.argsort(times, kind="stable")
+    t = times[order]
+    starts = np.flatnonzero(np.r_[True, t[1:] != t[:-1]])
+    ends = np.r_[starts[1:], t.size]
+    shared = ends - starts > 1  # instants holding one identity have no pair
+    for a, b in zip(starts[shared], ends[shared], strict=True):
+        rows = order[a:b]
+        p = positions[rows]
+        # hypot, not a sum of squares (no overflow at 1e300); a difference of ±1e308
+        # overflowing to inf is correctly "not near"
+        with np.errstate(over="ignore"):
+            diff = np.abs(p[:, None, :] - p[None, :, :])
+        near = np.all(diff <= pair_distance, axis=2)
+        np.fill_diagonal(near, False)
+        if near.any():
+            d = np.hypot.reduce(diff, axis=2) if p.shape[1] > 1 else diff[:, :, 0]
+            near &= d <= pair_distance
+        out[rows] = near.any(axis=1)
+    return out
 
 
 def _sample_tracks(times, ids, P, instants, window):
@@ -367,6 +496,10 @@ def _stack(parts, d: int):
     return np.concatenate(t), np.concatenate(i), np.concatenate(p).reshape(-1, d)
 
 
+def _share(part: int, whole: int) -> float:
+    return part / whole if whole else math.nan
+
+
 # ----------------------------------------------------------------------------- scoring
 
 
@@ -383,6 +516,11 @@ def score_self_reports(
     max_gap: float = 600.0,
     duration: float | None = None,
     t0: float | None = None,
+    hold: float = 60.0,
+    turn_rate: float = 1.0,
+    turn_span: float = 30.0,
+    min_speed: float = 1.0,
+    pair_distance: float = 2000.0,
 ) -> SelfReportScore:
     """Score tracks against self-reports at instants ``t0 + k·window``.
 
@@ -409,6 +547,20 @@ def score_self_reports(
         First instant; default the first report time (the first track time
         when there is no report). Give the tracker's first scan time to put
         the instants on its scans (no lag: module docstring).
+    hold : float, > 0
+        Seconds of associated instants that make a track id *held* by an
+        identity (``tracks_per_identity_held``); default one minute.
+    turn_rate : float, > 0
+        °/s above which a truth point is a manoeuvre (classes in the module
+        docstring).
+    turn_span : float, > 0
+        Seconds either side of an instant over which the heading change is taken.
+    min_speed : float, ≥ 0
+        Position units per second below which a chord has no heading (not a
+        manoeuvre).
+    pair_distance : float, > 0
+        A truth point with another identity this close at the same instant is
+        in a close pair (position units).
 
     Returns
     -------
@@ -438,6 +590,11 @@ def score_self_reports(
         duration = as_float(duration, "duration", minimum=0.0, open_min=True)
     if t0 is not None:
         t0 = as_float(t0, "t0")
+    hold = as_float(hold, "hold", minimum=0.0, open_min=True)
+    turn_rate = as_float(turn_rate, "turn_rate", minimum=0.0, open_min=True)
+    turn_span = as_float(turn_span, "turn_span", minimum=0.0, open_min=True)
+    min_speed = as_float(min_speed, "min_speed", minimum=0.0)
+    pair_distance = as_float(pair_distance, "pair_distance", minimum=0.0, open_min=True)
     rt, ri, rp = _table(truth_times, truth_ids, truth_positions, "truth")
     st, si, sp = _table(track_times, track_ids, track_positions, "track")
     if rp.shape[0] == 0 and sp.shape[0] == 0:
@@ -477,7 +634,12 @@ def score_self_reports(
         instants = np.zeros(0)
     K = instants.size
 
-    truth_s = _stack(_sample_truth(rt, ri, rp, instants, max_gap), d)
+    sampled, manoeuvre = _sample_truth(
+        rt, ri, rp, instants, max_gap, turn_span, min_speed, math.radians(turn_rate)
+    )
+    truth_s = _stack(sampled, d)
+    class_of = np.concatenate(manoeuvre).astype(np.int8) if manoeuvre else np.zeros(0, np.int8)
+    class_of[_close_pairs(truth_s[0], truth_s[2], pair_distance)] = 2  # wins over manoeuvre
     tracks_s = _stack(_sample_tracks(st, si, sp, instants, window), d)
     stats = track_statistics(*truth_s, *tracks_s, gate=c, min_fraction=0.5)
     g = gospa_series(*truth_s, *tracks_s, c=c, p=2)
@@ -501,7 +663,20 @@ def score_self_reports(
     n_assoc = np.bincount(ax_idx, minlength=N)
     with np.errstate(invalid="ignore", divide="ignore"):
         cov_id = np.where(n_inst > 0, n_assoc / np.maximum(n_inst, 1), np.nan)
-    n_trk_id = np.bincount(np.searchsorted(ident, _unique_pairs(ax, ay)[0]), minlength=N)
+    pair_x, _, pair_n = _unique_pairs(ax, ay)
+    n_trk_id = np.bincount(np.searchsorted(ident, pair_x), minlength=N)
+    # ids held: associated at instants covering ≥ hold seconds (n · window ≥ hold)
+    held_pair = pair_n * window >= hold
+    n_held_id = np.bincount(np.searchsorted(ident, pair_x[held_pair]), minlength=N)
+    holding = n_held_id > 0
+    # ---- per class of identity-instant: the class of each association's truth point
+    # (identity, instant) keys: truth points are unique by them, associations a subset
+    truth_key = np.searchsorted(ident, truth_s[1]) * K + np.searchsorted(instants, truth_s[0])
+    by_key = np.argsort(truth_key, kind="stable")
+    at_row = np.searchsorted(truth_key[by_key], ax_idx * K + np.searchsorted(instants, at))
+    assoc_class = class_of[by_key[at_row]] if ax.size else np.zeros(0, np.int8)
+    n_class = np.bincount(class_of, minlength=3)
+    n_class_assoc = np.bincount(assoc_class, minlength=3)
     o = np.lexsort((at, ax))
     ax_o, ay_o = ax[o], ay[o]
     switch = (ax_o[1:] == ax_o[:-1]) & (ay_o[1:] != ay_o[:-1])
@@ -553,6 +728,24 @@ def score_self_reports(
         gospa_false=parts["false"],
         missed_per_instant=parts["n_missed"],
         false_per_instant=parts["n_false"],
+        hold=hold,
+        tracks_per_identity_held=float(np.mean(n_held_id[holding])) if holding.any() else math.nan,
+        n_identities_held=int(holding.sum()),
+        turn_rate=turn_rate,
+        turn_span=turn_span,
+        min_speed=min_speed,
+        pair_distance=pair_distance,
+        n_straight=int(n_class[0]),
+        n_manoeuvre=int(n_class[1]),
+        n_close_pair=int(n_class[2]),
+        coverage_straight=_share(int(n_class_assoc[0]), int(n_class[0])),
+        coverage_manoeuvre=_share(int(n_class_assoc[1]), int(n_class[1])),
+        coverage_close_pair=_share(int(n_class_assoc[2]), int(n_class[2])),
+        lost_straight=_share(int(n_class[0] - n_class_assoc[0]), int(n_class[0])),
+        lost_manoeuvre=_share(int(n_class[1] - n_class_assoc[1]), int(n_class[1])),
+        lost_close_pair=_share(int(n_class[2] - n_class_assoc[2]), int(n_class[2])),
+        class_of=class_of,
+        identity_tracks_held=n_held_id,
         instants=instants,
         gospa_per_instant=gospa_k,
         n_truths_per_instant=np.bincount(np.searchsorted(instants, truth_s[0]), minlength=K),
