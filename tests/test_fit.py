@@ -28,7 +28,7 @@ from jointtrack.cli import app
 from jointtrack.experiments import fit as fitmod
 from jointtrack.experiments.config import load_config, make_tracker_config
 from jointtrack.experiments.fit import MIN_TRIPLES, ModelFit, fit_tracker_settings
-from jointtrack.experiments.run import RunConfigError, run_detections
+from jointtrack.experiments.run import RunConfigError, run_detections, settings_from_data
 from jointtrack.io import Detections
 from jointtrack.scenarios.generators import crossing, many_targets
 
@@ -209,20 +209,44 @@ def test_bad_arguments_are_named(args, error, text):
 
 
 def test_a_run_states_each_fitted_value_and_resumes_only_with_the_same_fit(tmp_path):
-    sc = crossing(3, n_scans=30, clutter_per_scan=4.0)
+    sc = crossing(4, n_scans=16, clutter_per_scan=4.0)
     d = _detections(sc)
     full = run_detections(d, {}, tmp_path / "full")
     notes = full["notes"]
     assert any(n.startswith("[tracker] measurement_noise = ") and "fitted" in n for n in notes)
     assert full["tracker"]["measurement_noise"] != 100.0
     ck = tmp_path / "ck.npz"
-    run_detections(d, {}, tmp_path / "part", checkpoint=ck, checkpoint_every=1, max_scans=12)
+    run_detections(d, {}, tmp_path / "part", checkpoint=ck, checkpoint_every=1, max_scans=7)
     with pytest.raises(RunConfigError, match="fit"):
         run_detections(d, {}, tmp_path / "part", resume=ck, fit=False)
     run_detections(d, {}, tmp_path / "part", resume=ck)
     assert (tmp_path / "part" / "tracks.csv").read_bytes() == (
         tmp_path / "full" / "tracks.csv"
     ).read_bytes()
-    off = run_detections(d, {}, tmp_path / "off", fit=False)
-    assert off["tracker"]["measurement_noise"] == 100.0
-    assert not any(n.startswith("[tracker] ") for n in off["notes"])
+    table, notes, ident = settings_from_data(d, {}, None, fit=False)
+    assert table == {} and notes == [] and ident == {"fitted": None, "notes": []}
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_report_like_file_fits_noise_speed_and_report_interval(seed):
+    """Eight targets 5–8 km apart reporting one at a time (exponential gaps, mean 10 s),
+    σ = 10 m, 5–10 m/s: the async model with σ within 15 % and the mean report
+    interval within 15 % (~1,000 linked reports; the trimming drops the widest)."""
+    rng = np.random.default_rng(seed)
+    ts, ps = [], []
+    for i in range(8):
+        t = np.cumsum(rng.exponential(10.0, 400))
+        t = t[t < 1800.0]
+        v = rng.uniform(5, 10) * np.array([np.cos(i), np.sin(i)])
+        x0 = np.array([5000.0 * (i % 4), 8000.0 * (i // 4)])
+        ts.append(t)
+        ps.append(x0 + t[:, None] * v + rng.normal(0, 10.0, (t.size, 2)))
+    t, p = np.concatenate(ts), np.concatenate(ps)
+    o = np.argsort(t)
+    f = fit_tracker_settings(Detections(times=t[o], scans=tuple(p[o][:, None, :]), dim=2))
+    assert f.table["reporting"] == "async"
+    assert abs(math.sqrt(f.table["measurement_noise"]) / 10.0 - 1) < 0.15
+    assert abs(f.table["report_interval"] / 10.0 - 1) < 0.15
+    assert 10.0 <= f.table["max_speed"] <= 30.0
+    assert "report-like file" in f.fallbacks["p_d"]
+    make_tracker_config({"dim": 2}, f.table)

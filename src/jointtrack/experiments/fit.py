@@ -460,14 +460,18 @@ def fit_tracker_settings(
     # a triple whose squares leave the float range (coordinates near 1e150, gaps near 0)
     # cannot be weighed: left out, never an inf in the fit
     finite = np.isfinite(D2) & np.isfinite(n) & np.isfinite(p) & (n > 0) & (p > 0)
+    evidence["triples_out_of_range"] = int((~finite).sum())
+    # a triple that repeats one position exactly (a moored vessel's quantised AIS
+    # position) says nothing about the noise of a moving target: left out, counted
+    evidence["triples_repeating"] = int(np.count_nonzero(finite & (D2 == 0)))
+    finite &= D2 > 0
     if not finite.all():
-        evidence["triples_out_of_range"] = int((~finite).sum())
         g0, g1, g2, lag = g0[finite], g1[finite], g2[finite], lag[finite]
         a, b, n, p, D2 = a[finite], b[finite], n[finite], p[finite], D2[finite]
     if g0.size < MIN_TRIPLES:
         return fall_all(
-            f"not fitted: {g0.size} linked triples with squares in the float range (fewer "
-            f"than {MIN_TRIPLES})"
+            f"not fitted: {g0.size} linked triples that do not repeat a position, with squares "
+            f"in the float range (fewer than {MIN_TRIPLES})"
         )
     res = _fit_noise(D2, n, p, lag, dim)
     if res is None:
@@ -508,7 +512,7 @@ def fit_tracker_settings(
             if sigma2 > 0
             else "measurement noise fitted as 0 (no position noise separable from the motion)"
         )
-        for k in ("measurement_noise", "process_noise", "p_g"):
+        for k in ("measurement_noise", "process_noise", "p_d", "p_g"):
             fallbacks[k] = "not fitted: " + why
     else:
         fitted["measurement_noise"] = (
@@ -568,10 +572,16 @@ def fit_tracker_settings(
     else:
         fallbacks["clutter_density"] = "not fitted: the detections' bounding box has no area"
     if report_like:
+        why = (
+            "not fitted for a report-like file (no scans: a target's missing reports and "
+            "the returns after one are not seen as such)"
+        )
+        fallbacks.setdefault("p_d", why)
+        fallbacks.setdefault("p_g", why)
         gaps = a[inl]
         fitted["report_interval"] = (
-            float(np.median(gaps)),
-            f"fitted: the median gap between a target's linked reports ({n_in:,} links)",
+            float(np.mean(gaps)),
+            f"fitted: the mean gap between a target's linked reports ({n_in:,} links)",
         )
     elif sigma_ok:
         _fit_pd_gate(
