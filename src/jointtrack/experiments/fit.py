@@ -157,18 +157,21 @@ class ModelFit:
 
     def notes(self) -> list[str]:
         """Sentences for metrics.json and the summary: each fitted value with its source,
-        the keys of :data:`FIT_KEYS` set in ``[tracker]``, and the defaults used, grouped
-        by why (one sentence per reason)."""
+        the keys of :data:`FIT_KEYS` set in ``[tracker]``, the report-file settings and
+        the defaults used — keys that share a source or a reason in one sentence."""
         keys = [k for k in self.sources if k in FIT_KEYS or not self.sources[k].startswith("set")]
-        out, by_reason = [], {}
+        groups: dict = {}
         for k in keys:
             if k in self.fallbacks:
-                by_reason.setdefault(self.fallbacks[k], []).append(k)
+                groups.setdefault(("default", self.fallbacks[k]), []).append(k)
             else:
-                out.append(f"[tracker] {k} = {_value_text(self.table[k])}: {self.sources[k]}")
-        for why, ks in by_reason.items():
+                groups.setdefault(("source", self.sources[k]), []).append(k)
+        out = []
+        for (what, text), ks in groups.items():
             values = ", ".join(f"{k} = {_value_text(self.table[k])}" for k in ks)
-            out.append(f"[tracker] {values}: the default{'s' if len(ks) > 1 else ''}; {why}")
+            if what == "default":
+                text = f"the default{'s' if len(ks) > 1 else ''}; {text}"
+            out.append(f"[tracker] {values}: {text}")
         return out
 
     def identity(self) -> dict:
