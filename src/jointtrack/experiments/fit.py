@@ -5,7 +5,7 @@ What is estimated, and how
 --------------------------
 Links. Each detection is linked to its nearest neighbour in the scan ``L`` scans
 later when it is that detection's nearest neighbour back (mutual nearest
-neighbours, :class:`scipy.spatial.cKDTree`), for lags L = 1 and 2; two links
+neighbours, :class:`scipy.spatial.cKDTree`), for the lags L of :data:`LAGS`; two links
 that share their middle detection make a triple ``z0, z1, z2`` at times
 ``t0 < t1 < t2`` (gaps ``a = t1 − t0``, ``b = t2 − t1``). A report-like file
 (:func:`jointtrack.experiments.run.reporting_from_data`: irregular times, about
@@ -20,8 +20,8 @@ with Applications to Tracking and Navigation*, Wiley 2001, §6.2.2),
 
     E[D²] = n σ² + p q,   n = 1/a² + (1/a + 1/b)² + 1/b²,   p = (a + b)/3      (1)
 
-— for equal gaps LΔt, times (LΔt)², the classical 6σ² + (2/3) q (LΔt)³. Lags 1
-and 2 (or the spread of a report file's gaps) separate σ² and q. Clutter and
+— for equal gaps LΔt, times (LΔt)², the classical 6σ² + (2/3) q (LΔt)³. The
+lags (or the spread of a report file's gaps) separate σ² and q. Clutter and
 mis-links contaminate the triples, so (1) is fitted by trimmed least squares
 (concentration steps, as in Rousseeuw & Van Driessen's FAST-MCD, *Technometrics*
 41(3), 1999): start from the medians of each lag's ``D²``, keep the triples whose
@@ -29,14 +29,22 @@ normalised ``ΣD²/(nσ² + pq)`` is within the χ²_dim 99 % point, refit by
 weighted non-negative least squares (weights 1/(nσ² + pq)², the inverse variance
 of a Gaussian ``D²``) with the truncated χ² consistency factor, until the kept set
 stops changing. Measured on the package's simulated scenes (known σ, q, P_D and
-clutter; ``tests/test_fit.py``): σ within 10 %, q within a factor 1.6, P_D within
-0.05, clutter within 30 %, over several seeds. A first tracker pass with EM on its
+clutter; ``tests/test_fit.py``, three seeds each): σ within 10 %, the triples' q
+within a factor 2, P_D within 0.06 (low: targets that die or leave count as
+misses), clutter within 25 %. Lags 1 and 2 alone could not resolve q where its
+share of (1), (2/3)qΔt³ against 6σ², is below ~1 % (σ 10 m, q 0.5, Δt 1 s: q off
+by 5×); lags up to 8 bring it to 20–50 %. A first tracker pass with EM on its
 innovations was not chosen: it needs a model to start from (the defaults the
 issue found hold nothing on real data) and costs a full run; the link statistics
-take ~1 s on 17 h of 10 s scans.
+take 11–15 s on 17 h of 10 s scans (248k detections, a loaded machine). Triples
+that repeat one position exactly (moored vessels' quantised AIS positions) are
+left out and counted. A fitted σ above :data:`CHANCE_SPACING` × the median
+distance between the detections of one scan is refused: the links are chance
+(clutter only).
 
-Speed. ``max_speed`` = :data:`SPEED_MARGIN` × the 99 % point of the inlier
-triples' speeds ``|z1 − z0|/a``.
+Speed. ``max_speed`` = :data:`SPEED_MARGIN` × the 99 % point of the speeds
+``|z2 − z0|/(a + b)`` of the longest lag's inlier triples (the noise's share of a
+speed falls with the span); a 99 % point above :data:`MAX_SPEED_BOUND` is refused.
 
 P_D and clutter. From each inlier lag-1 triple the target's position at the next
 scan is predicted (straight on); the fraction ``f`` of predictions with a
@@ -56,11 +64,12 @@ variance under (1). When the :data:`NIS_POINT` point of these NIS exceeds the
 trimmed fit sees the straight core — q is raised (bisection in log q) until it
 matches (NIS consistency). ``p_g`` is then the χ² probability of the 99 % point,
 at least :data:`P_G_HOLD`, within [:data:`P_G_MIN`, :data:`P_G_MAX`]. Measured:
-on the simulated scenes the raise does not fire where clutter is sparse; in dense
-clutter (gates holding several false returns) mis-linked returns make it raise q
-too far (a safe direction: wider gates, slower to confirm). On the switzerland
-ADS-B scene (σ 50 m synthetic noise on top of the reports' own jitter) the
-triples give σ ≈ 67 m and q ≈ 0.05, the raise q ≈ 3–12 m²/s³.
+on the sparse simulated scenes the raise leaves q as fitted on 5 of 6 seeds
+(one: 0.5 → 5.6); in dense clutter (gates holding several false returns, e.g. 50
+per scan on 10 km² with σ 30 m) mis-linked returns make it raise q 200× (a safe
+direction: wider gates, later confirmation). On the switzerland ADS-B scene (σ 50
+m synthetic noise on top of the reports' own jitter) the triples give σ ≈ 67 m and
+q ≈ 0.05, the raise q ≈ 3.3 m²/s³ (``benchmarks/RESULTS.md``).
 
 A value that cannot be fitted (too few triples, a fitted value outside physical
 bounds) is not used: the key gets the TrackerConfig default (or the report-file

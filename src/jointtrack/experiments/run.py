@@ -589,7 +589,26 @@ def _check_resume(resume: Path, info, trk, src, identity, out_dir: Path, fmt: st
             f"{resume}: a tracker state without the bookkeeping of a jointtrack run "
             "(saved by JPDATracker.save?); it cannot resume `jointtrack run`"
         )
-    if _run_inputs(info.get("inputs")) != identity:
+    saved = _run_inputs(info.get("inputs"))
+    if (
+        isinstance(saved, dict)
+        and saved != identity
+        and {k: v for k, v in saved.items() if k != "fit"}
+        == {k: v for k, v in identity.items() if k != "fit"}
+    ):
+
+        def fit_text(entry) -> str:
+            fitted = entry.get("fitted") if isinstance(entry, dict) else None
+            if fitted is None:
+                return "without the fitted model (--no-fit)" if entry else "without a fit"
+            return "with the fitted " + ", ".join(f"{k} = {v}" for k, v in fitted.items())
+
+        raise RunConfigError(
+            f"{resume}: the checkpoint's run was made {fit_text(saved.get('fit'))}; this run "
+            f"{fit_text(identity.get('fit'))} (the fit is part of the run: resume with the "
+            "same --no-fit choice and [tracker] keys)"
+        )
+    if saved != identity:
         raise RunConfigError(
             f"{resume}: the checkpoint was made for {_describe(info.get('inputs'))}, "
             f"not {_describe(identity)}"
