@@ -211,15 +211,17 @@ def test_bad_arguments_are_named(args, error, text):
 def test_a_run_states_each_fitted_value_and_resumes_only_with_the_same_fit(tmp_path):
     sc = crossing(4, n_scans=16, clutter_per_scan=4.0)
     d = _detections(sc)
-    full = run_detections(d, {}, tmp_path / "full")
+    full = run_detections(d, {}, tmp_path / "full", plots=False)
     notes = full["notes"]
     assert any(n.startswith("[tracker] measurement_noise = ") and "fitted" in n for n in notes)
     assert full["tracker"]["measurement_noise"] != 100.0
     ck = tmp_path / "ck.npz"
-    run_detections(d, {}, tmp_path / "part", checkpoint=ck, checkpoint_every=1, max_scans=7)
+    run_detections(
+        d, {}, tmp_path / "part", checkpoint=ck, checkpoint_every=1, max_scans=7, plots=False
+    )
     with pytest.raises(RunConfigError, match=r"made with the fitted measurement_noise = .*without"):
-        run_detections(d, {}, tmp_path / "part", resume=ck, fit=False)
-    run_detections(d, {}, tmp_path / "part", resume=ck)
+        run_detections(d, {}, tmp_path / "part", resume=ck, fit=False, plots=False)
+    run_detections(d, {}, tmp_path / "part", resume=ck, plots=False)
     assert (tmp_path / "part" / "tracks.csv").read_bytes() == (
         tmp_path / "full" / "tracks.csv"
     ).read_bytes()
