@@ -377,6 +377,14 @@ def run_command(
             "the centre of the data).",
         ),
     ] = None,
+    no_fit: Annotated[
+        bool,
+        typer.Option(
+            "--no-fit",
+            help="--detections: keep the defaults for the [tracker] keys the config does not "
+            "set, instead of fitting them to the data (jointtrack fit).",
+        ),
+    ] = False,
     labels: Annotated[
         str | None,
         typer.Option(
@@ -552,8 +560,16 @@ def run_command(
             dets = read_detections(detections, reference=_reference(reference))
             # report-like files (irregular times, ~1 return per time) get the async
             # model unless [tracker] sets reporting; a resume decides the same again
-            jpda_table, note = runmod.reporting_from_data(dets, jpda_table, kind)
-            data_notes = [note] if note else []
+            # the model fitted to the data for every key [tracker] does not set (or, with
+            # --no-fit, report-like files' async model); a resume fits the same again and
+            # the fitted values are part of the run's identity
+            if restored is not None:
+                # the checkpoint's settings (the fit is in them): its fit and notes
+                fit_id, data_notes = runmod.saved_fit(resume)
+            else:
+                jpda_table, data_notes, fit_id = runmod.settings_from_data(
+                    dets, jpda_table, kind, fit=not no_fit
+                )
             tracker_cfg = runmod.make_tracker_config(
                 {"dim": dets.dim}, jpda_table, source=cfg.source
             )
@@ -573,7 +589,7 @@ def run_command(
                 )
             if kind in runmod.POISSON_KINDS:
                 # the [tracker] keys as the user set them (p_g: see make_pmbm_config)
-                # and the reporting model chosen from the data above
+                # and the settings chosen from the data above (reporting model, fit)
                 tracker_cfg = saved_cfg if saved_cfg is not None else dict(jpda_table)
             metrics = runmod.run_detections(
                 dets,
@@ -581,6 +597,8 @@ def run_command(
                 truth=truth,
                 sensors=cfg.sensors,
                 notes=data_notes,
+                fit=False,  # fitted above
+                run_identity={} if fit_id is None else {"fit": fit_id},
                 **kind_opts,
                 **common,
             )
@@ -1069,6 +1087,87 @@ def reproduce_nannuru(
         lambda console, show: nannuru.reproduce(quick, out_dir=out, progress=show, console=console),
     )
     nannuru.print_report(result, console)
+
+
+@app.command("fit", cls=_Command)
+def fit_command(
+    detections: Annotated[
+        Path,
+        typer.Argument(help="Detections file (CSV or Parquet, as jointtrack run --detections)."),
+    ],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the fitted [tracker] TOML here (atomically)."),
+    ] = None,
+    tracker: Annotated[
+        str | None,
+        typer.Option(
+            "--tracker", metavar="[jipda|jpda|pmb|pmbm]", help="The tracker the model is for."
+        ),
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option("--config", help="TOML config: its [tracker] keys are kept, not fitted."),
+    ] = None,
+    reference: Annotated[
+        str | None,
+        typer.Option(
+            "--reference",
+            metavar="LAT,LON",
+            help="Geodetic data: origin of the local east-north frame in degrees.",
+        ),
+    ] = None,
+) -> None:
+    """Fit the tracker's model (noise, process noise, speed, P_D, clutter, gate) to a
+    detections file and print (or write) it as a commented [tracker] TOML table.
+
+    Exits 1 when nothing could be fitted (every value is then a stated default).
+    """
+    from jointtrack._atomic import atomic_file
+    from jointtrack._console import make_console
+    from jointtrack.io import DataFileError
+
+    console = make_console()
+    try:
+        from jointtrack.experiments import run as runmod
+        from jointtrack.experiments.fit import fit_tracker_settings
+        from jointtrack.io import read_detections
+        from jointtrack.io.reports import report_format
+
+        if tracker is not None and tracker not in ("jipda", "jpda", "pmb", "pmbm"):
+            raise runmod.RunConfigError(
+                f"--tracker must be jipda, jpda, pmb or pmbm, got {tracker!r}"
+            )
+        cfg = runmod.load_config(config) if config is not None else runmod.RunConfig()
+        kind = runmod.tracker_kind(tracker, cfg.tracker_options, cfg.tracker)
+        if kind not in ("jipda", "jpda", "pmb", "pmbm"):
+            raise runmod.RunConfigError(f"jointtrack fit has no model for --tracker {kind}")
+        if report_format(detections) is not None:
+            raise runmod.RunConfigError(
+                f"{detections} is a report file (AIS, OpenSky, traffic), which runs with its "
+                "own settings; jointtrack fit reads detections files (time, x, y or time, lat, lon)"
+            )
+        table = dict(cfg.tracker)
+        if kind in runmod.JPDA_KINDS:
+            table = runmod.jpda_kind_overrides(kind, table)
+        dets = read_detections(detections, reference=_reference(reference))
+        model = fit_tracker_settings(dets, table, kind)
+        text = model.to_toml()
+        runmod.make_tracker_config({"dim": dets.dim}, model.table, source=str(detections))
+        if out is not None:
+            with atomic_file(out) as tmp:
+                Path(tmp).write_text(text)
+    except (ValueError, OSError, DataFileError) as exc:
+        _fail(exc)
+    console.print(text, markup=False, highlight=False, soft_wrap=True)
+    if out is not None:
+        console.print(f"written to {out}", markup=False, highlight=False)
+    if not model.fitted:
+        _fail(
+            "nothing could be fitted: "
+            + "; ".join(sorted(set(model.fallbacks.values())) or ["every key is set in [tracker]"]),
+            code=1,
+        )
 
 
 @app.command("sweep", cls=_Command)

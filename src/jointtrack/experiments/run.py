@@ -589,7 +589,26 @@ def _check_resume(resume: Path, info, trk, src, identity, out_dir: Path, fmt: st
             f"{resume}: a tracker state without the bookkeeping of a jointtrack run "
             "(saved by JPDATracker.save?); it cannot resume `jointtrack run`"
         )
-    if _run_inputs(info.get("inputs")) != identity:
+    saved = _run_inputs(info.get("inputs"))
+    if (
+        isinstance(saved, dict)
+        and saved != identity
+        and {k: v for k, v in saved.items() if k != "fit"}
+        == {k: v for k, v in identity.items() if k != "fit"}
+    ):
+
+        def fit_text(entry) -> str:
+            fitted = entry.get("fitted") if isinstance(entry, dict) else None
+            if fitted is None:
+                return "without the fitted model (--no-fit)" if entry else "without a fit"
+            return "with the fitted " + ", ".join(f"{k} = {v}" for k, v in fitted.items())
+
+        raise RunConfigError(
+            f"{resume}: the checkpoint's run was made {fit_text(saved.get('fit'))}; this run "
+            f"{fit_text(identity.get('fit'))} (the fit is part of the run: resume with the "
+            "same --no-fit choice and [tracker] keys)"
+        )
+    if saved != identity:
         raise RunConfigError(
             f"{resume}: the checkpoint was made for {_describe(info.get('inputs'))}, "
             f"not {_describe(identity)}"
@@ -1617,6 +1636,44 @@ def reporting_from_data(detections: Detections, table: Mapping, kind: str | None
     )
 
 
+def settings_from_data(detections: Detections, table: Mapping, kind: str | None, fit: bool = True):
+    """The ``[tracker]`` table a detections run uses: ``(table, notes, fit_identity)``.
+
+    With ``fit`` (default) the model fitted to the data
+    (:func:`jointtrack.experiments.fit.fit_tracker_settings`: every key the table
+    does not set, each named in a note with its source); without it the table and
+    :func:`reporting_from_data`'s asynchronous model for report-like files, as
+    before the fit. ``fit_identity`` — the fitted values (None without the fit)
+    and the notes — is part of the run's identity: a resume checks the values are
+    the same, and a resume from the checkpoint alone takes both from it
+    (:func:`saved_fit`), since its settings are the checkpoint's.
+    """
+    if not fit:
+        out, note = reporting_from_data(detections, dict(table), kind)
+        notes = [note] if note else []
+        return out, notes, {"fitted": None, "notes": notes}
+    from jointtrack.experiments.fit import fit_tracker_settings
+
+    model = fit_tracker_settings(detections, dict(table), kind)
+    notes = model.notes()
+    ident = {"fitted": to_jsonable(model.identity(), fallback="text"), "notes": notes}
+    return dict(model.table), notes, ident
+
+
+def saved_fit(resume) -> tuple[dict | None, list]:
+    """The fit identity and notes a checkpoint's run was made with (``(None, [])`` for
+    a checkpoint without them)."""
+    try:
+        info = read_run(Path(resume))
+    except Exception:  # noqa: BLE001 - the run loop reports an unreadable checkpoint
+        return None, []
+    inputs = info.get("inputs") if isinstance(info, dict) else None
+    ident = inputs.get("fit") if isinstance(inputs, dict) else None
+    if not isinstance(ident, dict):
+        return None, []
+    return ident, list(ident.get("notes") or [])
+
+
 def run_detections(
     detections: Detections,
     config: TrackerConfig | Mapping | None = None,
@@ -1630,6 +1687,7 @@ def run_detections(
     labels_to_tracker: bool = True,
     run_identity: Mapping | None = None,
     notes: list | None = None,
+    fit: bool = True,
     **options,
 ) -> dict:
     """Run the tracker on detections (e.g. from :func:`jointtrack.io.read_detections`).
@@ -1643,6 +1701,11 @@ def run_detections(
     Report-like detections (irregular times, about one return per time) run with
     the asynchronous reporting model unless ``config`` sets ``reporting``
     (:func:`reporting_from_data`, named in the notes).
+
+    ``fit``: a ``config`` mapping's missing keys are fitted to the detections
+    (:func:`settings_from_data`, each value's source in the notes; the fitted
+    values are part of the run's identity); ``fit=False``: the defaults. A
+    :class:`TrackerConfig` is used as given.
 
     ``config``: a :class:`TrackerConfig` or a mapping of overrides on the
     defaults (``dim`` is taken from the detections). Range–bearing detections
@@ -1686,8 +1749,9 @@ def run_detections(
     user = {} if isinstance(config, TrackerConfig | PMBMConfig) else dict(config or {})
     notes_in = list(notes or [])
     if not isinstance(config, TrackerConfig | PMBMConfig):
-        config, note = reporting_from_data(detections, dict(config or {}), tkind)
-        notes_in += [note] if note else []
+        config, fit_notes, fit_id = settings_from_data(detections, dict(config or {}), tkind, fit)
+        notes_in += fit_notes
+        run_identity = {"fit": fit_id, **dict(run_identity or {})}
     if isinstance(config, TrackerConfig | PMBMConfig):
         cfg = config
     else:

@@ -1,0 +1,178 @@
+"""Issue 32.1: the bare command on the switzerland ADS-B scene — the fitted model.
+
+For each degradation seed, writes the ``adsb`` scene's detections
+(:func:`jointtrack.bench.realdata.adsb_scene`: real flights, a synthetic 10 s
+scanning sensor with P_D 0.9, 20 false returns per scan, 50 m noise, identities
+stripped) as a plain ``time, lat, lon`` CSV, runs the bare command
+
+    jointtrack run --no-progress --detections FILE --out DIR
+
+(a subprocess, wall and CPU timed; no config: every model value is fitted), and
+scores its tracks as ``bench realdata`` does
+(:func:`jointtrack.metrics.selfreport.score_self_reports`: truth = the undegraded
+reports interpolated to the scan times, c = 500 m, window 10 s), in the scene's
+frame (the tracks' lat/lon columns). ``--hand`` also runs the hand-set
+``ADSB_TRACKER`` (:func:`jointtrack.bench.jointtrack_realdata.run_jointtrack`) on
+the same scene in the same process, for the ratio.
+
+    python benchmarks/fit_realdata.py --seeds 1 2 --out DIR [--max-scans N] [--hand]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from jointtrack.bench.realdata import MAX_GAP, adsb_scene
+from jointtrack.bench.realdata_data import fetch_realdata
+from jointtrack.io.times import format_timestamp, parse_origin
+from jointtrack.metrics.selfreport import score_self_reports
+
+KEYS = (
+    "coverage",
+    "purity",
+    "tracks_per_identity",
+    "false_tracks_per_hour",
+    "gospa_mean",
+)
+
+
+def write_plain(scene, path: Path) -> None:
+    """The scene's detections as ``time, lat, lon`` rows (ISO-8601 UTC, ms)."""
+    lat, lon = scene.frame.to_geodetic(scene.positions)
+    _, ns0, _ = parse_origin(scene.time_origin)
+    ns = np.rint(scene.times * 1e9).astype(np.int64)
+    with open(path, "w", newline="") as fh:
+        fh.write("time,lat,lon\n")
+        for k in range(len(ns)):
+            stamp = format_timestamp(ns0 + int(ns[k]), True)
+            fh.write(f"{stamp},{float(lat[k])!r},{float(lon[k])!r}\n")
+
+
+def score_tracks(scene, run_dir: Path, n_scans: int) -> dict:
+    """Self-report scores of ``run_dir/tracks.csv`` in the scene's frame and clock."""
+    m = json.loads((run_dir / "metrics.json").read_text())
+    _, ns_run, _ = parse_origin(m["time_origin"])
+    _, ns_scene, _ = parse_origin(scene.time_origin)
+    shift = (ns_run - ns_scene) / 1e9
+    with open(run_dir / "tracks.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    tt = np.array([float(r["time"]) for r in rows]) + shift
+    ti = np.array([int(r["track_id"]) for r in rows])
+    lat = np.array([float(r["lat"]) for r in rows])
+    lon = np.array([float(r["lon"]) for r in rows])
+    tp = np.asarray(scene.frame.to_local(lat, lon), dtype=float).reshape(-1, 2)
+    t, ids, xy = scene.truth()
+    end = float(scene.scan_times[min(n_scans, len(scene.scan_times)) - 1])
+    keep = t <= end
+    score = score_self_reports(
+        t[keep],
+        ids[keep],
+        xy[keep],
+        tt,
+        ti,
+        tp,
+        window=scene.window,
+        c=scene.cutoff,
+        max_gap=MAX_GAP,
+        duration=max(end - float(scene.scan_times[0]), scene.window),
+        t0=float(scene.scan_times[0]),
+    ).as_dict()
+    return {k: score[k] for k in KEYS} | {"tracker": m["tracker"], "notes": m.get("notes", [])}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--out", required=True, help="working folder")
+    parser.add_argument(
+        "--data", default="switzerland", help="switzerland or quickstart (fetch_realdata keys)"
+    )
+    parser.add_argument("--max-scans", type=int, default=None)
+    parser.add_argument("--hand", action="store_true", help="also the hand-set ADSB_TRACKER")
+    args = parser.parse_args()
+    work = Path(args.out)
+    work.mkdir(parents=True, exist_ok=True)
+    path = fetch_realdata(progress=None)[args.data]
+    results = []
+    for seed in args.seeds:
+        scene = adsb_scene(path, seed=seed)
+        n_scans = len(scene.scan_times) if args.max_scans is None else args.max_scans
+        plain = work / f"adsb-seed{seed}.csv"
+        write_plain(scene, plain)
+        out = work / f"run-seed{seed}"
+        code = "import sys; from jointtrack.cli import main; sys.argv[0] = 'jointtrack'; main()"
+        argv = [sys.executable, "-c", code, "run", "--no-progress", "--detections", str(plain)]
+        argv += ["--out", str(out)]
+        if args.max_scans is not None:
+            argv += ["--max-scans", str(args.max_scans)]
+        c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        w0 = time.perf_counter()
+        done = subprocess.run(argv, capture_output=True, text=True)
+        wall = time.perf_counter() - w0
+        c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+        if done.returncode:
+            sys.exit(f"jointtrack run failed ({done.returncode}):\n{done.stderr}")
+        row = {"seed": seed, "scans": n_scans, "wall_s": wall, "cpu_s": cpu}
+        row["data_hours"] = float(scene.scan_times[n_scans - 1] - scene.scan_times[0]) / 3600.0
+        row["bare"] = score_tracks(scene, out, n_scans)
+        if args.hand:
+            from jointtrack.bench.jointtrack_realdata import run_jointtrack
+            from jointtrack.bench.realdata import score_run
+
+            sub = scene
+            if args.max_scans is not None:
+                keep = scene.scan_index < args.max_scans
+                from dataclasses import replace
+
+                sub = replace(
+                    scene,
+                    times=scene.times[keep],
+                    positions=scene.positions[keep],
+                    scan_index=scene.scan_index[keep],
+                    scan_times=scene.scan_times[: args.max_scans],
+                    labels=None if scene.labels is None else scene.labels[keep],
+                )
+            res = score_run(sub, run_jointtrack(sub, wall_cap=1e9))
+            row["hand"] = {k: res.score[k] for k in KEYS} if res.score else res.score_error
+        results.append(row)
+        print(json.dumps({k: v for k, v in row.items() if k != "bare"}, indent=1))
+        print(
+            f"seed {seed}: bare "
+            + ", ".join(f"{k} {row['bare'][k]:.4g}" for k in KEYS)
+            + f"; CPU {cpu:.0f} s for {row['data_hours']:.1f} h of data "
+            f"({row['data_hours'] * 3600 / max(cpu, 1e-9):.0f}× real time)"
+        )
+        print(
+            "fitted:",
+            json.dumps(
+                {
+                    k: row["bare"]["tracker"].get(k)
+                    for k in (
+                        "measurement_noise",
+                        "process_noise",
+                        "max_speed",
+                        "p_d",
+                        "p_g",
+                        "clutter_density",
+                    )
+                }
+            ),
+        )
+    (work / "fit_realdata.json").write_text(json.dumps(results, indent=1))
+    for key in KEYS:
+        vals = [r["bare"][key] for r in results]
+        print(f"{key}: {' '.join(f'{v:.4g}' for v in vals)} (spread {max(vals) - min(vals):.3g})")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,762 @@
+"""The tracker's model fitted to a detections file (issue 32.1): ``jointtrack fit`` and
+every ``jointtrack run --detections`` that does not set a value.
+
+What is estimated, and how
+--------------------------
+Links. Each detection is linked to its nearest neighbour in the scan ``L`` scans
+later when it is that detection's nearest neighbour back (mutual nearest
+neighbours, :class:`scipy.spatial.cKDTree`), for the lags L of :data:`LAGS`; two links
+that share their middle detection make a triple ``z0, z1, z2`` at times
+``t0 < t1 < t2`` (gaps ``a = t1 − t0``, ``b = t2 − t1``). A report-like file
+(:func:`jointtrack.experiments.run.reporting_from_data`: irregular times, about
+one return per time — targets reporting one at a time) has no scans: each report
+is linked to its mutual nearest neighbour among the next
+:data:`REPORT_WINDOW` reports, whatever their times.
+
+Noise. The velocity difference of a triple, ``D = (z2 − z1)/b − (z1 − z0)/a``,
+has per axis, for white-noise-acceleration (CV) motion of power spectral density
+q and independent position noise σ² (Bar-Shalom, Li & Kirubarajan, *Estimation
+with Applications to Tracking and Navigation*, Wiley 2001, §6.2.2),
+
+    E[D²] = n σ² + p q,   n = 1/a² + (1/a + 1/b)² + 1/b²,   p = (a + b)/3      (1)
+
+— for equal gaps LΔt, times (LΔt)², the classical 6σ² + (2/3) q (LΔt)³. The
+lags (or the spread of a report file's gaps) separate σ² and q. Clutter and
+mis-links contaminate the triples, so (1) is fitted by trimmed least squares
+(concentration steps, as in Rousseeuw & Van Driessen's FAST-MCD, *Technometrics*
+41(3), 1999): start from the medians of each lag's ``D²``, keep the triples whose
+normalised ``ΣD²/(nσ² + pq)`` is within the χ²_dim 99 % point, refit by
+weighted non-negative least squares (weights 1/(nσ² + pq)², the inverse variance
+of a Gaussian ``D²``) with the truncated χ² consistency factor, until the kept set
+stops changing. Measured on the package's simulated scenes (known σ, q, P_D and
+clutter; ``tests/test_fit.py``, three seeds each): σ within 10 %, the triples' q
+within a factor 2, P_D within 0.06 (low: targets that die or leave count as
+misses), clutter within 25 %. Lags 1 and 2 alone could not resolve q where its
+share of (1), (2/3)qΔt³ against 6σ², is below ~1 % (σ 10 m, q 0.5, Δt 1 s: q off
+by 5×); lags up to 8 bring it to 20–50 %. A first tracker pass with EM on its
+innovations was not chosen: it needs a model to start from (the defaults the
+issue found hold nothing on real data) and costs a full run; the link statistics
+take 11–15 s on 17 h of 10 s scans (248k detections, a loaded machine). Triples
+that repeat one position exactly (moored vessels' quantised AIS positions) are
+left out and counted. A fitted σ above :data:`CHANCE_SPACING` × the median
+distance between the detections of one scan is refused: the links are chance
+(clutter only).
+
+Speed. ``max_speed`` = :data:`SPEED_MARGIN` × the 99 % point of the speeds
+``|z2 − z0|/(a + b)`` of the longest lag's inlier triples (the noise's share of a
+speed falls with the span); a 99 % point above :data:`MAX_SPEED_BOUND` is refused.
+
+P_D and clutter. From each inlier lag-1 triple the target's position at the next
+scan is predicted (straight on); the fraction ``f`` of predictions with a
+detection inside their χ² 99.99 % ellipse of (1) gives P_D = (1 − (1 − f)·e^{λA})
+/ P_G (a clutter return inside the ellipse, λA, taken out). The clutter density
+λ is the detections in no inlier triple per scan (per second for a report-like
+file) per area of the detections' bounding box
+(:func:`jointtrack.experiments.config.detections_extent`, as the PMB/PMBM
+estimate uses).
+
+Gate with q. One missed scan must not lose a straight-flying target (issue 32:
+q = 1 with a 99 % gate lost aircraft after one miss; q 20 with P_G 0.9999 held
+them). For each inlier lag-1 link followed by a lag-2 link (the return after a
+one-scan gap), the residual to the straight-on prediction is normalised by its
+variance under (1). When the :data:`NIS_POINT` point of these NIS exceeds the
+χ² one — real motion has heavier tails than white acceleration, and the
+trimmed fit sees the straight core — q is raised (bisection in log q) until it
+matches (NIS consistency). ``p_g`` is then the χ² probability of the 99 % point,
+at least :data:`P_G_HOLD`, within [:data:`P_G_MIN`, :data:`P_G_MAX`]. Measured:
+on the sparse simulated scenes the raise leaves q as fitted on 5 of 6 seeds
+(one: 0.5 → 5.6); in dense clutter (gates holding several false returns, e.g. 50
+per scan on 10 km² with σ 30 m) mis-linked returns make it raise q 200× (a safe
+direction: wider gates, later confirmation). On the switzerland ADS-B scene (σ 50
+m synthetic noise on top of the reports' own jitter) the triples give σ ≈ 67 m and
+q ≈ 0.05, the raise q ≈ 3.3 m²/s³ (``benchmarks/RESULTS.md``).
+
+A value that cannot be fitted (too few triples, a fitted value outside physical
+bounds) is not used: the key gets the TrackerConfig default (or the report-file
+default) and :attr:`ModelFit.fallbacks` says why.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize, stats
+from scipy.spatial import cKDTree
+
+__all__ = [
+    "MAX_SPEED_BOUND",
+    "MIN_TRIPLES",
+    "ModelFit",
+    "fit_tracker_settings",
+]
+
+#: scan lags of the links: 1 and 2 for P_D and the gate, and longer ones so that q is
+#: resolved where its share of (1) at lag 1, (2/3)qΔt³ against 6σ², is small
+LAGS = (1, 2, 4, 8)
+#: fewer inlier triples than this: the noise, speed, P_D and gate are not fitted
+MIN_TRIPLES = 30
+#: a fitted speed above this (m/s) is not physical for the targets a file holds
+MAX_SPEED_BOUND = 1000.0
+#: max_speed = this × the 99 % point of the linked speeds (a one-point track's
+#: velocity spread σ_v = max_speed/2 must hold the fastest targets)
+SPEED_MARGIN = 1.5
+#: a fitted σ above this fraction of the median distance between the detections of one
+#: scan is refused: the links are chance (uniform clutter alone fits σ ≈ 0.4 of it;
+#: the simulated scenes 0.01–0.04, switzerland ADS-B < 0.01)
+CHANCE_SPACING = 0.25
+#: report-like files: a report is linked among the next this many reports
+REPORT_WINDOW = 400
+#: the gate probability chosen with q lies within these
+P_G_MIN, P_G_MAX = 0.99, 0.999999
+#: the largest gate the fit gives before it raises q instead (issue 32: q 20 with P_G
+#: 0.9999 held the aircraft that q 1 with P_G 0.99 lost after one miss)
+P_G_HOLD = 0.9999
+#: q is raised until this point of the NIS after one miss is the χ² one (consistency,
+#: robust to the few per cent of mis-linked returns a 99 % point is not)
+NIS_POINT = 0.9
+#: P_D estimates are kept within these (a tracker with P_D = 1 treats any miss as death)
+P_D_MIN, P_D_MAX = 0.05, 0.995
+#: the trimming point of the concentration steps (χ²_dim probability)
+TRIM = 0.99
+#: a detection after the prediction counts as present inside this χ²_dim probability
+FOUND = 0.9999
+#: the keys a fit can set (in this order in the TOML)
+FIT_KEYS = (
+    "measurement_noise",
+    "process_noise",
+    "max_speed",
+    "p_d",
+    "p_g",
+    "clutter_density",
+    "report_interval",
+)
+#: the keys the PMB/PMBM trackers take from a fit (the rest are JPDA/JIPDA track logic
+#: or chosen by make_pmbm_config)
+POISSON_FIT_KEYS = ("measurement_noise", "process_noise", "p_d", "clutter_density")
+_KINDS = (None, "jipda", "jpda", "pmb", "pmbm")
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    """A fitted ``[tracker]`` table and where each value came from.
+
+    Attributes
+    ----------
+    table : the user's keys plus every fitted or defaulted key, ready for
+        :func:`jointtrack.experiments.config.make_tracker_config`
+        (``clutter_density = "estimate"`` where the default estimates it).
+    sources : key → one sentence: how the value was obtained, from what evidence.
+    fallbacks : key → why the fit could not be made (the value in ``table`` is
+        then the stated default).
+    evidence : counts behind the fit (detections, links, triples, inliers).
+    """
+
+    table: dict
+    sources: dict
+    fallbacks: dict = field(default_factory=dict)
+    evidence: dict = field(default_factory=dict)
+
+    @property
+    def fitted(self) -> tuple:
+        """The keys whose value was fitted from the data."""
+        return tuple(k for k, s in self.sources.items() if s.startswith("fitted"))
+
+    def notes(self) -> list[str]:
+        """Sentences for metrics.json and the summary: each fitted value with its source,
+        the keys of :data:`FIT_KEYS` set in ``[tracker]``, the report-file settings and
+        the defaults used — keys that share a source or a reason in one sentence."""
+        keys = [k for k in self.sources if k in FIT_KEYS or not self.sources[k].startswith("set")]
+        groups: dict = {}
+        for k in keys:
+            if k in self.fallbacks:
+                groups.setdefault(("default", self.fallbacks[k]), []).append(k)
+            else:
+                groups.setdefault(("source", self.sources[k]), []).append(k)
+        out = []
+        for (what, text), ks in groups.items():
+            values = ", ".join(f"{k} = {_value_text(self.table[k])}" for k in ks)
+            if what == "default":
+                text = f"the default{'s' if len(ks) > 1 else ''}; {text}"
+            out.append(f"[tracker] {values}: {text}")
+        return out
+
+    def identity(self) -> dict:
+        """The fitted values as JSON-able entries (part of a run's identity)."""
+        return {k: self.table[k] for k in self.sources if not self.sources[k].startswith("set in")}
+
+    def to_toml(self) -> str:
+        """A commented ``[tracker]`` TOML table that ``jointtrack run --config`` accepts."""
+        lines = [
+            "# jointtrack fit: the tracker model fitted to the detections",
+            "# (edit and pass to `jointtrack run --config`; each value's source is its comment)",
+            "[tracker]",
+        ]
+        for key, value in self.table.items():
+            why = self.sources.get(key)
+            if why:
+                lines.append(f"# {why}")
+            lines.append(f"{key} = {_toml_value(value)}")
+        return "\n".join(lines) + "\n"
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int | np.integer):
+        return str(int(v))
+    if isinstance(v, float | np.floating):
+        v = float(v)
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if v is None:
+        raise ValueError("a [tracker] value None has no TOML form")
+    raise ValueError(f"a [tracker] value of type {type(v).__name__} has no TOML form")
+
+
+def _value_text(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return repr(v) if isinstance(v, str) else str(v)
+
+
+def _defaults() -> dict:
+    from jointtrack.trackers.config import TrackerConfig
+
+    d = TrackerConfig().to_dict()
+    return {k: ("estimate" if d[k] is None else d[k]) for k in FIT_KEYS}
+
+
+# ----------------------------------------------------------------------------- links
+
+
+def _mutual(a: np.ndarray, b: np.ndarray, tree_a, tree_b) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (i, j) of mutual nearest neighbours between point sets a and b."""
+    if not len(a) or not len(b):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    _, j = tree_b.query(a)
+    _, i_back = tree_a.query(b)
+    i = np.arange(len(a))
+    keep = i_back[j] == i
+    return i[keep], np.asarray(j)[keep]
+
+
+def _scan_triples(times, scans, dim):
+    """Triples of mutually linked detections at lags 1 and 2 (scan files).
+
+    Returns ``(g0, g1, g2, lag, pos, t, spacing)``: global row indices of the three
+    detections and each triple's lag, the positions and times of every detection
+    (global rows), and the median distance from a detection to its nearest
+    neighbour in its own scan (None without a scan of two).
+    """
+    sizes = np.array([len(z) for z in scans])
+    start = np.concatenate([[0], np.cumsum(sizes)])
+    pos = np.concatenate(
+        [np.asarray(z, float).reshape(-1, dim) for z in scans] or [np.zeros((0, dim))]
+    )
+    t = np.repeat(np.asarray(times, float), sizes)
+    trees = [cKDTree(np.asarray(z, float).reshape(-1, dim)) if len(z) else None for z in scans]
+    K = len(scans)
+    # the spacing of detections within a scan: links much shorter than it are no chance
+    spacing = [
+        tree.query(tree.data, k=2)[0][:, 1] for tree in trees if tree is not None and tree.n > 1
+    ]
+    spacing = float(np.median(np.concatenate(spacing))) if spacing else None
+    out = []
+    for lag in LAGS:
+        nxt = np.full(len(pos), -1, np.int64)
+        for k in range(K - lag):
+            if trees[k] is None or trees[k + lag] is None:
+                continue
+            i, j = _mutual(scans[k], scans[k + lag], trees[k], trees[k + lag])
+            nxt[start[k] + i] = start[k + lag] + j
+        g0 = np.flatnonzero(nxt >= 0)
+        g1 = nxt[g0]
+        has = nxt[g1] >= 0
+        g0, g1 = g0[has], g1[has]
+        out.append((g0, g1, nxt[g1], np.full(g0.size, lag)))
+    g0, g1, g2, lag = (np.concatenate(c) for c in zip(*out, strict=True))
+    return g0, g1, g2, lag, pos, t, spacing
+
+
+def _report_triples(times, scans, dim):
+    """Triples of mutually linked reports (report-like files: a report is linked to its
+    nearest neighbour among the next :data:`REPORT_WINDOW` reports)."""
+    sizes = np.array([len(z) for z in scans])
+    pos = np.concatenate(
+        [np.asarray(z, float).reshape(-1, dim) for z in scans] or [np.zeros((0, dim))]
+    )
+    t = np.repeat(np.asarray(times, float), sizes)
+    n = len(pos)
+    fwd = np.full(n, -1, np.int64)
+    back = np.full(n, -1, np.int64)
+    if n >= 2:
+        bf = np.full(n, np.inf)
+        bb = np.full(n, np.inf)
+        for s in range(1, min(REPORT_WINDOW, n - 1) + 1):
+            d = np.sum((pos[s:] - pos[:-s]) ** 2, axis=1)
+            d[t[s:] <= t[:-s]] = np.inf  # same time: another target
+            i = np.arange(n - s)
+            better = d < bf[:-s]
+            fwd[i[better]] = i[better] + s
+            bf[:-s][better] = d[better]
+            better_b = d < bb[s:]
+            back[(i + s)[better_b]] = i[better_b]
+            bb[s:][better_b] = d[better_b]
+    nxt = np.full(n, -1, np.int64)
+    ok = fwd >= 0
+    ok[ok] = back[fwd[ok]] == np.flatnonzero(ok)
+    nxt[ok] = fwd[ok]
+    g0 = np.flatnonzero(nxt >= 0)
+    g1 = nxt[g0]
+    has = nxt[g1] >= 0
+    g0, g1 = g0[has], g1[has]
+    return g0, g1, nxt[g1], np.ones(g0.size, np.int64), pos, t, None
+
+
+# ----------------------------------------------------------------------------- noise
+
+
+def _design(t0, t1, t2):
+    a, b = t1 - t0, t2 - t1
+    n = 1 / a**2 + (1 / a + 1 / b) ** 2 + 1 / b**2
+    p = (a + b) / 3
+    return a, b, n, p
+
+
+def _fit_noise(D2, n, p, lag, dim):
+    """Trimmed weighted NNLS of (1): ``(σ², q, inlier mask)`` or None.
+
+    Solved in units of the medians of ``D²/dim``, ``n`` and ``p`` (each column and the
+    right-hand side O(1)), so that data near the float range's ends neither overflow
+    nor underflow inside the least squares; the scale goes back on at the end.
+    """
+    k = stats.chi2.ppf(TRIM, dim)
+    # E[u | u ≤ k] / dim for u ~ χ²_dim: the trimmed set's variance shrinks by this
+    consistency = stats.chi2.cdf(k, dim + 2) / stats.chi2.cdf(k, dim)
+    y_ref, n_ref, p_ref = float(np.median(D2)) / dim, float(np.median(n)), float(np.median(p))
+    if not (y_ref > 0 and n_ref > 0 and p_ref > 0):
+        return None
+    Y, N, P = D2 / dim / y_ref, n / n_ref, p / p_ref
+    # start: each lag group's median (χ²_dim median / dim = the variance's share)
+    med = stats.chi2.median(dim) / dim
+    groups = np.unique(lag)
+    if len(groups) > 1:
+        A = np.array([[np.median(N[lag == L]), np.median(P[lag == L])] for L in groups])
+        y = np.array([np.median(Y[lag == L]) / med for L in groups])
+    else:  # one group (a report file): the spread of the gaps separates them
+        sel = Y <= np.quantile(Y, 0.5)
+        A, y = np.column_stack([N[sel], P[sel]]), Y[sel] / (med * consistency)
+    theta, _ = optimize.nnls(A, y)
+    if not np.any(theta > 0):
+        theta = np.array([1.0 / med, 0.0])
+    inl = None
+    for _ in range(50):
+        s = N * theta[0] + P * theta[1]
+        new = Y / s <= k / dim
+        if new.sum() < 3:
+            return None
+        if inl is not None and np.array_equal(new, inl):
+            break
+        inl = new
+        w = 1.0 / s[inl]
+        theta, _ = optimize.nnls(
+            np.column_stack([N[inl], P[inl]]) * w[:, None], Y[inl] * w / consistency
+        )
+        if not np.any(theta > 0):
+            return None
+    with np.errstate(over="ignore"):
+        return theta[0] * (y_ref / n_ref), theta[1] * (y_ref / p_ref), inl
+
+
+# ----------------------------------------------------------------------------- the fit
+
+
+def fit_tracker_settings(
+    detections, table: Mapping | None = None, kind: str | None = None
+) -> ModelFit:
+    """Fit the tracker's model to ``detections`` (module docstring).
+
+    Parameters
+    ----------
+    detections : :class:`jointtrack.io.Detections`, position detections.
+    table : the user's ``[tracker]`` table; a key it sets is never fitted (its
+        source is "set in [tracker]").
+    kind : the tracker kind, None (JIPDA), ``"jipda"``, ``"jpda"``, ``"pmb"`` or
+        ``"pmbm"``: PMB/PMBM take :data:`POISSON_FIT_KEYS` only.
+
+    Returns
+    -------
+    ModelFit
+
+    Raises
+    ------
+    TypeError, ValueError
+        ``detections`` not a Detections, ``table`` not a mapping, an unknown ``kind``.
+    """
+    from jointtrack.experiments.config import detections_extent
+    from jointtrack.experiments.run import reporting_from_data
+    from jointtrack.io import Detections
+
+    if not isinstance(detections, Detections):
+        raise TypeError(
+            f"detections must be a jointtrack.io.Detections, got {type(detections).__name__}"
+        )
+    if table is not None and not isinstance(table, Mapping):
+        raise TypeError(f"table must be a mapping ([tracker] keys), got {type(table).__name__}")
+    if kind not in _KINDS:
+        raise ValueError(f"kind must be None, jipda, jpda, pmb or pmbm, got {kind!r}")
+    user = dict(table or {})
+    out, note = reporting_from_data(detections, user, kind)
+    sources = {k: "set in [tracker]" for k in user}
+    report_like = note is not None
+    if report_like:
+        for k in out:
+            if k not in user:
+                sources[k] = "report-like file: " + note
+    keys = POISSON_FIT_KEYS if kind in ("pmb", "pmbm") else FIT_KEYS
+    if not report_like:
+        keys = tuple(k for k in keys if k != "report_interval")
+    wanted = [k for k in keys if k not in user]
+    defaults = _defaults()
+    if report_like:
+        defaults["clutter_density"] = (
+            out["clutter_density"] if "clutter_density" not in user else None
+        )
+    fallbacks: dict = {}
+    fitted: dict = {}
+    evidence: dict = {
+        "detections": int(detections.n_detections),
+        "times": int(detections.times.size),
+    }
+
+    def fall_all(why: str) -> ModelFit:
+        for k in wanted:
+            fallbacks[k] = why
+        return _finish(out, sources, fitted, fallbacks, defaults, wanted, evidence)
+
+    if not wanted:
+        return _finish(out, sources, fitted, fallbacks, defaults, wanted, evidence)
+    if detections.kind != "position":
+        return fall_all(f"not fitted: {detections.kind} detections (the fit needs positions)")
+    dim = detections.dim
+    scans = detections.scans
+    times = detections.times
+    if detections.n_detections < 3 or times.size < 3:
+        return fall_all(
+            f"not fitted: too few detections ({detections.n_detections} at {times.size} times; "
+            "the fit links three in a row)"
+        )
+    build = _report_triples if report_like else _scan_triples
+    g0, g1, g2, lag, pos, t, spacing = build(times, scans, dim)
+    fin = np.all(np.isfinite(pos), axis=1)
+    keep = fin[g0] & fin[g1] & fin[g2]
+    g0, g1, g2, lag = g0[keep], g1[keep], g2[keep], lag[keep]
+    evidence["triples"] = int(g0.size)
+    if g0.size < MIN_TRIPLES:
+        return fall_all(
+            f"not fitted: {g0.size} linked triples of detections (fewer than {MIN_TRIPLES}: too "
+            "few reports, too few scans with the same target, or clutter only)"
+        )
+    a, b, n, p = _design(t[g0], t[g1], t[g2])
+    with np.errstate(over="ignore", invalid="ignore"):
+        D = (pos[g2] - pos[g1]) / b[:, None] - (pos[g1] - pos[g0]) / a[:, None]
+        D2 = np.sum(D**2, axis=1)
+    # a triple whose squares leave the float range (coordinates near 1e150, gaps near 0)
+    # cannot be weighed: left out, never an inf in the fit
+    finite = np.isfinite(D2) & np.isfinite(n) & np.isfinite(p) & (n > 0) & (p > 0)
+    evidence["triples_out_of_range"] = int((~finite).sum())
+    # a triple that repeats one position exactly (a moored vessel's quantised AIS
+    # position) says nothing about the noise of a moving target: left out, counted
+    evidence["triples_repeating"] = int(np.count_nonzero(finite & (D2 == 0)))
+    finite &= D2 > 0
+    if not finite.all():
+        g0, g1, g2, lag = g0[finite], g1[finite], g2[finite], lag[finite]
+        a, b, n, p, D2 = a[finite], b[finite], n[finite], p[finite], D2[finite]
+    if g0.size < MIN_TRIPLES:
+        return fall_all(
+            f"not fitted: {g0.size} linked triples that do not repeat a position, with squares "
+            f"in the float range (fewer than {MIN_TRIPLES})"
+        )
+    res = _fit_noise(D2, n, p, lag, dim)
+    if res is None:
+        return fall_all(
+            "not fitted: no consistent set of linked triples (clutter only, or positions "
+            "without noise)"
+        )
+    sigma2, q, inl = res
+    n_in = int(inl.sum())
+    evidence["inliers"] = n_in
+    evidence["q_triples"] = float(q)
+    if n_in < MIN_TRIPLES:
+        return fall_all(
+            f"not fitted: {n_in} linked triples consistent with one motion model (fewer than "
+            f"{MIN_TRIPLES}: too few reports or clutter only)"
+        )
+    side, _ = detections_extent(scans, dim)
+    extent = float(np.max(side)) if side is not None else 0.0
+    lags = ", ".join(str(int(L)) for L in np.unique(lag[inl]))
+    how = f"{n_in:,} of {g0.size:,} linked triples" + (
+        f", lags {lags}"
+        if not report_like
+        else " of reports (each with its mutual nearest next report)"
+    )
+    sigma = math.sqrt(sigma2)
+    evidence["spacing"] = spacing
+    if spacing is not None and sigma > CHANCE_SPACING * spacing:
+        return fall_all(
+            f"not fitted: the fitted noise σ = {sigma:.4g} is {sigma / spacing:.2g} × the median "
+            f"distance between detections of one scan ({spacing:.4g}): the links are no closer "
+            "than chance (clutter only, or targets closer together than their noise)"
+        )
+    sigma_ok = sigma2 > 0 and sigma < extent
+    if not sigma_ok:
+        why = (
+            f"measurement noise σ = {sigma:.4g} refused: larger than the data's extent "
+            f"({extent:.4g})"
+            if sigma2 > 0
+            else "measurement noise fitted as 0 (no position noise separable from the motion)"
+        )
+        for k in ("measurement_noise", "process_noise", "p_d", "p_g"):
+            fallbacks[k] = "not fitted: " + why
+    else:
+        fitted["measurement_noise"] = (
+            float(sigma2),
+            f"fitted: σ = {sigma:.4g} from the velocity differences of {how} (trimmed least "
+            "squares of E[D²] = nσ² + pq)",
+        )
+    dt = float(np.median(np.diff(times))) if times.size > 1 else 1.0
+    q_floor = 1e-3 * max(sigma2, 1e-300) / dt**3
+    if sigma_ok:
+        if q < q_floor:
+            fitted["process_noise"] = (
+                float(q_floor),
+                f"fitted: q below what {how} resolve ({q:.3g}); set to 10⁻³ σ²/Δt³",
+            )
+            q = q_floor
+        else:
+            fitted["process_noise"] = (
+                float(q),
+                f"fitted: white-acceleration q from the same {n_in:,} triples (σ and q together)",
+            )
+    # speeds of the inlier triples' first links
+    # over the longest inlier triples: the noise's share of a speed falls with the span
+    longest = inl & (lag == lag[inl].max())
+    span_t = a[longest] + b[longest]
+    speed = np.linalg.norm(pos[g2[longest]] - pos[g0[longest]], axis=1) / span_t
+    v99 = float(np.quantile(speed, 0.99))
+    if v99 > MAX_SPEED_BOUND:
+        fallbacks["max_speed"] = (
+            f"not fitted: the linked speeds' 99 % point {v99:,.4g} m/s refused (above "
+            f"{MAX_SPEED_BOUND:,.0f} m/s: not a target's speed; are the positions in metres "
+            "and the times in seconds?)"
+        )
+    else:
+        vmax = max(SPEED_MARGIN * v99, 1e-6)
+        fitted["max_speed"] = (
+            float(vmax),
+            f"fitted: {SPEED_MARGIN:g} × the 99 % point ({v99:.4g}) of the speeds of {how}",
+        )
+    # clutter: detections in no inlier triple
+    used = np.zeros(len(pos), bool)
+    used[g0[inl]] = used[g1[inl]] = used[g2[inl]] = True
+    n_free = int(len(pos) - used.sum())
+    area = float(np.prod(side)) if side is not None else 0.0
+    span = float(times[-1] - times[0])
+    per = span if report_like else float(times.size)
+    unit = "per second per m²" if report_like else "per scan per unit area"
+    lam = None
+    if area > 0 and per > 0:
+        lam = max(n_free, 0.5) / (per * area)
+        fitted["clutter_density"] = (
+            float(lam),
+            f"fitted: {n_free:,} of {len(pos):,} detections in no linked triple, "
+            f"{unit} of the bounding box ({area:.4g})"
+            + (" (none: half a detection assumed)" if n_free == 0 else ""),
+        )
+    else:
+        fallbacks["clutter_density"] = "not fitted: the detections' bounding box has no area"
+    if report_like:
+        why = (
+            "not fitted for a report-like file (no scans: a target's missing reports and "
+            "the returns after one are not seen as such)"
+        )
+        fallbacks.setdefault("p_d", why)
+        fallbacks.setdefault("p_g", why)
+        gaps = a[inl]
+        fitted["report_interval"] = (
+            float(np.mean(gaps)),
+            f"fitted: the mean gap between a target's linked reports ({n_in:,} links)",
+        )
+    elif sigma_ok:
+        _fit_pd_gate(
+            fitted,
+            fallbacks,
+            pos,
+            t,
+            times,
+            scans,
+            dim,
+            g0,
+            g1,
+            g2,
+            lag,
+            inl,
+            sigma2,
+            q,
+            lam,
+            dt,
+            how,
+        )
+    return _finish(out, sources, fitted, fallbacks, defaults, wanted, evidence)
+
+
+def _fit_pd_gate(
+    fitted, fallbacks, pos, t, times, scans, dim, g0, g1, g2, lag, inl, sigma2, q, lam, dt, how
+):
+    """P_D from straight-on predictions of the inlier lag-1 triples; P_G from the
+    detections after one miss against the tracker's own gate after a miss."""
+    sizes = np.array([len(z) for z in scans])
+    scan_of = np.repeat(np.arange(len(scans)), sizes)
+    m1 = inl & (lag == 1)
+    k2 = scan_of[g2[m1]]
+    nxt_scan = k2 + 1
+    ok = nxt_scan < len(scans)
+    i0, i1, i2 = g0[m1][ok], g1[m1][ok], g2[m1][ok]
+    ks = nxt_scan[ok]
+    if i0.size < MIN_TRIPLES:
+        fallbacks["p_d"] = f"not fitted: {i0.size} triples with a following scan"
+        return
+    bb = times[ks] - t[i2]
+    aa = t[i2] - t[i1]
+    pred = pos[i2] + (pos[i2] - pos[i1]) * (bb / aa)[:, None]
+    _, _, n, p = _design(t[i1], t[i2], times[ks])
+    var = bb**2 * (n * sigma2 + p * q)  # per axis, of z3 − prediction, by (1)
+    gamma = stats.chi2.ppf(FOUND, dim)
+    radius = np.sqrt(gamma * var)
+    found = np.zeros(i0.size, bool)
+    for k in np.unique(ks):
+        m = ks == k
+        z = np.asarray(scans[k], float).reshape(-1, dim)
+        if not len(z):
+            continue
+        d, _ = cKDTree(z).query(pred[m])
+        found[m] = d <= radius[m]
+    f = float(found.mean())
+    ball = math.pi ** (dim / 2) / math.gamma(dim / 2 + 1) * np.median(radius) ** dim
+    lam_area = (lam or 0.0) * ball
+    pd = (1.0 - (1.0 - f) * math.exp(lam_area)) / FOUND
+    pd_c = float(min(max(pd, P_D_MIN), P_D_MAX))
+    fitted["p_d"] = (
+        pd_c,
+        f"fitted: {found.sum():,} of {found.size:,} straight-on predictions from {how} had a "
+        f"detection in their {FOUND:.2%} ellipse (clutter in it taken out)"
+        + (f"; {pd:.3g} kept within [{P_D_MIN}, {P_D_MAX}]" if pd_c != pd else ""),
+    )
+    # gate with q: lag-1 link (k−1 → k) then lag-2 link (k → k+2): the return after a miss
+    m1l = lag == 1
+    m2l = lag == 2
+    nxt2 = np.full(len(pos), -1, np.int64)
+    nxt2[g0[m2l]] = g1[m2l]
+    prev1 = g0[m1l & inl]
+    mid = g1[m1l & inl]
+    after = nxt2[mid]
+    has = after >= 0
+    prev1, mid, after = prev1[has], mid[has], after[has]
+    if prev1.size < MIN_TRIPLES:
+        fallbacks["p_g"] = f"not fitted: {prev1.size} linked returns after a one-scan gap"
+        return
+    gap = t[after] - t[mid]
+    vel = (pos[mid] - pos[prev1]) / (t[mid] - t[prev1])[:, None]
+    e = pos[after] - pos[mid] - vel * gap[:, None]
+    # screen mis-links: beyond ~10 standard deviations of the triples' model
+    _, _, n, p = _design(t[prev1], t[mid], t[after])
+    e2 = np.sum(e**2, axis=1)
+    real = e2 <= stats.chi2.ppf(1 - 1e-6, dim) * 2 * gap**2 * (n * sigma2 + p * q)
+    if real.sum() < MIN_TRIPLES:
+        fallbacks["p_g"] = f"not fitted: {int(real.sum())} plausible returns after a one-scan gap"
+        return
+    e2, gap, n, p = e2[real], gap[real], n[real], p[real]
+
+    def s_after(qq: float) -> np.ndarray:
+        """Per-axis variance of each return's residual after one miss, by (1)."""
+        return gap**2 * (n * sigma2 + p * qq)
+
+    def u99(qq: float) -> float:
+        """:data:`NIS_POINT` point of the returns' NIS in the tracker's gate after one miss."""
+        return float(np.quantile(e2 / s_after(qq), NIS_POINT))
+
+    if not (q > 0 and math.isfinite(q)):
+        fallbacks["p_g"] = f"not fitted: q = {q:.4g} leaves no gate to choose with it"
+        return
+    gamma = stats.chi2.ppf(NIS_POINT, dim)
+    u = u99(q)
+    q_raised = None
+    if u > gamma:
+        # the gate alone would have to exceed P_G_HOLD: raise q with it (bisection in log q)
+        lo, hi = math.log(q), math.log(q) + 1.0
+        while u99(math.exp(hi)) > gamma and hi < math.log(q) + 60 and math.exp(hi) < 1e290:
+            hi += 2.0
+        for _ in range(24):
+            mid_q = 0.5 * (lo + hi)
+            lo, hi = (mid_q, hi) if u99(math.exp(mid_q)) > gamma else (lo, mid_q)
+        q_raised = math.exp(hi)
+        u = u99(q_raised)
+    # the gate: the χ² probability of the returns' 99 % point, at least P_G_HOLD
+    nis99 = float(np.quantile(e2 / s_after(q if q_raised is None else q_raised), 0.99))
+    pg = max(float(stats.chi2.cdf(nis99, dim)), P_G_HOLD)
+    pg_c = float(min(max(pg, P_G_MIN), P_G_MAX))
+    text = (
+        f"{int(real.sum()):,} linked returns after a one-scan gap: NIS {NIS_POINT:.0%} point "
+        f"{u:.3g} of the fitted model (χ² {stats.chi2.ppf(NIS_POINT, dim):.3g})"
+    )
+    if q_raised is not None:
+        fitted["process_noise"] = (
+            float(q_raised),
+            f"fitted with the gate: raised from the triples' q = {q:.3g} until {text} "
+            "(NIS consistency; real motion has heavier tails than white acceleration)",
+        )
+    fitted["p_g"] = (
+        pg_c,
+        f"fitted with q: the χ² probability of the 99 % point of the NIS of {text}, at least "
+        f"{P_G_HOLD}" + (f"; {pg:.6g} kept within [{P_G_MIN}, {P_G_MAX}]" if pg_c != pg else ""),
+    )
+
+
+def _finish(out, sources, fitted, fallbacks, defaults, wanted, evidence) -> ModelFit:
+    from jointtrack.trackers.config import check_field
+
+    for key, (value, _) in list(fitted.items()):
+        # a fitted value the tracker cannot take (e.g. a variance above 1e300 from data
+        # near the coordinate limit) is refused, naming it, never passed on
+        try:
+            ok = math.isfinite(value) and check_field(key, value) is not None
+        except ValueError as exc:
+            ok, why = False, str(exc)
+        else:
+            why = "not finite"
+        if not ok:
+            del fitted[key]
+            fallbacks[key] = f"not fitted: the fitted {key} = {value:.4g} refused ({why})"
+    table = dict(out)
+    srcs = dict(sources)
+    fb = {}
+    for k in wanted:
+        if k in fitted:
+            table[k], srcs[k] = fitted[k]
+        else:
+            why = fallbacks.get(k, "not fitted")
+            default = table.get(k, defaults.get(k))
+            if default is None:
+                continue
+            table[k] = default
+            fb[k] = why
+            srcs[k] = f"default ({_value_text(default)}): {why}"
+    return ModelFit(table=table, sources=srcs, fallbacks=fb, evidence=evidence)

@@ -1,0 +1,254 @@
+"""The tracker model fitted to the data (issue 32.1): :mod:`jointtrack.experiments.fit`,
+``jointtrack fit`` and the fit in every ``--detections`` run.
+
+Recovery is checked on the package's simulated scenes (``many_targets``: NCV targets
+in uniform Poisson clutter) with known σ, q, P_D and clutter, over three seeds each.
+Tolerances, from what the estimators can do with ~1,000–2,500 inlier triples of 60
+scans: σ within 10 % (a variance from N ≈ 1,000 residuals has a relative standard
+error √(2/N) ≈ 4.5 %, σ half that; the trimming adds a small bias); clutter density
+within 25 % (the detections in no triple include the few target detections not in
+any, and targets' runs shorter than three scans); P_D within 0.06, biased low by the
+targets that die or leave (each a "miss" at its end); q from the triples (before the
+gate raises it) within a factor 2 (its share of the lag-8 variance is 20–50 % in
+these scenes), and the q the run uses at least that.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from jointtrack.cli import app
+from jointtrack.experiments import fit as fitmod
+from jointtrack.experiments.config import load_config, make_tracker_config
+from jointtrack.experiments.fit import MIN_TRIPLES, ModelFit, fit_tracker_settings
+from jointtrack.experiments.run import RunConfigError, run_detections, settings_from_data
+from jointtrack.io import Detections
+from jointtrack.scenarios.generators import crossing, many_targets
+
+runner = CliRunner()
+
+#: (targets, clutter per scan, σ, q, P_D) of the recovery scenes (10 km square, 1 s scans)
+SCENES = [(20, 20, 10.0, 0.5, 0.9), (10, 5, 5.0, 0.1, 0.95)]
+
+
+def _detections(sc) -> Detections:
+    return Detections(times=sc.times, scans=tuple(sc.detections), dim=2)
+
+
+@pytest.mark.parametrize("scene", SCENES)
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fit_recovers_the_simulated_model(scene, seed):
+    n, clutter, sigma, q, pd = scene
+    sc = many_targets(n, clutter, seed, n_scans=60, sigma=sigma, process_noise=q, p_d=pd)
+    f = fit_tracker_settings(_detections(sc))
+    assert not f.fallbacks, f.fallbacks
+    tb = f.table
+    assert abs(math.sqrt(tb["measurement_noise"]) / sigma - 1) < 0.10
+    assert abs(tb["clutter_density"] / sc.clutter_density - 1) < 0.25
+    assert abs(tb["p_d"] - pd) < 0.06
+    q_triples = f.evidence["q_triples"]
+    assert 0.5 < q_triples / q < 2.0
+    assert tb["process_noise"] >= q_triples
+    # the fastest target (speeds 5–25 m/s) within the speed scale, with its margin
+    fastest = max(float(np.max(np.linalg.norm(s[:, 2:], axis=1))) for s in sc.truth_states)
+    assert fastest <= tb["max_speed"] <= 3 * fastest
+    assert 0.9999 <= tb["p_g"] < 1
+    for key in fitmod.FIT_KEYS[:-1]:  # report_interval: report files only
+        assert f.sources[key].startswith("fitted"), (key, f.sources[key])
+    make_tracker_config({"dim": 2}, tb)  # a valid [tracker] table
+
+
+def test_keys_set_in_the_table_are_never_fitted():
+    sc = many_targets(20, 20, 0, n_scans=40, sigma=10.0, process_noise=0.5)
+    f = fit_tracker_settings(_detections(sc), {"process_noise": 3.0, "p_g": 0.95})
+    assert f.table["process_noise"] == 3.0 and f.table["p_g"] == 0.95
+    assert f.sources["process_noise"] == f.sources["p_g"] == "set in [tracker]"
+    assert "process_noise" not in f.identity() and "measurement_noise" in f.identity()
+    assert f.sources["measurement_noise"].startswith("fitted")
+
+
+def test_poisson_kinds_take_the_model_keys_only():
+    sc = many_targets(20, 20, 0, n_scans=40, sigma=10.0, process_noise=0.5)
+    f = fit_tracker_settings(_detections(sc), {}, "pmbm")
+    assert set(f.sources) == set(fitmod.POISSON_FIT_KEYS)
+
+
+def test_toml_round_trip_is_accepted_by_run_config(tmp_path):
+    sc = many_targets(20, 20, 1, n_scans=40, sigma=10.0, process_noise=0.5)
+    f = fit_tracker_settings(_detections(sc), {"r_report": 0.4})
+    path = tmp_path / "tracker.toml"
+    path.write_text(f.to_toml())
+    assert tomllib.loads(path.read_text())["tracker"] == f.table  # floats by repr: exact
+    cfg = load_config(path)
+    assert dict(cfg.tracker) == f.table
+    built = make_tracker_config({"dim": 2}, cfg.tracker, source=str(path))
+    for key, value in f.table.items():
+        assert getattr(built, key) == value
+    # every value carries its source as the comment above it
+    lines = path.read_text().splitlines()
+    for key in f.table:
+        k = next(i for i, line in enumerate(lines) if line.startswith(f"{key} = "))
+        assert lines[k - 1] == f"# {f.sources[key]}"
+
+
+def _write_csv(path, sc):
+    with open(path, "w") as fh:
+        fh.write("time,x,y\n")
+        for t, z in zip(sc.times, sc.detections, strict=True):
+            for p in z:
+                fh.write(f"{float(t)!r},{float(p[0])!r},{float(p[1])!r}\n")
+
+
+def test_fit_command_writes_the_toml_and_fails_when_nothing_is_fitted(tmp_path):
+    sc = many_targets(20, 20, 2, n_scans=40, sigma=10.0, process_noise=0.5)
+    _write_csv(tmp_path / "det.csv", sc)
+    r = runner.invoke(app, ["fit", str(tmp_path / "det.csv"), "--out", str(tmp_path / "t.toml")])
+    assert r.exit_code == 0, r.output
+    text = (tmp_path / "t.toml").read_text()
+    assert "[tracker]" in r.output and "measurement_noise = " in text
+    assert not (tmp_path / "t.toml.tmp").exists()
+    assert "measurement_noise" in load_config(tmp_path / "t.toml").tracker
+    # too few detections: the defaults, named, and exit 1
+    (tmp_path / "few.csv").write_text("time,x,y\n0,0,0\n1,1,1\n2,2,2\n3,3,3\n")
+    r = runner.invoke(app, ["fit", str(tmp_path / "few.csv")])
+    assert r.exit_code == 1
+    assert "nothing could be fitted" in r.output and "measurement_noise = 100.0" in r.output
+
+
+def _one_target(n_scans: int, speed: float, sigma: float, seed: int = 0) -> Detections:
+    rng = np.random.default_rng(seed)
+    t = np.arange(float(n_scans))
+    pos = np.column_stack([speed * t, 0.5 * speed * t]) + rng.normal(0, sigma, (n_scans, 2))
+    return Detections(times=t, scans=tuple(p[None, :] for p in pos), dim=2)
+
+
+def test_one_target_with_few_reports_falls_back_to_stated_defaults():
+    f = fit_tracker_settings(_one_target(12, 20.0, 5.0))
+    assert not f.fitted
+    assert set(f.fallbacks) == set(fitmod.FIT_KEYS[:-1])
+    assert all(f"fewer than {MIN_TRIPLES}" in why for why in f.fallbacks.values())
+    assert f.table["measurement_noise"] == 100.0 and f.table["clutter_density"] == "estimate"
+    assert all(s.startswith("default (") for s in f.sources.values())
+
+
+def test_clutter_only_is_refused_as_chance_links():
+    rng = np.random.default_rng(0)
+    scans = tuple(rng.uniform(0, 1e4, (rng.poisson(20), 2)) for _ in range(50))
+    f = fit_tracker_settings(Detections(times=np.arange(50.0), scans=scans, dim=2))
+    assert not f.fitted
+    assert all("no closer than chance" in why for why in f.fallbacks.values())
+
+
+def test_speed_above_the_physical_bound_is_refused_naming_it():
+    f = fit_tracker_settings(_one_target(80, 3000.0, 5.0))
+    assert "max_speed" in f.fallbacks and f.table["max_speed"] == 50.0
+    assert "3,3" in f.fallbacks["max_speed"] or "3,35" in f.fallbacks["max_speed"]
+    assert "1,000 m/s" in f.fallbacks["max_speed"]
+    assert f.sources["measurement_noise"].startswith("fitted")
+
+
+def test_noise_larger_than_the_extent_is_refused_naming_it(monkeypatch):
+    real = fitmod._fit_noise
+
+    def huge(D2, n, p, lag, dim):
+        s2, q, inl = real(D2, n, p, lag, dim)
+        return 1e16, q, inl
+
+    monkeypatch.setattr(fitmod, "_fit_noise", huge)
+    f = fit_tracker_settings(_one_target(80, 20.0, 5.0))
+    why = f.fallbacks["measurement_noise"]
+    assert "σ = 1e+08 refused: larger than the data's extent" in why
+
+
+finite = st.floats(allow_nan=False, allow_infinity=False, width=64).filter(
+    lambda v: abs(v) <= 1e150
+)
+coords = st.one_of(finite, st.sampled_from([0.0, 5e-324, -2.2e-308, 1e150, -1e150]))
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    st.lists(st.lists(st.tuples(coords, coords), min_size=0, max_size=4), min_size=1, max_size=12),
+    st.sampled_from([1.0, 1e-6, 1e6]),
+)
+@example([[(0.0, 0.0)], [(5e-324, 5e-324)], [(1e150, -1e150)], [(0.0, 0.0)]], 1.0)
+@example([[(1e150, 0.0)], [(-1e150, 0.0)]] * 30, 1e-6)
+def test_small_inputs_fall_back_or_fit_finite_valid_values(rows, gap):
+    scans = tuple(np.array(r, dtype=float).reshape(-1, 2) for r in rows)
+    d = Detections(times=gap * np.arange(float(len(scans))), scans=scans, dim=2)
+    f = fit_tracker_settings(d)
+    assert isinstance(f, ModelFit)
+    for key, value in f.table.items():
+        assert value == "estimate" or math.isfinite(value), (key, value)
+        assert f.sources[key]
+    assert set(f.fallbacks) | set(f.fitted) == set(f.sources)
+    make_tracker_config({"dim": 2}, f.table)
+    tomllib.loads(f.to_toml())
+
+
+@pytest.mark.parametrize(
+    ("args", "error", "text"),
+    [
+        (([[0.0, 0.0]],), TypeError, "detections must be a jointtrack.io.Detections"),
+        ((None, [1]), TypeError, "table must be a mapping"),
+        ((None, None, "gnn"), ValueError, "kind must be"),
+    ],
+)
+def test_bad_arguments_are_named(args, error, text):
+    d = _one_target(5, 1.0, 1.0)
+    args = (args[0] if args[0] is not None else d, *args[1:])
+    with pytest.raises(error, match=text):
+        fit_tracker_settings(*args)
+
+
+def test_a_run_states_each_fitted_value_and_resumes_only_with_the_same_fit(tmp_path):
+    sc = crossing(4, n_scans=16, clutter_per_scan=4.0)
+    d = _detections(sc)
+    full = run_detections(d, {}, tmp_path / "full", plots=False)
+    notes = full["notes"]
+    assert any(n.startswith("[tracker] measurement_noise = ") and "fitted" in n for n in notes)
+    assert full["tracker"]["measurement_noise"] != 100.0
+    ck = tmp_path / "ck.npz"
+    run_detections(
+        d, {}, tmp_path / "part", checkpoint=ck, checkpoint_every=1, max_scans=7, plots=False
+    )
+    with pytest.raises(RunConfigError, match=r"made with the fitted measurement_noise = .*without"):
+        run_detections(d, {}, tmp_path / "part", resume=ck, fit=False, plots=False)
+    run_detections(d, {}, tmp_path / "part", resume=ck, plots=False)
+    assert (tmp_path / "part" / "tracks.csv").read_bytes() == (
+        tmp_path / "full" / "tracks.csv"
+    ).read_bytes()
+    table, notes, ident = settings_from_data(d, {}, None, fit=False)
+    assert table == {} and notes == [] and ident == {"fitted": None, "notes": []}
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_report_like_file_fits_noise_speed_and_report_interval(seed):
+    """Eight targets 5–8 km apart reporting one at a time (exponential gaps, mean 10 s),
+    σ = 10 m, 5–10 m/s: the async model with σ within 15 % and the mean report
+    interval within 15 % (~1,000 linked reports; the trimming drops the widest)."""
+    rng = np.random.default_rng(seed)
+    ts, ps = [], []
+    for i in range(8):
+        t = np.cumsum(rng.exponential(10.0, 400))
+        t = t[t < 1800.0]
+        v = rng.uniform(5, 10) * np.array([np.cos(i), np.sin(i)])
+        x0 = np.array([5000.0 * (i % 4), 8000.0 * (i // 4)])
+        ts.append(t)
+        ps.append(x0 + t[:, None] * v + rng.normal(0, 10.0, (t.size, 2)))
+    t, p = np.concatenate(ts), np.concatenate(ps)
+    o = np.argsort(t)
+    f = fit_tracker_settings(Detections(times=t[o], scans=tuple(p[o][:, None, :]), dim=2))
+    assert f.table["reporting"] == "async"
+    assert abs(math.sqrt(f.table["measurement_noise"]) / 10.0 - 1) < 0.15
+    assert abs(f.table["report_interval"] / 10.0 - 1) < 0.15
+    assert 10.0 <= f.table["max_speed"] <= 30.0
+    assert "report-like file" in f.fallbacks["p_d"]
+    make_tracker_config({"dim": 2}, f.table)
