@@ -719,3 +719,23 @@ def test_seeds_give_per_seed_figures_their_spread_the_table_and_the_class_chart(
         realdata.run(scenes=["air"], runners=["keep"], seeds=0)
     with pytest.raises(ValueError, match="bare_trackers"):
         realdata.run(scenes=["air"], runners=["keep"], bare_trackers=("gnn",))
+
+
+@pytest.mark.parametrize("tracker", ["jipda", "pmb", "pmbm"])
+def test_handset_runner_runs_each_tracker_kind_and_names_it(tracker):
+    from jointtrack.bench.jointtrack_realdata import run_jointtrack
+
+    scene = moving_scene()
+    r = run_jointtrack(scene, tracker=tracker, wall_cap=60.0)
+    suffix = "" if tracker == "jipda" else f"-{tracker}"
+    assert r.runner == f"jointtrack-handset{suffix}" and r.completed
+    realdata.score_run(scene, r)
+    # two aircraft 20 km apart, 1 m noise, P_D 1: each held by one track
+    assert r.score["coverage"] >= 0.8 and r.score["tracks_per_identity"] == 1.0
+
+
+def test_handset_runner_names_an_unknown_tracker():
+    from jointtrack.bench.jointtrack_realdata import run_jointtrack
+
+    with pytest.raises(ValueError, match="tracker must be one of jipda, pmb, pmbm, got 'gnn'"):
+        run_jointtrack(moving_scene(), tracker="gnn", wall_cap=60.0)

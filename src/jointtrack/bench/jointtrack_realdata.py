@@ -49,14 +49,18 @@ ADSB_TRACKER = {
 
 
 def run_jointtrack(scene, *, tracker: str = "jipda", wall_cap: float, workdir=None, progress=None):
-    """jointtrack on ``scene`` → :class:`~jointtrack.bench.realdata.RunResult`."""
+    """jointtrack on ``scene``, hand-set settings → :class:`~jointtrack.bench.realdata.RunResult`.
+
+    ``tracker``: ``"jipda"``, or ``"pmb"`` / ``"pmbm"`` with the same shared settings
+    (positions only) as ``jointtrack run --tracker pmb|pmbm`` gives them.
+    """
     from jointtrack.bench.realdata import RssSampler, RunResult
     from jointtrack.experiments.realdata import realdata_settings
     from jointtrack.trackers.config import TrackerConfig
     from jointtrack.trackers.jpda import JPDATracker
 
-    if tracker != "jipda":
-        raise ValueError(f"jointtrack-{tracker} has no real-data runner (only jipda)")
+    if tracker not in BARE_TRACKERS:
+        raise ValueError(f"tracker must be one of {', '.join(BARE_TRACKERS)}, got {tracker!r}")
     scanning = scene.p_d < 1.0 or scene.clutter_density > 0
     if scanning:
         cfg = TrackerConfig(
@@ -68,14 +72,27 @@ def run_jointtrack(scene, *, tracker: str = "jipda", wall_cap: float, workdir=No
         order = np.argsort(scene.scan_index, kind="stable")
         step_index, step_times = scene.scan_index[order], scene.scan_times
     else:
-        cfg = TrackerConfig(**realdata_settings("ais", labelled=scene.labels is not None))
+        # PMB/PMBM do not measure reported velocities: the positions-only settings
+        labelled = scene.labels is not None or tracker != "jipda"
+        cfg = TrackerConfig(**realdata_settings("ais", labelled=labelled))
         order = np.argsort(scene.times, kind="stable")
         step_times, step_index = np.unique(scene.times[order], return_inverse=True)
     positions = scene.positions[order]
     labels = scene.labels[order] if scene.labels is not None else None
     velocities = scene.velocities[order] if scene.velocities is not None else None
     bounds = np.searchsorted(step_index, np.arange(len(step_times) + 1))
-    trk = JPDATracker(cfg, keep_history=False)
+    notes = []
+    if tracker == "jipda":
+        trk = JPDATracker(cfg, keep_history=False)
+    else:
+        # as `jointtrack run --tracker pmb|pmbm` on the scene's file: the same shared
+        # settings, births uniform over the rows' bounding box (make_pmbm_config)
+        from jointtrack.experiments.config import make_pmbm_config
+        from jointtrack.trackers.pmbm import PMBMTracker, PMBTracker
+
+        region = np.stack([scene.positions.min(axis=0), scene.positions.max(axis=0)], axis=1)
+        cfg, notes = make_pmbm_config(cfg, {}, None, region=region)
+        trk = (PMBMTracker if tracker == "pmbm" else PMBTracker)(cfg, keep_history=False)
     rows_t, rows_id, rows_xy = [], [], []
     w0, c0 = time.perf_counter(), time.process_time()
     stopped = None
@@ -104,7 +121,7 @@ def run_jointtrack(scene, *, tracker: str = "jipda", wall_cap: float, workdir=No
         n_scans if done == len(step_times) else int(np.count_nonzero(scene.scan_times <= last))
     )
     return RunResult(
-        runner="jointtrack-handset",
+        runner="jointtrack-handset" if tracker == "jipda" else f"jointtrack-handset-{tracker}",
         scene=scene.name,
         wall=wall,
         cpu=cpu,
@@ -121,6 +138,7 @@ def run_jointtrack(scene, *, tracker: str = "jipda", wall_cap: float, workdir=No
             "scans": "one per scan" if scanning else "one per report time (async reporting)",
             "tracker_steps": done,
             "config": {k: v for k, v in cfg.to_dict().items() if k in _SHOWN},
+            "notes": list(notes),
             "measured": "in process: wall, CPU of the loop; peak = max of RSS samples every 0.5 s",
         },
     )

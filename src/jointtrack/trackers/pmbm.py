@@ -694,20 +694,6 @@ class PMBTracker(_PoissonTracker):
     """
 
     KIND = "pmb"
-    _ARRAYS = (
-        "x",
-        "P",
-        "ids",
-        "existence",
-        "reported",
-        "born",
-        "report_count",
-        "mode_x",
-        "mode_P",
-        "mode_log_prob",
-        *_PoissonTracker._POISSON,
-        *_PoissonTracker._LABELLED,
-    )
     _BERNOULLI = (
         "x",
         "P",
@@ -720,6 +706,7 @@ class PMBTracker(_PoissonTracker):
         "mode_P",
         "mode_log_prob",
     )
+    _ARRAYS = (*_BERNOULLI, *_PoissonTracker._POISSON, *_PoissonTracker._LABELLED)
 
     def __init__(self, config=None, *, motion=None, sensor=None, sensors=None, keep_history=True):
         super().__init__(
