@@ -42,7 +42,16 @@ KEYS = (
     "tracks_per_identity",
     "false_tracks_per_hour",
     "gospa_mean",
+    "tracks_per_identity_held",
+    "lost_straight",
+    "lost_manoeuvre",
+    "lost_close_pair",
 )
+
+
+def _num(v) -> str:
+    """A score for the printout; None (undefined, e.g. no close pairs) as '-'."""
+    return "-" if v is None else f"{v:.4g}"
 
 
 def write_plain(scene, path: Path) -> None:
@@ -148,7 +157,7 @@ def main() -> None:
         print(json.dumps({k: v for k, v in row.items() if k != "bare"}, indent=1))
         print(
             f"seed {seed}: bare "
-            + ", ".join(f"{k} {row['bare'][k]:.4g}" for k in KEYS)
+            + ", ".join(f"{k} {_num(row['bare'][k])}" for k in KEYS)
             + f"; CPU {cpu:.0f} s for {row['data_hours']:.1f} h of data "
             f"({row['data_hours'] * 3600 / max(cpu, 1e-9):.0f}× real time)"
         )
@@ -171,7 +180,9 @@ def main() -> None:
     (work / "fit_realdata.json").write_text(json.dumps(results, indent=1))
     for key in KEYS:
         vals = [r["bare"][key] for r in results]
-        print(f"{key}: {' '.join(f'{v:.4g}' for v in vals)} (spread {max(vals) - min(vals):.3g})")
+        known = [v for v in vals if v is not None]
+        spread = f"{max(known) - min(known):.3g}" if known else "-"
+        print(f"{key}: {' '.join(_num(v) for v in vals)} (spread {spread})")
 
 
 if __name__ == "__main__":
