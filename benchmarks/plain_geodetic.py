@@ -10,6 +10,10 @@ reports, identities from the original file, in the run's own frame from
 report-file runs of ``jointtrack run``).
 
     python benchmarks/plain_geodetic.py --ais SolentAIS_20160112_130211.csv --out DIR
+
+``--minutes A B`` keeps the reports from minute A to minute B after the first one
+(e.g. ``0 42`` and ``42 85``: the file's first and second halves, one to choose
+settings on and one held out).
 """
 
 from __future__ import annotations
@@ -48,15 +52,30 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--ais", required=True, help="Stone Soup's SolentAIS_*.csv")
     parser.add_argument("--out", required=True, help="working folder")
+    parser.add_argument(
+        "--minutes",
+        nargs=2,
+        type=float,
+        metavar=("FROM", "TO"),
+        help="only the reports from minute FROM to minute TO after the first report",
+    )
+    parser.add_argument(
+        "--config", help="a TOML passed to jointtrack run (ablations; the benchmark has none)"
+    )
     args = parser.parse_args()
     work = Path(args.out)
     work.mkdir(parents=True, exist_ok=True)
     rep = read_ais_csv(args.ais)
+    if args.minutes:
+        since = (rep.times - rep.times[0]) / 60.0
+        rep = rep.subset((since >= args.minutes[0]) & (since < args.minutes[1]))
     plain = work / "plain.csv"
     write_plain(rep, plain)
     out = work / "run"
     code = "import sys; from jointtrack.cli import main; sys.argv[0] = 'jointtrack'; main()"
     argv = [sys.executable, "-c", code, "run", "--no-progress", "--detections", str(plain)]
+    if args.config:
+        argv += ["--config", args.config]
     t0 = time.perf_counter()
     done = subprocess.run([*argv, "--out", str(out)], capture_output=True, text=True)
     seconds = time.perf_counter() - t0
@@ -81,6 +100,7 @@ def main() -> None:
         truth[0], truth[1], truth[2], tt, ti, tp, window=WINDOW, c=C, t0=float(rep.times[0])
     )
     result = {
+        "minutes": args.minutes,
         "reports": len(rep),
         "vessels": len(truth[3]),
         "run_seconds": seconds,
