@@ -474,6 +474,20 @@ class ScanTracker:
         z, n_coincident, self._kept_rows = merge_coincident(z, t, return_index=True)
         return t, z, dt, n_coincident
 
+    def _pairs_gated(self, x, P, z_pairs, chunk=256):
+        """Whether each report ``z_pairs[k]`` is in the gate of the state ``x[k], P[k]``
+        (a labelled report in its own track's gate; outside it: a position jump).
+
+        The diagonal of the dense gate, formed ``chunk`` pairs at a time: the
+        whole (K, K) gate of K labelled reports took 7 s and 1.5 GB per scan
+        at K = 5000.
+        """
+        inside = np.zeros(len(z_pairs), bool)
+        for a in range(0, len(z_pairs), chunk):
+            b = a + chunk
+            inside[a:b] = np.diagonal(self._gate(x[a:b], P[a:b], z_pairs[a:b], dense=True).mask)
+        return inside
+
     def _gate(self, x, P, z, dense: bool = False):
         """Chi-square gates of the states ``(x, P)`` on ``z`` (P_G = p_g): the gated
         pairs (:func:`gate_pairs`), or with ``dense`` the (N, M)

@@ -409,8 +409,7 @@ class _PoissonTracker(ScanTracker):
         modes = tuple(a.copy() for a in modes)
         if len(rows):
             x, P = self.labelled_x[rows], self.labelled_P[rows]
-            g = self._gate(x, P, z[cols], dense=True)
-            inside = np.diagonal(g.mask)
+            inside = self._pairs_gated(x, P, z[cols])
             x_new, P_new, m_new = self._detected_set(x, P, tuple(a[rows] for a in modes), z[cols])
             x_jump, P_jump = self._report_states(
                 z[cols], None if velocities is None else velocities[cols]
