@@ -99,6 +99,39 @@ minutes (chosen there; the rest of the file held out): σ 1.84 m; the moving
 vessels' median NIS asks q 0.002, below the floor 10⁻³σ²/Δt³ = 0.32 (Δt the median gap
 between any two reports), which is kept; p_g 0.999999 from their 99 % point.
 
+Close pairs and turns (scan files, JPDA/JIPDA; :func:`_choose_scan_models`). Both
+choices are stated with their counts in the sources, and a key ``[tracker]`` sets is
+left alone. ``coalescence_avoidance`` (JPDA*, :mod:`jointtrack.association.coalescence`):
+the targets' returns are those of the lag-1 triples whose two links are no faster
+than ``max_speed`` — linked either way round, since two targets closer than their
+motion in a scan swap their mutual nearest neighbours — and each is measured against
+the nearest other such return of its scan in units of a steady track's gate radius
+(√(χ²_dim(p_g)·S), S the innovation variance of the steady-state NCV filter at the
+fitted σ² and q). JPDA* is chosen when at least :data:`PAIR_SHARE` of them (and
+:data:`MIN_TRIPLES`) have one within :data:`PAIR_GATES` radii: their gates overlap,
+the two tracks share a cluster, and plain JPDA pulls them together. Where no gates
+overlap JPDA* is plain JPDA (one detected track per class), so the rule only says
+whether it can matter. ``motion``: the heading change per second of each triple at
+the shortest lag whose chords resolve a :data:`TURN_RATE` (1°/s, the scorer's
+manoeuvre) turn at :data:`TURN_Z` σ of the position noise (the median triple's;
+lag 2 at 10 s scans and σ ≈ 60 m); a turn is *sustained* when the triple one link
+on turns the same way beyond both bounds too — noise and ADS-B position jitter
+reverse from chord to chord, a turn a CV track loses its target in does not. The
+IMM (CV + coordinated turn) is chosen when at least :data:`TURN_SHARE` of the moving
+targets' triples (and :data:`MIN_TRIPLES`) turn, sustained; its turn-rate walk
+``turn_rate_std`` = the sustained turns' median rate / √Δt (that rate reached in one
+scan). Measured (``benchmarks/RESULTS.md``, "Issue 32: the fit chooses JPDA* and the
+IMM"): on the held-out quickstart ADS-B scene 18 % of the targets' returns have a
+neighbour within two gate radii and 3.3 % of the moving lag-2 triples turn,
+sustained, at a median 1.8°/s; on switzerland 0.02 % and 1.0 % (its turning chords'
+median 4.8°/s: position jitter, not airliners' turns); straight simulated aircraft
+0.2–0.7 %, turning ones (3°/s for a fifth of the run) 21 %. Hand-set on the same
+scenes: quickstart with JPDA*: coverage 0.930 → 0.965, close-pair points lost 18.5 →
+5.7 %; with JPDA* and the IMM: manoeuvre points lost 7.1 → 2.0 %; switzerland with
+the IMM (seeds 1, 2): coverage and ids as CV, but 4.0–4.5 false tracks/h (CV 1.8–2.0)
+and 374–382× real time (CV 682–761×) — so the fit keeps CV there (and JPDA* would
+have nothing to separate).
+
 A value that cannot be fitted (too few triples, a fitted value outside physical
 bounds) is not used: the key gets the TrackerConfig default (or the report-file
 default) and :attr:`ModelFit.fallbacks` says why.
@@ -181,6 +214,17 @@ FIT_KEYS = (
 #: or chosen by make_pmbm_config)
 POISSON_FIT_KEYS = ("measurement_noise", "process_noise", "p_d", "clutter_density")
 _KINDS = (None, "jipda", "jpda", "pmb", "pmbm")
+#: close pairs: another target's return within this many gate radii of a target's return
+#: (their gates overlap: the two tracks share a cluster and its returns)
+PAIR_GATES = 2.0
+#: JPDA* on when at least this share of the targets' returns have such a neighbour
+PAIR_SHARE = 0.01
+#: turns: a heading change faster than this (rad/s; the scorer's manoeuvre, 1°/s) ...
+TURN_RATE = math.radians(1.0)
+#: ... and beyond this many standard deviations of its noise
+TURN_Z = 3.0
+#: the IMM when at least this share of the moving targets' triples turn, sustained
+TURN_SHARE = 0.02
 
 
 @dataclass(frozen=True)
@@ -692,6 +736,7 @@ def fit_tracker_settings(
             dt,
             how,
         )
+    _choose_scan_models(fitted, wanted, out, evidence, kind, report_like, pos, t, g0, g1, g2, lag)
     return _finish(out, sources, fitted, fallbacks, defaults, wanted, evidence)
 
 
@@ -890,6 +935,147 @@ def _fit_pd_gate(
     )
 
 
+def _choose_scan_models(
+    fitted, wanted, table, evidence, kind, report_like, pos, t, g0, g1, g2, lag
+):
+    """Choose ``coalescence_avoidance`` and ``motion`` (with ``turn_rate_std``) of a scan
+    file from its linked triples (module docstring, "Close pairs and turns"); each choice
+    goes into ``fitted`` (its key into ``wanted``) with its evidence as the source.
+
+    Only for JPDA/JIPDA (JPDA* is JPDA's; PMB/PMBM take :data:`POISSON_FIT_KEYS`) on
+    scan files whose σ and q were fitted (the gate radius and the turn rates' noise are
+    in their units), and never for a key ``table`` (the user's) sets.
+    """
+    if report_like or kind in ("pmb", "pmbm"):
+        return
+    if "measurement_noise" not in fitted or "process_noise" not in fitted:
+        return
+    from jointtrack.experiments.config import steady_state_covariance
+
+    dim = pos.shape[1]
+    sigma2 = float(fitted["measurement_noise"][0])
+    q = float(fitted["process_noise"][0])
+    p_g = float(fitted["p_g"][0]) if "p_g" in fitted else _defaults()["p_g"]
+
+    def design(L):
+        m = lag == L
+        i0, i1, i2 = g0[m], g1[m], g2[m]
+        a, b, n, p = _design(t[i0], t[i1], t[i2])
+        v1 = (pos[i1] - pos[i0]) / a[:, None]
+        v2 = (pos[i2] - pos[i1]) / b[:, None]
+        return i1, a, b, n, p, v1, v2
+
+    vmax = float(fitted["max_speed"][0]) if "max_speed" in fitted else np.inf
+
+    def choose(key, value, why):
+        fitted[key] = (value, why)
+        wanted.append(key)
+
+    if "coalescence_avoidance" not in table:
+        # the targets' returns: those of the lag-1 triples moving at a target's speed —
+        # linked either way round (two targets closer than their scan-to-scan motion swap
+        # their mutual nearest neighbours, which the fitted model does not hold)
+        i1, a, b, n, p, v1, v2 = design(1)
+        m = lag == 1
+        real = (np.linalg.norm(v1, axis=1) <= vmax) & (np.linalg.norm(v2, axis=1) <= vmax)
+        mids = np.unique(np.concatenate([g0[m][real], i1[real], g2[m][real]]))
+        dt = float(np.median(a)) if a.size else 1.0
+        # a steady track's gate radius: the NCV filter's innovation at σ², q, one scan
+        P = steady_state_covariance(dt, q, sigma2, 1)
+        s_pos = P[0, 0] + 2 * dt * P[0, 1] + dt**2 * P[1, 1] + q * dt**3 / 3 + sigma2
+        radius = math.sqrt(stats.chi2.ppf(p_g, dim) * s_pos)
+        near = np.full(mids.size, np.inf)
+        tm = t[mids]
+        order = np.argsort(tm, kind="stable")
+        for grp in np.split(order, np.flatnonzero(np.diff(tm[order])) + 1):
+            if grp.size > 1:
+                dd, _ = cKDTree(pos[mids[grp]]).query(pos[mids[grp]], k=2)
+                near[grp] = dd[:, 1]
+        n_close = int(np.count_nonzero(near < PAIR_GATES * radius))
+        share = n_close / max(mids.size, 1)
+        on = mids.size >= MIN_TRIPLES and share >= PAIR_SHARE and n_close >= MIN_TRIPLES
+        evidence["pair_returns"], evidence["pair_close"] = int(mids.size), n_close
+        choose(
+            "coalescence_avoidance",
+            bool(on),
+            f"fitted: {'on (JPDA*)' if on else 'off (plain JPDA)'}: {n_close:,} of {mids.size:,} "
+            f"targets' returns ({share:.2%}; on at {PAIR_SHARE:.0%} and {MIN_TRIPLES}) had "
+            f"another target's return within {PAIR_GATES:g} gate radii ({PAIR_GATES * radius:.4g}) "
+            "in their scan — "
+            + (
+                "close pairs, whose tracks plain JPDA pulls together"
+                if on
+                else "too few close pairs for JPDA* to change a cluster"
+            ),
+        )
+    if "motion" not in table:
+        # the shortest lag whose chords resolve a TURN_RATE turn at TURN_Z (median triple)
+        for L in sorted({int(x) for x in np.unique(lag)}):
+            i1, a, b, n, p, v1, v2 = design(L)
+            half = 0.5 * (a + b)
+            speed = 0.5 * np.linalg.norm(v1 + v2, axis=1)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                omega_sd = np.sqrt(n * sigma2) / speed / half
+            if a.size and np.median(omega_sd) * TURN_Z < TURN_RATE:
+                break
+        # moving: a heading defined (its noise below 1/TURN_Z rad), speeds a target's
+        moving = (
+            (omega_sd * half * TURN_Z < 1.0)
+            & (np.linalg.norm(v1, axis=1) <= vmax)
+            & (np.linalg.norm(v2, axis=1) <= vmax)
+        )
+        cross = v1[:, 0] * v2[:, 1] - v1[:, 1] * v2[:, 0] if dim == 2 else np.zeros(a.size)
+        omega = np.arctan2(cross, np.sum(v1 * v2, axis=1)) / half
+        turning = moving & (np.abs(omega) > TURN_RATE) & (np.abs(omega) > TURN_Z * omega_sd)
+        # sustained: the triple one link on (starting at this one's middle) turns the same
+        # way — a turn, where noise and position jitter reverse from chord to chord
+        start = np.full(len(pos), -1, np.int64)
+        start[g0[lag == L]] = np.arange(a.size)
+        on = start[i1]
+        has = on >= 0
+        sustained = np.zeros(a.size, bool)
+        sustained[has] = (
+            turning[has] & turning[on[has]] & (np.sign(omega[has]) == np.sign(omega[on[has]]))
+        )
+        n_mov = int(np.count_nonzero(moving & has))
+        n_turn = int(sustained.sum())
+        share = n_turn / max(n_mov, 1)
+        imm = dim == 2 and n_turn >= MIN_TRIPLES and share >= TURN_SHARE
+        evidence["turn_moving"], evidence["turn_turning"] = n_mov, n_turn
+        text = (
+            f"{n_turn:,} of {n_mov:,} moving targets' lag-{L} triples ({share:.2%}; imm at "
+            f"{TURN_SHARE:.0%} and {MIN_TRIPLES}) changed heading faster than "
+            f"{math.degrees(TURN_RATE):g}°/s and {TURN_Z:g}σ of their noise, the same way as "
+            "the next triple along"
+        )
+        if imm:
+            rate = float(np.median(np.abs(omega[sustained])))
+            scan = float(np.median(a)) / L
+            choose(
+                "motion",
+                "imm",
+                f"fitted: imm (CV + coordinated turn, turn rate estimated): {text} — turns "
+                "a CV track loses its target in",
+            )
+            if "turn_rate_std" in table:
+                return
+            # the CT mode's turn-rate walk (variance turn_rate_std²·Δt) reaches a typical
+            # turn's rate in one scan: a track picks up the turn at the scan it starts
+            choose(
+                "turn_rate_std",
+                rate / math.sqrt(scan),
+                f"fitted: the turning triples' median turn rate ({math.degrees(rate):.3g}°/s) "
+                f"reached in one scan ({scan:.4g} s): rate/√Δt",
+            )
+        else:
+            why = (
+                "not 2-D (the coordinated-turn mode is)"
+                if dim != 2
+                else "turns too rare for the IMM's cost"
+            )
+            choose("motion", "cv", f"fitted: cv: {text} — {why}")
+
+
 def _finish(out, sources, fitted, fallbacks, defaults, wanted, evidence) -> ModelFit:
     from jointtrack.trackers.config import check_field
 
@@ -897,14 +1083,15 @@ def _finish(out, sources, fitted, fallbacks, defaults, wanted, evidence) -> Mode
         # a fitted value the tracker cannot take (e.g. a variance above 1e300 from data
         # near the coordinate limit) is refused, naming it, never passed on
         try:
-            ok = math.isfinite(value) and check_field(key, value) is not None
+            finite = isinstance(value, str) or math.isfinite(value)  # a chosen model's name
+            ok = finite and check_field(key, value) is not None
         except ValueError as exc:
             ok, why = False, str(exc)
         else:
             why = "not finite"
         if not ok:
             del fitted[key]
-            fallbacks[key] = f"not fitted: the fitted {key} = {value:.4g} refused ({why})"
+            fallbacks[key] = f"not fitted: the fitted {key} = {_value_text(value)} refused ({why})"
     table = dict(out)
     srcs = dict(sources)
     fb = {}
