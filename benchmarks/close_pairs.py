@@ -11,6 +11,12 @@ clutter returns per scan over the region, σ = 50 m. For each separation and
 * ``jipda-imm``     JIPDA, ``motion = "imm"`` (CV + coordinated turn, main's defaults)
 * ``jipda-imm*``    the same with JPDA*
 * ``pmbm``          PMBM (CV, the same q), :func:`jointtrack.bench.tracking_runs.poisson_config`
+* ``jipda-fit``     JIPDA with the model fitted to the scene's detections
+  (:func:`jointtrack.experiments.fit.fit_tracker_settings`, as a bare ``jointtrack run
+  --detections`` gets it): σ, q, P_D, clutter, gate, and JPDA* and the motion model
+  chosen from the data
+* ``jipda-fit-cv``  the same fit with ``coalescence_avoidance = false`` and
+  ``motion = "cv"`` set (the fit before it chose them)
 * ``ss-gnn``, ``ss-jpda``  Stone Soup's ADS-B trackers of ``bench realdata`` (CV,
   q = 20) with GNN (``GNNWith2DAssignment``) or its JPDA (``JPDAwithEHM2``)
   (``--stonesoup``)
@@ -137,7 +143,22 @@ def runners(q: float, stonesoup: bool):
         return lambda sc: run_jointtrack(sc, physical_config(sc, **COMMON, **kw))
 
     imm = {"motion": "imm", "max_speed": 350.0}
+
+    def fitted(**table):
+        def run(sc):
+            from jointtrack.experiments.config import make_tracker_config
+            from jointtrack.experiments.fit import fit_tracker_settings
+            from jointtrack.io import Detections
+
+            d = Detections(times=sc.times, scans=tuple(sc.detections), dim=sc.dim)
+            f = fit_tracker_settings(d, table)
+            return run_jointtrack(sc, make_tracker_config({"dim": sc.dim}, f.table))
+
+        return run
+
     kinds = {
+        "jipda-fit": fitted(),
+        "jipda-fit-cv": fitted(coalescence_avoidance=False, motion="cv"),
         "jipda-cv": jipda(max_speed=350.0),
         "jipda-cv*": jipda(max_speed=350.0, coalescence_avoidance=True),
         "jipda-imm": jipda(**imm),
@@ -156,6 +177,7 @@ def main():
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--pairs", type=int, default=4)
     ap.add_argument("--q", type=float, default=20.0)
+    ap.add_argument("--clutter", type=float, default=20.0, help="clutter returns per scan")
     ap.add_argument("--gate", type=float, default=500.0)
     ap.add_argument("--kinds", nargs="*", default=None)
     ap.add_argument("--stonesoup", action="store_true")
@@ -188,7 +210,9 @@ def main():
         scores = {k: [] for k in kinds}
         cpu = {k: [] for k in kinds}
         for seed in range(args.seeds):
-            sc = close_pairs(seed, separation=sep, n_pairs=args.pairs)
+            sc = close_pairs(
+                seed, separation=sep, n_pairs=args.pairs, clutter_per_scan=args.clutter
+            )
             sc = dataclasses.replace(sc, process_noise=args.q)  # the trackers' q
             for k, run in kinds.items():
                 t0 = time.process_time()
