@@ -27,9 +27,10 @@ TURN = math.radians(3.0)
 DT = 10.0
 
 
-def _aircraft(seed, *, pair=None, turn=0.0, n=24, scans=60, sigma=50.0, side=400e3):
+def _aircraft(seed, *, pair=None, turn=0.0, n=24, scans=60, sigma=50.0, side=400e3, unit=1.0):
     """``n`` aircraft (``n/2`` pairs ``pair`` metres abeam when ``pair``), each turning
-    at ±``turn`` rad/s for ``scans // 5`` scans from a random scan when ``turn``."""
+    at ±``turn`` rad/s for ``scans // 5`` scans from a random scan when ``turn``;
+    positions in units of ``unit`` metres."""
     rng = np.random.default_rng(seed)
     m = n // 2 if pair else n
     true = np.zeros((n, scans, 2))
@@ -52,7 +53,7 @@ def _aircraft(seed, *, pair=None, turn=0.0, n=24, scans=60, sigma=50.0, side=400
         np.concatenate([z[seen[:, k], k], rng.uniform(0, side, (rng.poisson(5), 2))])
         for k in range(scans)
     ]
-    return Detections(times=np.arange(scans) * DT, scans=tuple(dets), dim=2)
+    return Detections(times=np.arange(scans) * DT, scans=tuple(d / unit for d in dets), dim=2)
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -90,6 +91,21 @@ def test_turning_targets_get_the_imm_with_their_turn_rate(seed):
     assert cfg.motion == "imm" and cfg.turn_rate_std == f.table["turn_rate_std"]
     assert tomllib.loads(f.to_toml())["tracker"] == f.table
     assert any(note.startswith("[tracker] motion = 'imm': fitted: imm") for note in f.notes())
+
+
+@pytest.mark.parametrize(
+    ("scene", "unit"), [({"pair": 300.0}, 2.0**-20), ({"turn": TURN, "scans": 150}, 2.0**30)]
+)
+def test_the_choices_do_not_depend_on_the_unit_of_length(scene, unit):
+    # positions in another unit (a power of two: exact) — speeds, σ, q and gate radii
+    # scale with it, counts and turn rates do not; the speed bound refuses max_speed
+    # (2e8 units/s) or not (2e-7), and the choices and their counts must not move
+    ref = fit_tracker_settings(_aircraft(0, **scene))
+    f = fit_tracker_settings(_aircraft(0, **scene, unit=unit))
+    keys = ("coalescence_avoidance", "motion", "turn_rate_std")
+    assert {k: ref.table.get(k) for k in keys} == {k: f.table.get(k) for k in keys}
+    for k in ("pair_returns", "pair_close", "turn_moving", "turn_turning"):
+        assert f.evidence[k] == ref.evidence[k], k
 
 
 def test_keys_the_user_sets_are_not_chosen():

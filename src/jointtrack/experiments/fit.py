@@ -123,9 +123,11 @@ targets' triples (and :data:`MIN_TRIPLES`) turn, sustained; its turn-rate walk
 scan). Measured (``benchmarks/RESULTS.md``, "Issue 32: the fit chooses JPDA* and the
 IMM"): on the held-out quickstart ADS-B scene 18 % of the targets' returns have a
 neighbour within two gate radii and 3.3 % of the moving lag-2 triples turn,
-sustained, at a median 1.8°/s; on switzerland 0.02 % and 1.0 % (its turning chords'
+sustained, at a median 1.8°/s; on switzerland 0.5 % and 1.0 % (its turning chords'
 median 4.8°/s: position jitter, not airliners' turns); straight simulated aircraft
-0.2–0.7 %, turning ones (3°/s for a fifth of the run) 21 %. Hand-set on the same
+0.2–0.7 % turning, turning ones (3°/s for a fifth of the run) 21 %; the IMM turn
+scene (``benchmarks/imm_turn.py``, 5°/s) 84–87 % at lag 8, turn_rate_std 0.085–0.086
+(5°/s in one 1 s scan: 0.087). Hand-set on the same
 scenes: quickstart with JPDA*: coverage 0.930 → 0.965, close-pair points lost 18.5 →
 5.7 %; with JPDA* and the IMM: manoeuvre points lost 7.1 → 2.0 %; switzerland with
 the IMM (seeds 1, 2): coverage and ids as CV, but 4.0–4.5 false tracks/h (CV 1.8–2.0)
@@ -965,7 +967,15 @@ def _choose_scan_models(
         v2 = (pos[i2] - pos[i1]) / b[:, None]
         return i1, a, b, n, p, v1, v2
 
-    vmax = float(fitted["max_speed"][0]) if "max_speed" in fitted else np.inf
+    # mis-links: faster than the speed scale of the lag-1 triples the fitted model holds
+    # (SPEED_MARGIN × their 99 % point; recomputed here, in the data's own units, since
+    # a refused max_speed is no screen)
+    _, a, b, n, p, v1, v2 = design(1)
+    held = np.sum((v2 - v1) ** 2, axis=1) <= stats.chi2.ppf(FOUND, dim) * (n * sigma2 + p * q)
+    if np.count_nonzero(held) < MIN_TRIPLES:
+        return
+    speed1 = 0.5 * np.linalg.norm(v1 + v2, axis=1)
+    vmax = SPEED_MARGIN * float(np.quantile(speed1[held], 0.99))
 
     def choose(key, value, why):
         fitted[key] = (value, why)
@@ -981,8 +991,19 @@ def _choose_scan_models(
         mids = np.unique(np.concatenate([g0[m][real], i1[real], g2[m][real]]))
         dt = float(np.median(a)) if a.size else 1.0
         # a steady track's gate radius: the NCV filter's innovation at σ², q, one scan
-        P = steady_state_covariance(dt, q, sigma2, 1)
-        s_pos = P[0, 0] + 2 * dt * P[0, 1] + dt**2 * P[1, 1] + q * dt**3 / 3 + sigma2
+        # (where the Riccati solve fails — q and σ² at the float range's ends — the
+        # straight-on prediction's residual from two returns, which bounds it above)
+        # (solved in units of σ², where only q/σ² matters: steady_state_covariance floors q)
+        try:
+            with np.errstate(all="ignore"):
+                P = steady_state_covariance(dt, q / sigma2, 1.0, 1)
+                s_pos = sigma2 * (
+                    P[0, 0] + 2 * dt * P[0, 1] + dt**2 * P[1, 1] + q / sigma2 * dt**3 / 3 + 1.0
+                )
+        except (np.linalg.LinAlgError, ValueError):
+            s_pos = math.nan
+        if not (math.isfinite(s_pos) and s_pos > 0):
+            s_pos = 6.0 * sigma2 + 2.0 / 3.0 * q * dt**3
         radius = math.sqrt(stats.chi2.ppf(p_g, dim) * s_pos)
         near = np.full(mids.size, np.inf)
         tm = t[mids]
