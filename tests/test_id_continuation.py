@@ -14,7 +14,7 @@ from scipy import stats
 from jointtrack.experiments import fit as fitmod
 from jointtrack.experiments.fit import fit_tracker_settings
 from jointtrack.io import Detections
-from jointtrack.trackers.jpda import JPDATracker, TrackerConfig
+from jointtrack.trackers.jpda import CONTINUATION_GATE, JPDATracker, TrackerConfig
 from jointtrack.trackers.state_io import StateFileError, read_state, write_state
 
 SPEED = 100.0  # m/s along x
@@ -125,20 +125,28 @@ def test_bad_id_continuation_is_refused_by_name(value):
 
 
 def _brute_force(new_x, new_P, old_x, old_P, limit):
-    """Greedy one-to-one by ascending d² with an explicit inverse (reference)."""
-    pairs = []
-    for a in range(len(new_x)):
-        for b in range(len(old_x)):
-            e = new_x[a] - old_x[b]
-            d2 = float(e @ np.linalg.inv(new_P[a] + old_P[b]) @ e)
-            pairs.append((d2, a * len(old_x) + b, a, b))
-    taken, used_a, used_b = {}, set(), set()
-    for d2, _, a, b in sorted(pairs):
-        if d2 <= limit and a not in used_a and b not in used_b:
-            taken[a] = b
-            used_a.add(a)
-            used_b.add(b)
-    return taken
+    """Unambiguous pairs by an explicit inverse (reference): new track a takes old b
+    when b is the only old state in a's gate and a the only new state in b's gate."""
+    inside = np.array(
+        [
+            [
+                float(
+                    (new_x[a] - old_x[b])
+                    @ np.linalg.inv(new_P[a] + old_P[b])
+                    @ (new_x[a] - old_x[b])
+                )
+                <= limit
+                for b in range(len(old_x))
+            ]
+            for a in range(len(new_x))
+        ],
+        dtype=bool,
+    ).reshape(len(new_x), len(old_x))
+    return {
+        a: int(np.flatnonzero(inside[a])[0])
+        for a in range(len(new_x))
+        if inside[a].sum() == 1 and inside[:, np.flatnonzero(inside[a])[0]].sum() == 1
+    }
 
 
 @settings(max_examples=30, deadline=None)
@@ -149,10 +157,10 @@ def _brute_force(new_x, new_P, old_x, old_P, limit):
     spread=st.sampled_from([1.0, 30.0, 300.0, 3000.0]),
     coast=st.sampled_from([0.0, 30.0]),
 )
-def test_ids_go_to_the_closest_consistent_pairs(n_new, n_old, seed, spread, coast):
+def test_ids_go_to_the_unambiguous_consistent_pairs(n_new, n_old, seed, spread, coast):
     """The new tracks' ids equal the reference matching of their states to the deleted
-    tracks' coasted predictions (states drawn around one point; ``coast`` 0: deleted at
-    the same scan)."""
+    tracks' coasted predictions (states drawn around one point, so that some are
+    ambiguous; ``coast`` 0: deleted at the same scan)."""
     rng = np.random.default_rng(seed)
     trk = _tracker(100.0)
     x_new = rng.normal(0, spread, (n_new, 4))
@@ -174,7 +182,7 @@ def test_ids_go_to_the_closest_consistent_pairs(n_new, n_old, seed, spread, coas
         Q[np.ix_([i, v], [i, v])] = [[t**3 / 3, t**2 / 2], [t**2 / 2, t]]
     coasted_x = old_x @ F.T
     coasted_P = F @ old_P @ F.T + Q
-    want = _brute_force(trk.x, trk.P, coasted_x, coasted_P, stats.chi2.ppf(trk.config.p_g, 4))
+    want = _brute_force(trk.x, trk.P, coasted_x, coasted_P, stats.chi2.ppf(CONTINUATION_GATE, 4))
     assert taken == len(want)
     for a in range(n_new):
         expect = 100 + want[a] if a in want else ids_before[a]
