@@ -15,7 +15,10 @@ frame (the tracks' lat/lon columns). ``--hand`` also runs the hand-set
 ``ADSB_TRACKER`` (:func:`jointtrack.bench.jointtrack_realdata.run_jointtrack`) on
 the same scene in the same process, for the ratio.
 
-    python benchmarks/fit_realdata.py --seeds 1 2 --out DIR [--max-scans N] [--hand]
+    python benchmarks/fit_realdata.py --seeds 1 2 --out DIR [--max-scans N] [--hand] [--config TOML]
+
+``--config`` passes a ``[tracker]`` TOML to the run (ablations: the keys it sets are
+not fitted).
 """
 
 from __future__ import annotations
@@ -107,6 +110,11 @@ def main() -> None:
     )
     parser.add_argument("--max-scans", type=int, default=None)
     parser.add_argument("--hand", action="store_true", help="also the hand-set ADSB_TRACKER")
+    parser.add_argument(
+        "--config",
+        default=None,
+        help="a TOML passed to the run (ablations: the values it sets are not fitted)",
+    )
     args = parser.parse_args()
     work = Path(args.out)
     work.mkdir(parents=True, exist_ok=True)
@@ -123,6 +131,8 @@ def main() -> None:
         argv += ["--out", str(out)]
         if args.max_scans is not None:
             argv += ["--max-scans", str(args.max_scans)]
+        if args.config is not None:
+            argv += ["--config", str(Path(args.config).resolve())]
         c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         w0 = time.perf_counter()
         done = subprocess.run(argv, capture_output=True, text=True)

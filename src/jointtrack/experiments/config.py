@@ -466,6 +466,7 @@ JPDA_ONLY_KEYS = (
     "max_position_std",
     "existence",
     "coalescence_avoidance",
+    "id_continuation",
     "r_init",
     "r_confirm",
     "r_delete",

@@ -776,6 +776,7 @@ def _run(
     solved: dict = {}  # every multi-track cluster by kind, method, reason (count_cluster)
     tally_complete = True  # solved covers every scan of the run
     coincident = [0]  # returns dropped as exact repeats of another of their scan
+    continued = [0]  # new tracks that took a deleted track's id (id_continuation)
     elapsed_before = 0.0
     start = 0
     K = len(src.times)
@@ -835,6 +836,7 @@ def _run(
             tally_complete = "cluster_tally" in info
             solved.update(info.get("cluster_tally", {}))
             coincident[0] = int(info.get("coincident_returns", 0))
+            continued[0] = int(info.get("continued_ids", 0))
             elapsed_before = float(info.get("elapsed_seconds", 0.0))
             tracked_before = int(info.get("n_scans_this_run", 0))
             if type(trk.config) is not type(cfg):
@@ -915,6 +917,7 @@ def _run(
                 "fallback_tiers": dict(tiers),
                 "cluster_tally": solved,
                 "coincident_returns": coincident[0],
+                "continued_ids": continued[0],
                 "sensors": sensor_tables_to_run(sensor_tables),
                 "tracker_notes": list(src.tracker_notes),
                 "elapsed_seconds": seconds,
@@ -995,6 +998,7 @@ def _run(
                                     tier = method + ("" if conf else ", tentative tracks")
                                     tiers[tier] = tiers.get(tier, 0) + 1
                             coincident[0] += res.n_coincident
+                            continued[0] += res.n_continued
                         if output_interval is None or _last_in_window(
                             src.times, k, output_interval
                         ):
@@ -1044,6 +1048,12 @@ def _run(
             f"{coincident[0]} return(s) repeated another return of their scan exactly "
             "(identical measurement vectors) and were treated as one"
         )
+    if continued[0]:
+        notes.append(
+            f"{continued[0]} new track(s) took the id of a track deleted at most "
+            f"{getattr(cfg, 'id_continuation', 0.0):g} s before (id_continuation: a target's "
+            "track that died and was born again keeps its id)"
+        )
 
     # ------------------------------------------------------------ metrics
     tracks = writer.table()
@@ -1084,6 +1094,7 @@ def _run(
             "max_ranking_work": getattr(cfg, "max_ranking_work", None),
             **({"clusters": cluster_rows(solved)} if tally_complete else {}),
             "coincident_returns": coincident[0],
+            "continued_ids": continued[0],
             "fallbacks_note": "clusters solved by the approximation instead of the configured "
             "method, by reason (exact_max_tracks, exact_max_bits_tentative, refused by the exact "
             "engine's own limits, or "
@@ -1095,7 +1106,8 @@ def _run(
             "(empty when the configured method solved it), with its count and the range "
             "of its numbers of tracks and measurements. "
             "coincident_returns: returns dropped as exact repeats of another return of "
-            "their scan",
+            "their scan. continued_ids: new tracks that took the id of a track deleted "
+            "within id_continuation seconds (JPDA/JIPDA)",
         }
     if extra.metrics is not None:
         extra.metrics(metrics, tracks)

@@ -91,7 +91,9 @@ class ScanResult:
     engine declined it at its own limits;
     ``"dense_budget: …"`` for a cluster too large for an N × M matrix).
     ``n_coincident``: returns dropped because they repeated another return of
-    the scan exactly (see :meth:`JPDATracker.step`).
+    the scan exactly (see :meth:`JPDATracker.step`). ``n_continued``: tracks
+    confirmed at this scan that took a deleted track's id (JPDA/JIPDA
+    ``id_continuation``).
     With ``motion = "imm"``: ``mode_names`` (r,) and ``mode_probabilities``
     (K, r), each confirmed track's mode probabilities after the update (else
     ``()`` and None); ``x``, ``P`` are then the modes' combined position and velocity.
@@ -111,6 +113,7 @@ class ScanResult:
     cluster_confirmed: list = field(default_factory=list)
     cluster_fallbacks: list = field(default_factory=list)
     n_coincident: int = 0
+    n_continued: int = 0
     mode_names: tuple = ()
     mode_probabilities: np.ndarray | None = None
 

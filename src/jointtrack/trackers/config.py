@@ -251,6 +251,13 @@ class TrackerConfig(ModelSettings):
         ``jointtrack.association.coalescence.JPDA_STAR_MAX_HYPOTHESES`` use
         ``association`` instead (a counted fallback, ``jpda_star_budget``).
         Default false (plain JPDA β).
+    id_continuation : seconds (≥ 0; 0, the default, is off): a track confirmed
+        within this long after a confirmed track was deleted takes that track's id
+        when its position and velocity lie in the ``p_g`` gate of the deleted
+        track's coasted prediction — a target's track that died and was born again
+        keeps one id (causal: decided when the new track confirms, before it is
+        reported; :mod:`jointtrack.trackers.jpda`). ``jointtrack run --detections``
+        fits it for scan files (:mod:`jointtrack.experiments.fit`).
     """
 
     p_g: float = 0.99
@@ -288,6 +295,7 @@ class TrackerConfig(ModelSettings):
     turn_rate_std: float = 0.02
     max_turn_rate: float = 0.2
     coalescence_avoidance: bool = False
+    id_continuation: float = 0.0
 
     def __post_init__(self):
         for f in fields(self):
@@ -779,6 +787,7 @@ _CHECKS = {
     "turn_rate_std": _non_negative,
     "max_turn_rate": _positive,
     "coalescence_avoidance": _bool,
+    "id_continuation": _non_negative,
 }
 
 

@@ -41,6 +41,7 @@ __all__ = [
     "read_state",
     "validate_counters",
     "validate_mode_arrays",
+    "validate_retired_arrays",
     "write_state",
 ]
 
@@ -203,12 +204,13 @@ def _read_verified(path):
     if version < VERSION:
         _upgrade(header, arrays)
         _upgrade_poisson(header, arrays)
-    _fill_added_settings(header)
+    _fill_added_settings(header, arrays)
     return header, arrays
 
 
-def _fill_added_settings(header: dict) -> None:
-    """Fill the JPDA settings added after a state file was written, in place.
+def _fill_added_settings(header: dict, arrays: dict) -> None:
+    """Fill the JPDA settings (and their arrays) added after a state file was written,
+    in place.
 
     ``exact_max_bits_tentative`` (issue 25) gets None: tentative clusters budgeted
     by ``exact_max_tracks`` like confirmed ones, as every earlier jointtrack did, so
@@ -220,9 +222,70 @@ def _fill_added_settings(header: dict) -> None:
     header["config"].setdefault("exact_max_bits_tentative", None)
     # coalescence_avoidance (JPDA*, issue 32) came after version 5: plain JPDA, as written
     header["config"].setdefault("coalescence_avoidance", False)
+    # id_continuation (issue 32) came after version 6: off, as every earlier state ran,
+    # and nothing remembered (a state written with the key must hold the arrays)
+    if "id_continuation" not in header["config"]:
+        header["config"]["id_continuation"] = 0.0
+        for name, shape in _RETIRED_EMPTY.items():
+            arrays.setdefault(name, np.zeros(shape, np.int64 if name == "retired_ids" else float))
     if header["version"] < 5:  # the IMM settings (issue 32) did not exist
         for key, value in _IMM_SETTINGS.items():
             header["config"].setdefault(key, value)
+
+
+#: the id-continuation fields of a JPDA state (empty: nothing remembered), by shape
+#: with 0 for the state's 2·dim (an empty array's width is not checked)
+_RETIRED_EMPTY = {
+    "retired_ids": (0,),
+    "retired_x": (0, 0),
+    "retired_P": (0, 0, 0),
+    "retired_time": (0,),
+}
+
+
+def validate_retired_arrays(path, arrays: dict, scalars: dict, width: int) -> None:
+    """Check a JPDA state's id-continuation fields (``retired_ids``, ``retired_x``
+    (k, width), ``retired_P`` (k, width, width), ``retired_time`` (k,)):
+    StateFileError naming the field."""
+
+    def bad(what: str) -> StateFileError:
+        return StateFileError(f"{path}: {what}")
+
+    for name, kind, ndim in (
+        ("retired_ids", "i", 1),
+        ("retired_x", "f", 2),
+        ("retired_P", "f", 3),
+        ("retired_time", "f", 1),
+    ):
+        if name not in arrays:
+            raise bad(f"missing field {name!r}")
+        a = arrays[name]
+        if a.dtype.kind != kind or a.ndim != ndim:
+            raise bad(f"field {name!r} has dtype {a.dtype} and {a.ndim} dimension(s)")
+        if kind == "f" and not np.isfinite(a).all():
+            raise bad(f"field {name!r} has non-finite values")
+    k = len(arrays["retired_ids"])
+    if k == 0:
+        for name in ("retired_x", "retired_P", "retired_time"):
+            if arrays[name].shape[0] != 0:
+                raise bad("fields 'retired_*' have inconsistent shapes")
+        arrays["retired_x"] = np.zeros((0, width))
+        arrays["retired_P"] = np.zeros((0, width, width))
+        return
+    if (
+        arrays["retired_x"].shape != (k, width)
+        or arrays["retired_P"].shape != (k, width, width)
+        or arrays["retired_time"].shape != (k,)
+    ):
+        raise bad("fields 'retired_*' have inconsistent shapes")
+    problem = covariance_problem(arrays["retired_P"])
+    if problem:
+        raise bad(f"field 'retired_P' holds a covariance that {problem}")
+    ids = arrays["retired_ids"]
+    if len(np.unique(ids)) != k or ((ids < 1) | (ids >= scalars["next_id"])).any():
+        raise bad("field 'retired_ids' holds repeated ids or ids the tracker never issued")
+    if np.isin(ids, arrays["ids"]).any():
+        raise bad("field 'retired_ids' holds the id of a live track")
 
 
 def _upgrade(header: dict, arrays: dict) -> None:
