@@ -14,6 +14,12 @@ report-file runs of ``jointtrack run``).
 ``--minutes A B`` keeps the reports from minute A to minute B after the first one
 (e.g. ``0 42`` and ``42 85``: the file's first and second halves, one to choose
 settings on and one held out).
+
+Besides the scorer's figures, ``vessel_classes`` says where coverage is lost: the
+scorer's own coverage summed over classes of vessel from the original file's speeds
+and times — under way (median reported speed above :data:`AT_REST` m/s), at rest
+reporting < 60 s apart, at rest reporting ≥ 60 s apart (AIS class A at anchor: every
+3 minutes), and at rest with one report in the slice.
 """
 
 from __future__ import annotations
@@ -35,6 +41,8 @@ from jointtrack.metrics.selfreport import score_self_reports
 
 #: the scoring of jointtrack run's report-file runs (realdata._SCORE_C["ais"], 60 s)
 WINDOW, C = 60.0, 500.0
+#: a vessel whose median reported speed is at most this (m/s) is at rest
+AT_REST = 0.25
 
 
 def write_plain(reports, path: Path) -> None:
@@ -46,6 +54,40 @@ def write_plain(reports, path: Path) -> None:
         for k in range(len(reports)):
             stamp = format_timestamp(ns0 + int(ns[k]), True)
             fh.write(f"{stamp},{float(reports.lat[k])!r},{float(reports.lon[k])!r}\n")
+
+
+def vessel_classes(rep, identity_of: dict, score) -> dict:
+    """The scorer's coverage split by class of vessel (module docstring): per class, its
+    vessels, their instants and the fraction of those associated with a track
+    (``score.identity_associated`` / ``identity_instants`` summed over the class, so
+    the classes' instants and associations add up to the scorer's coverage).
+    ``identity_of``: identity → truth id, as :meth:`Reports.truth` returns it."""
+    t = np.asarray(rep.times, float)
+    ids = np.asarray(rep.identity)
+    speed = np.asarray(rep.speed, float)
+    row = {int(i): k for k, i in enumerate(np.asarray(score.identity_ids).tolist())}
+    out: dict = {}
+    for vessel, truth_id in identity_of.items():
+        mine = ids == vessel
+        gaps = np.diff(t[mine])
+        moving = np.isfinite(speed[mine]).any() and np.nanmedian(speed[mine]) > AT_REST
+        if moving:
+            cls = "under way"
+        elif not gaps.size:
+            cls = "at rest, one report"
+        elif np.median(gaps) >= 60.0:
+            cls = "at rest, reports >= 60 s apart"
+        else:
+            cls = "at rest, reports < 60 s apart"
+        c = out.setdefault(cls, {"vessels": 0, "instants": 0, "associated": 0})
+        c["vessels"] += 1
+        k = row.get(int(truth_id))
+        if k is not None:
+            c["instants"] += int(score.identity_instants[k])
+            c["associated"] += int(score.identity_associated[k])
+    for c in out.values():
+        c["coverage"] = c["associated"] / c["instants"] if c["instants"] else float("nan")
+    return out
 
 
 def main() -> None:
@@ -99,6 +141,7 @@ def main() -> None:
     score = score_self_reports(
         truth[0], truth[1], truth[2], tt, ti, tp, window=WINDOW, c=C, t0=float(rep.times[0])
     )
+    classes = vessel_classes(rep.subset(keep), truth[3], score)
     result = {
         "minutes": args.minutes,
         "reports": len(rep),
@@ -110,10 +153,14 @@ def main() -> None:
         "tracker": {k: m["tracker"].get(k) for k in ("reporting", "report_interval")},
         "notes": m.get("notes", []),
         "self_reports": score.as_dict(),
+        "vessel_classes": classes,
     }
     (work / "plain_geodetic.json").write_text(json.dumps(result, indent=1))
     print(json.dumps({k: v for k, v in result.items() if k != "notes"}, indent=1))
     print("self-reports:", score.summary())
+    for name, c in classes.items():
+        share = f"{c['vessels']} vessels, {c['instants']} instants"
+        print(f"{name}: {share}, coverage {c['coverage']:.3f}")
 
 
 if __name__ == "__main__":
