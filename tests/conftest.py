@@ -23,10 +23,14 @@ if os.environ.get("CI"):
 #: ``--dist loadfile`` hands files out in collection order — by default it sorts them by
 #: their number of tests, which put these few-test, slow files last, one core busy
 #: alone at the end (≈ 8 % of CI's wall time). Order only; nothing is skipped.
+#: test_numba_cache.py second: it compiles in a cache of its own, so on a fresh
+#: install the second worker does not compile the JIPDA run's kernels at the same
+#: time as the first (test_run_finish.py's first run compiles them into the shared
+#: cache, ≈ 80 CPU-s; test_run_durable.py then loads them).
 SLOWEST_FIRST = (
     "test_run_finish.py",
-    "test_run_durable.py",
     "test_numba_cache.py",
+    "test_run_durable.py",
     "test_issue31_tracker.py",
     "test_run_realdata.py",
     "test_issue22_io.py",
