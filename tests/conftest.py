@@ -6,6 +6,14 @@ import os
 
 from hypothesis import settings
 
+# numba's parallel kernels run on OpenMP (libgomp) threads, which by default spin for
+# ~10 ms after each parallel region before they sleep: with two xdist workers on two
+# cores that spinning takes the CPU from the other worker (tests/test_tracker.py: 15.9
+# → 12.1 CPU-s). Waiting passively changes no result, only what idle threads cost.
+# Set before any parallel kernel starts libgomp (it reads this once); the CLI
+# subprocesses of the tests inherit it.
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+
 settings.register_profile("ci", derandomize=True, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
@@ -15,10 +23,14 @@ if os.environ.get("CI"):
 #: ``--dist loadfile`` hands files out in collection order — by default it sorts them by
 #: their number of tests, which put these few-test, slow files last, one core busy
 #: alone at the end (≈ 8 % of CI's wall time). Order only; nothing is skipped.
+#: test_numba_cache.py second: it compiles in a cache of its own, so on a fresh
+#: install the second worker does not compile the JIPDA run's kernels at the same
+#: time as the first (test_run_finish.py's first run compiles them into the shared
+#: cache, ≈ 80 CPU-s; test_run_durable.py then loads them).
 SLOWEST_FIRST = (
     "test_run_finish.py",
-    "test_run_durable.py",
     "test_numba_cache.py",
+    "test_run_durable.py",
     "test_issue31_tracker.py",
     "test_run_realdata.py",
     "test_issue22_io.py",
