@@ -97,11 +97,12 @@ track's confirmation (one-point birth, confirmed on its third return: two scans,
 one missed scan). A longer window hands ids between aircraft: with 6 scans, on the
 held-out quickstart flights (JPDA* and the IMM on) 8 of 12 hand-overs mixed two
 aircraft, all 50–80 s from the old track's last report to the new one's first —
-one slowing to a stop (landing, 2–8 m/s) and another taking off kilometres away,
+mostly one slowing to land (≤ 34 m/s in 6) and another taking off kilometres away,
 admitted by the wide gate of a prediction coasted that long: purity 0.860 → 0.838.
 Measured (``benchmarks/RESULTS.md``): quickstart seed 1 purity 0.860 (off) / 0.838
-(6 scans) / 0.856 (3 scans), false tracks 4.7 / 5.0 / 4.3 per hour; switzerland's
-first 1,500 scans 1.206 (6 scans) / 1.210 (3 scans) ids per aircraft. Report-like
+(6 scans) / 0.856 (3 scans), false tracks 4.7 / 5.0 / 4.3 per hour; seed 2 0.863
+(off) / 0.856 (3 scans) — continuation still costs a little purity there; switzerland
+seed 2 1.80 (off) / 1.607 (6 scans) / 1.608 (3 scans) ids per aircraft. Report-like
 files do not get it.
 
 Report-like files: q and the gate from the moving targets. A report file has no
