@@ -284,3 +284,34 @@ def test_a_new_track_on_a_losing_tracks_target_takes_its_id(
         np.testing.assert_array_equal(trk.x[0], [250.0, 100.0, velocity, 10.0])
     else:
         assert taken == 0 and trk.ids.tolist() == [old, new]
+
+
+def _retired_and_new(since: float, new_x, window: float) -> JPDATracker:
+    """A tracker at t = 100 s holding one confirmed track deleted ``since`` s before
+    (state at deletion: 5 m/s along x, position σ 400 m, velocity σ 20 m/s) and one
+    track confirming now at ``new_x``; process noise 24 m²/s³ (quickstart's fit)."""
+    trk = _tracker(window, process_noise=24.0)
+    (new,) = trk.start_tracks([new_x], np.diag([60.0**2] * 2 + [10.0**2] * 2), time=100.0)
+    trk.retired_ids = np.array([new + 100])
+    trk.retired_x = np.array([[0.0, 0.0, 5.0, 0.0]])
+    trk.retired_P = np.diag([400.0**2] * 2 + [20.0**2] * 2)[None]
+    trk.retired_time = np.array([100.0 - since])
+    return trk
+
+
+def test_the_fitted_window_refuses_a_new_aircraft_where_an_old_one_ended():
+    """The fitted window (scan files: CONTINUATION_SCANS scan intervals) is what a
+    rebirth takes — a one-point birth confirms two scans after its first return, plus
+    one missed scan. A target that slowed and vanished (an aircraft landing) and a new
+    track confirming 50 s later 3 km away at 70 m/s (one taking off): the deleted
+    track's prediction coasted 50 s is so wide that the new track passes its χ²₄(0.99)
+    gate — on quickstart eight such hand-overs mixed two aircraft each, all 50–80 s
+    after the deletion. The same new track 20 s after the deletion still takes the id."""
+    window = fitmod.CONTINUATION_SCANS * DT
+    far = [3000.0 * math.cos(0.5), 3000.0 * math.sin(0.5), 70.0, 0.0]
+    late = _retired_and_new(50.0, far, 12 * DT)  # the wide gate itself admits it
+    assert late._continue_ids(set(), 100.0) == 1
+    late = _retired_and_new(50.0, far, window)
+    assert late._continue_ids(set(), 100.0) == 0 and late.ids.tolist() == [1]
+    soon = _retired_and_new(20.0, [500.0, 50.0, 8.0, 1.0], window)
+    assert soon._continue_ids(set(), 100.0) == 1 and soon.ids.tolist() == [101]

@@ -93,11 +93,17 @@ existence below ``r_confirm``), which then ends — unambiguous pairs only
 (:mod:`jointtrack.trackers.jpda`). On switzerland half of the id changes (60 of 122
 on the first 1,500 scans) were a track dying — 43 % of them in turns — and a new one
 born on the same aircraft; the window covers the scans from a death to the new
-track's confirmation (one-point birth, confirmed on its third return). Measured on
-the whole scene (``benchmarks/RESULTS.md``, both seeds): 1.80 → 1.61 ids per
-aircraft, false tracks 1.8–2.0 → 1.5–1.7 per hour, coverage and purity unchanged; on
-the held-out quickstart flights purity 0.853 → 0.834. Report-like files do not get
-it.
+track's confirmation (one-point birth, confirmed on its third return: two scans, and
+one missed scan). A longer window hands ids between aircraft: with 6 scans, on the
+held-out quickstart flights (JPDA* and the IMM on) 8 of 12 hand-overs mixed two
+aircraft, all 50–80 s from the old track's last report to the new one's first —
+mostly one slowing to land (≤ 34 m/s in 6) and another taking off kilometres away,
+admitted by the wide gate of a prediction coasted that long: purity 0.860 → 0.838.
+Measured (``benchmarks/RESULTS.md``): quickstart seed 1 purity 0.860 (off) / 0.838
+(6 scans) / 0.856 (3 scans), false tracks 4.7 / 5.0 / 4.3 per hour; seed 2 0.863
+(off) / 0.856 (3 scans) — continuation still costs a little purity there; switzerland
+seed 2 1.80 (off) / 1.607 (6 scans) / 1.608 (3 scans) ids per aircraft. Report-like
+files do not get it.
 
 Report-like files: q and the gate from the moving targets. A report file has no
 scans, so no returns after a miss; and on AIS the core of the linked triples is the
@@ -211,8 +217,9 @@ GATE_CLUTTER = 0.1
 #: whole file the 75 % point (q 0.74) gave coverage 0.43 (``benchmarks/RESULTS.md``)
 REPORT_NIS_POINT = 0.5
 #: scan files: a new track takes the id of a track deleted at most this many median scan
-#: intervals before (``id_continuation``; see the module docstring, "Id continuation")
-CONTINUATION_SCANS = 6
+#: intervals before (``id_continuation``): a rebirth's confirmation latency (two scans)
+#: and one missed scan; 6 mixed aircraft on quickstart (module docstring, "Id continuation")
+CONTINUATION_SCANS = 3
 #: P_D estimates are kept within these (a tracker with P_D = 1 treats any miss as death)
 P_D_MIN, P_D_MAX = 0.05, 0.995
 #: the trimming point of the concentration steps (χ²_dim probability)

@@ -35,6 +35,10 @@ other new track — close targets get no id on a guess. Nothing already reported
 changes. ``ScanResult.n_continued`` counts them. Measured (``benchmarks/RESULTS.md``):
 on the held-out quickstart flights (close pairs orbiting together) the greedy
 closest-first pairing in the ``p_g`` gate cost purity 0.853 → 0.827; this rule 0.834.
+The window bounds the gate: a deleted track's prediction coasted a minute is wide
+enough to take in another aircraft kilometres away (on quickstart one landing, one
+taking off); the fit's window for scan files (3 scan intervals,
+:data:`jointtrack.experiments.fit.CONTINUATION_SCANS`) is what a rebirth takes.
 """
 
 from __future__ import annotations
