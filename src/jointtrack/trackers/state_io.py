@@ -243,6 +243,22 @@ _RETIRED_EMPTY = {
 }
 
 
+def check_array_fields(path, arrays: dict, spec: dict) -> None:
+    """Each field of ``spec`` {name: (dtype kind, ndim)} present in ``arrays`` with that
+    kind and number of dimensions, and finite where it is float; StateFileError naming
+    the field (the shapes' agreement is the caller's)."""
+    for name, (kind, ndim) in spec.items():
+        if name not in arrays:
+            raise StateFileError(f"{path}: missing field {name!r}")
+        a = arrays[name]
+        if a.dtype.kind != kind or a.ndim != ndim:
+            raise StateFileError(
+                f"{path}: field {name!r} has dtype {a.dtype} and {a.ndim} dimension(s)"
+            )
+        if kind == "f" and not np.isfinite(a).all():
+            raise StateFileError(f"{path}: field {name!r} has non-finite values")
+
+
 def validate_retired_arrays(path, arrays: dict, scalars: dict, width: int) -> None:
     """Check a JPDA state's id-continuation fields (``retired_ids``, ``retired_x``
     (k, width), ``retired_P`` (k, width, width), ``retired_time`` (k,)):
@@ -251,19 +267,16 @@ def validate_retired_arrays(path, arrays: dict, scalars: dict, width: int) -> No
     def bad(what: str) -> StateFileError:
         return StateFileError(f"{path}: {what}")
 
-    for name, kind, ndim in (
-        ("retired_ids", "i", 1),
-        ("retired_x", "f", 2),
-        ("retired_P", "f", 3),
-        ("retired_time", "f", 1),
-    ):
-        if name not in arrays:
-            raise bad(f"missing field {name!r}")
-        a = arrays[name]
-        if a.dtype.kind != kind or a.ndim != ndim:
-            raise bad(f"field {name!r} has dtype {a.dtype} and {a.ndim} dimension(s)")
-        if kind == "f" and not np.isfinite(a).all():
-            raise bad(f"field {name!r} has non-finite values")
+    check_array_fields(
+        path,
+        arrays,
+        {
+            "retired_ids": ("i", 1),
+            "retired_x": ("f", 2),
+            "retired_P": ("f", 3),
+            "retired_time": ("f", 1),
+        },
+    )
     k = len(arrays["retired_ids"])
     if k == 0:
         for name in ("retired_x", "retired_P", "retired_time"):
@@ -403,14 +416,7 @@ def validate_tracker_arrays(path, arrays: dict, scalars: dict, state_dim: int, d
         "label_names": ("U", 1),
         "label_ids": ("i", 1),
     }
-    for name, (kind, ndim) in spec.items():
-        if name not in arrays:
-            raise bad(f"missing field {name!r}")
-        a = arrays[name]
-        if a.dtype.kind != kind or a.ndim != ndim:
-            raise bad(f"field {name!r} has dtype {a.dtype} and {a.ndim} dimension(s)")
-        if kind == "f" and not np.isfinite(a).all():
-            raise bad(f"field {name!r} has non-finite values")
+    check_array_fields(path, arrays, spec)
     N = arrays["x"].shape[0]
     if arrays["x"].shape != (N, state_dim):
         raise bad(f"field 'x' has shape {arrays['x'].shape}, expected (N, {state_dim})")
