@@ -366,3 +366,17 @@ def test_report_like_file_q_and_gate_hold_the_moving_targets(seed):
     nis90 = np.quantile(D2 / (n * tb["measurement_noise"] + p * tb["process_noise"]), 0.9)
     assert abs(nis90 / stats.chi2.ppf(0.9, 2) - 1) < 0.25
     assert abs(math.sqrt(tb["measurement_noise"]) - 1) < 0.25
+
+
+def test_a_resume_refused_for_a_fit_that_set_nothing_says_so(tmp_path):
+    # the checkpoint's fit ran and set no value (all fallbacks); this run is --no-fit
+    from jointtrack.experiments.run import _check_resume
+
+    saved = {"fit": {"fitted": {}, "notes": []}, "data": "x"}
+    this = {"fit": {"fitted": None, "notes": []}, "data": "x"}
+    with pytest.raises(
+        RunConfigError, match=r"made with a fit that set no value .*; this run without"
+    ):
+        _check_resume(
+            tmp_path / "ck.npz", {"parts": [], "inputs": saved}, None, None, this, tmp_path, "csv"
+        )

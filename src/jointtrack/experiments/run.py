@@ -601,6 +601,8 @@ def _check_resume(resume: Path, info, trk, src, identity, out_dir: Path, fmt: st
             fitted = entry.get("fitted") if isinstance(entry, dict) else None
             if fitted is None:
                 return "without the fitted model (--no-fit)" if entry else "without a fit"
+            if not fitted:  # the fit ran and every key fell back to its default
+                return "with a fit that set no value (every key at its default)"
             return "with the fitted " + ", ".join(f"{k} = {v}" for k, v in fitted.items())
 
         raise RunConfigError(
