@@ -16,6 +16,7 @@ from jointtrack.experiments.fit import fit_tracker_settings
 from jointtrack.io import Detections
 from jointtrack.trackers.jpda import CONTINUATION_GATE, JPDATracker, TrackerConfig
 from jointtrack.trackers.state_io import StateFileError, read_state, write_state
+from test_fit import report_like_detections
 
 SPEED = 100.0  # m/s along x
 DT = 10.0  # s between scans
@@ -202,17 +203,7 @@ def test_scan_files_fit_the_window_and_report_files_do_not():
     assert f.table["id_continuation"] == fitmod.CONTINUATION_SCANS * DT
     assert f.sources["id_continuation"].startswith("fitted")
     # targets reporting one at a time (exponential gaps): a report-like file, no window
-    ts, ps = [], []
-    for i in range(8):
-        tr = np.cumsum(rng.exponential(10.0, 400))
-        tr = tr[tr < 1800.0]
-        v = rng.uniform(5, 10) * np.array([np.cos(i), np.sin(i)])
-        x0 = np.array([5000.0 * (i % 4), 8000.0 * (i // 4)])
-        ts.append(tr)
-        ps.append(x0 + tr[:, None] * v + rng.normal(0, 10.0, (tr.size, 2)))
-    tr, pr = np.concatenate(ts), np.concatenate(ps)
-    o = np.argsort(tr)
-    f = fit_tracker_settings(Detections(times=tr[o], scans=tuple(pr[o][:, None, :]), dim=2))
+    f = fit_tracker_settings(report_like_detections(rng))
     assert f.table["reporting"] == "async"
     assert "id_continuation" not in f.table and "id_continuation" not in f.sources
 
