@@ -1053,8 +1053,8 @@ def _run(
     if continued[0]:
         notes.append(
             f"{continued[0]} new track(s) took the id of a track deleted at most "
-            f"{getattr(cfg, 'id_continuation', 0.0):g} s before (id_continuation: a target's "
-            "track that died and was born again keeps its id)"
+            f"{getattr(cfg, 'id_continuation', 0.0):g} s before or losing its target "
+            "(id_continuation: a target's track that died and was born again keeps its id)"
         )
 
     # ------------------------------------------------------------ metrics
@@ -1109,7 +1109,7 @@ def _run(
             "of its numbers of tracks and measurements. "
             "coincident_returns: returns dropped as exact repeats of another return of "
             "their scan. continued_ids: new tracks that took the id of a track deleted "
-            "within id_continuation seconds (JPDA/JIPDA)",
+            "within id_continuation seconds or losing its target (JPDA/JIPDA)",
         }
     if extra.metrics is not None:
         extra.metrics(metrics, tracks)

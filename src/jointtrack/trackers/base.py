@@ -92,7 +92,7 @@ class ScanResult:
     ``"dense_budget: …"`` for a cluster too large for an N × M matrix).
     ``n_coincident``: returns dropped because they repeated another return of
     the scan exactly (see :meth:`JPDATracker.step`). ``n_continued``: tracks
-    confirmed at this scan that took a deleted track's id (JPDA/JIPDA
+    confirmed at this scan that took a deleted or losing track's id (JPDA/JIPDA
     ``id_continuation``).
     With ``motion = "imm"``: ``mode_names`` (r,) and ``mode_probabilities``
     (K, r), each confirmed track's mode probabilities after the update (else

@@ -252,11 +252,12 @@ class TrackerConfig(ModelSettings):
         ``association`` instead (a counted fallback, ``jpda_star_budget``).
         Default false (plain JPDA β).
     id_continuation : seconds (≥ 0; 0, the default, is off): a track confirmed
-        within this long after a confirmed track was deleted takes that track's id
-        when its position and velocity lie in the ``p_g`` gate of the deleted
-        track's coasted prediction — a target's track that died and was born again
+        within this long after a confirmed track was deleted (or while a confirmed
+        track is losing its target) takes that track's id when its position and
+        velocity lie in the χ²(0.99) gate of that track's coasted prediction and
+        the pair is unambiguous — a target's track that died and was born again
         keeps one id (causal: decided when the new track confirms, before it is
-        reported; :mod:`jointtrack.trackers.jpda`). ``jointtrack run --detections``
+        reported; the rule: :mod:`jointtrack.trackers.jpda`). ``jointtrack run --detections``
         fits it for scan files (:mod:`jointtrack.experiments.fit`).
     """
 
