@@ -69,6 +69,77 @@ def write_plain(scene, path: Path) -> None:
             fh.write(f"{stamp},{float(lat[k])!r},{float(lon[k])!r}\n")
 
 
+#: where the straight-flight truth points a run lost are (:func:`lost_by_kind`)
+LOST_KINDS = ("start", "end", "off", "unreported", "id_change")
+
+
+def lost_by_kind(score) -> dict:
+    """Where a run loses straight flight, and what its id changes are (issue 32).
+
+    Each straight truth point not associated (the scorer's ``class_of`` 0) is, along its
+    aircraft's instants: ``start`` — before the aircraft's first associated instant
+    (confirmation latency); ``end`` — after its last; between two associated instants
+    of one track id, ``off`` — that track is reported at the instant but more than c
+    away, or ``unreported`` — it is not reported then; between two different ids,
+    ``id_change``. Shares of all straight truth points (they add up to
+    ``lost_straight``). Each id change along an aircraft's associations is a
+    ``rebirth`` when the old id is never reported after the new id's first report (a
+    track died and another was born on the aircraft), else an ``overlap`` (both ids
+    reported at once: a swap or a duplicate).
+    """
+    t, ident, _ = score.truth_sampled
+    st = score.statistics
+    instants = score.instants
+    K = max(len(instants), 1)
+    ids_u = np.unique(ident)
+    key = np.searchsorted(ids_u, ident) * K + np.searchsorted(instants, t)
+    assoc_key = np.searchsorted(ids_u, st.assoc_truth_ids) * K + np.searchsorted(
+        instants, st.assoc_times
+    )
+    track_of = np.full(len(t), -1, np.int64)
+    order = np.argsort(key)
+    track_of[order[np.searchsorted(key[order], assoc_key)]] = st.assoc_track_ids
+    tt, ti, _ = score.tracks_sampled
+    reported = set(zip(np.searchsorted(instants, tt).tolist(), ti.tolist(), strict=True))
+    first_seen, last_seen = {}, {}
+    for k in np.unique(ti):
+        when = tt[ti == k]
+        first_seen[int(k)], last_seen[int(k)] = float(when.min()), float(when.max())
+    counts = dict.fromkeys(LOST_KINDS, 0)
+    changes = {"rebirth": 0, "overlap": 0}
+    straight = score.class_of == 0
+    for rows in np.split(
+        np.argsort(key, kind="stable"),
+        np.cumsum(np.bincount(np.searchsorted(ids_u, ident), minlength=len(ids_u)))[:-1],
+    ):
+        trk = track_of[rows]
+        held = np.flatnonzero(trk >= 0)
+        for a, b in zip(held[:-1], held[1:], strict=True):
+            old, new = int(trk[a]), int(trk[b])
+            if old != new:
+                late = last_seen[old] > first_seen[new]
+                changes["overlap" if late else "rebirth"] += 1
+        for j in np.flatnonzero((trk < 0) & straight[rows]):
+            if not len(held) or j < held[0]:
+                kind = "start"
+            elif j > held[-1]:
+                kind = "end"
+            else:
+                before = int(trk[held[held < j][-1]])
+                after = int(trk[held[held > j][0]])
+                if before != after:
+                    kind = "id_change"
+                elif (int(np.searchsorted(instants, t[rows[j]])), before) in reported:
+                    kind = "off"
+                else:
+                    kind = "unreported"
+            counts[kind] += 1
+    n = max(int(straight.sum()), 1)
+    return {f"lost_straight_{k}": v / n for k, v in counts.items()} | {
+        f"id_changes_{k}": v for k, v in changes.items()
+    }
+
+
 def score_tracks(scene, run_dir: Path, n_scans: int) -> dict:
     """Self-report scores of ``run_dir/tracks.csv`` in the scene's frame and clock."""
     m = json.loads((run_dir / "metrics.json").read_text())
@@ -97,8 +168,13 @@ def score_tracks(scene, run_dir: Path, n_scans: int) -> dict:
         max_gap=MAX_GAP,
         duration=max(end - float(scene.scan_times[0]), scene.window),
         t0=float(scene.scan_times[0]),
-    ).as_dict()
-    return {k: score[k] for k in KEYS} | {"tracker": m["tracker"], "notes": m.get("notes", [])}
+    )
+    scores = score.as_dict()
+    return (
+        {k: scores[k] for k in KEYS}
+        | lost_by_kind(score)
+        | {"tracker": m["tracker"], "notes": m.get("notes", [])}
+    )
 
 
 def main() -> None:
@@ -168,6 +244,10 @@ def main() -> None:
         print(
             f"seed {seed}: bare "
             + ", ".join(f"{k} {_num(row['bare'][k])}" for k in KEYS)
+            + "; straight lost by kind (% of straight points): "
+            + ", ".join(f"{k} {100 * row['bare'][f'lost_straight_{k}']:.2f}" for k in LOST_KINDS)
+            + "; id changes: "
+            + ", ".join(f"{k} {row['bare'][f'id_changes_{k}']}" for k in ("rebirth", "overlap"))
             + f"; CPU {cpu:.0f} s for {row['data_hours']:.1f} h of data "
             f"({row['data_hours'] * 3600 / max(cpu, 1e-9):.0f}× real time)"
         )
