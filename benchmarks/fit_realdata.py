@@ -77,15 +77,21 @@ def lost_by_kind(score) -> dict:
     """Where a run loses straight flight, and what its id changes are (issue 32).
 
     Each straight truth point not associated (the scorer's ``class_of`` 0) is, along its
-    aircraft's instants: ``start`` — before the aircraft's first associated instant
-    (confirmation latency); ``end`` — after its last; between two associated instants
-    of one track id, ``off`` — that track is reported at the instant but more than c
-    away, or ``unreported`` — it is not reported then; between two different ids,
-    ``id_change``. Shares of all straight truth points (they add up to
+    aircraft's flight (its instants up to an absence, below): ``start`` — before the
+    flight's first associated instant (confirmation latency); ``end`` — after its last;
+    between two associated instants of one track id, ``off`` — that track is reported at
+    the instant but more than c away, or ``unreported`` — it is not reported then;
+    between two different ids, ``id_change``. Shares of all straight truth points (they add up to
     ``lost_straight``). Each id change along an aircraft's associations is a
-    ``rebirth`` when the old id is never reported after the new id's first report (a
-    track died and another was born on the aircraft), else an ``overlap`` (both ids
-    reported at once: a swap or a duplicate).
+    ``new_flight`` when the aircraft is absent at some instant between the two (its
+    reports stop for more than the scorer's ``max_gap``: it landed or left and came back
+    — no tracker without identities can keep the id), else a ``rebirth`` when the old
+    id is never reported after the new id's first report (a track died and another was
+    born on the aircraft), else an ``overlap`` (both ids reported at once: a swap or a
+    duplicate). ``flights_per_identity``: the mean number of such flights (runs of
+    instants without an absence) of the aircraft ``tracks_per_identity`` is averaged
+    over (those with a track) — the fewest ids per aircraft any tracker without
+    identities can have.
     """
     t, ident, _ = score.truth_sampled
     st = score.statistics
@@ -106,7 +112,8 @@ def lost_by_kind(score) -> dict:
         when = tt[ti == k]
         first_seen[int(k)], last_seen[int(k)] = float(when.min()), float(when.max())
     counts = dict.fromkeys(LOST_KINDS, 0)
-    changes = {"rebirth": 0, "overlap": 0}
+    changes = {"new_flight": 0, "rebirth": 0, "overlap": 0}
+    flights = []
     straight = score.class_of == 0
     for rows in np.split(
         np.argsort(key, kind="stable"),
@@ -114,19 +121,31 @@ def lost_by_kind(score) -> dict:
     ):
         trk = track_of[rows]
         held = np.flatnonzero(trk >= 0)
+        # an absence: consecutive instants of the aircraft more than one instant apart
+        step = np.searchsorted(instants, t[rows])
+        away = np.r_[False, np.diff(step) > 1]
+        if len(held):
+            flights.append(1 + int(away.sum()))
         for a, b in zip(held[:-1], held[1:], strict=True):
             old, new = int(trk[a]), int(trk[b])
             if old != new:
-                late = last_seen[old] > first_seen[new]
-                changes["overlap" if late else "rebirth"] += 1
+                if away[a + 1 : b + 1].any():
+                    changes["new_flight"] += 1
+                elif last_seen[old] > first_seen[new]:
+                    changes["overlap"] += 1
+                else:
+                    changes["rebirth"] += 1
+        # the lost points of each flight, in that flight alone
+        flight = np.cumsum(away)
         for j in np.flatnonzero((trk < 0) & straight[rows]):
-            if not len(held) or j < held[0]:
+            mine = held[flight[held] == flight[j]]
+            if not len(mine) or j < mine[0]:
                 kind = "start"
-            elif j > held[-1]:
+            elif j > mine[-1]:
                 kind = "end"
             else:
-                before = int(trk[held[held < j][-1]])
-                after = int(trk[held[held > j][0]])
+                before = int(trk[mine[mine < j][-1]])
+                after = int(trk[mine[mine > j][0]])
                 if before != after:
                     kind = "id_change"
                 elif (int(np.searchsorted(instants, t[rows[j]])), before) in reported:
@@ -135,9 +154,11 @@ def lost_by_kind(score) -> dict:
                     kind = "unreported"
             counts[kind] += 1
     n = max(int(straight.sum()), 1)
-    return {f"lost_straight_{k}": v / n for k, v in counts.items()} | {
-        f"id_changes_{k}": v for k, v in changes.items()
-    }
+    return (
+        {f"lost_straight_{k}": v / n for k, v in counts.items()}
+        | {f"id_changes_{k}": v for k, v in changes.items()}
+        | {"flights_per_identity": float(np.mean(flights)) if flights else None}
+    )
 
 
 def score_tracks(scene, run_dir: Path, n_scans: int) -> dict:
@@ -247,7 +268,12 @@ def main() -> None:
             + "; straight lost by kind (% of straight points): "
             + ", ".join(f"{k} {100 * row['bare'][f'lost_straight_{k}']:.2f}" for k in LOST_KINDS)
             + "; id changes: "
-            + ", ".join(f"{k} {row['bare'][f'id_changes_{k}']}" for k in ("rebirth", "overlap"))
+            + ", ".join(
+                f"{k} {row['bare'][f'id_changes_{k}']}"
+                for k in ("new_flight", "rebirth", "overlap")
+            )
+            + f" (flights per aircraft {_num(row['bare']['flights_per_identity'])}: the fewest "
+            "ids any tracker without identities can have)"
             + f"; CPU {cpu:.0f} s for {row['data_hours']:.1f} h of data "
             f"({row['data_hours'] * 3600 / max(cpu, 1e-9):.0f}× real time)"
         )
