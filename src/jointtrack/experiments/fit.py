@@ -102,8 +102,13 @@ admitted by the wide gate of a prediction coasted that long: purity 0.860 → 0.
 Measured (``benchmarks/RESULTS.md``): quickstart seed 1 purity 0.860 (off) / 0.838
 (6 scans) / 0.856 (3 scans), false tracks 4.7 / 5.0 / 4.3 per hour; seed 2 0.863
 (off) / 0.856 (3 scans) — continuation still costs a little purity there; switzerland
-seed 2 1.80 (off) / 1.607 (6 scans) / 1.608 (3 scans) ids per aircraft. Report-like
-files do not get it.
+seed 2 1.80 (off) / 1.607 (6 scans) / 1.608 (3 scans) ids per aircraft. What is left
+there is mostly not the tracker's: 402 of the 550–562 id changes (seeds 2, 1) are an
+aircraft's next flight, after it sent no report for longer than the scorer's 600 s —
+1.477 flights per aircraft, the fewest ids any tracker without identities can score; a
+continuation window could not bridge them without handing ids between aircraft. The
+tracker's own are 71–74 rebirths and 77–86 overlapping ids. Report-like files do not
+get it.
 
 Report-like files: q and the gate from the moving targets. A report file has no
 scans, so no returns after a miss; and on AIS the core of the linked triples is the
