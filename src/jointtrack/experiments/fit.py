@@ -119,6 +119,26 @@ minutes (chosen there; the rest of the file held out): σ 1.84 m; the moving
 vessels' median NIS asks q 0.002, below the floor 10⁻³σ²/Δt³ = 0.32 (Δt the median gap
 between any two reports), which is kept; p_g 0.999999 from their 99 % point.
 
+Report-like files: at rest and under way (JPDA/JIPDA; :func:`_choose_report_models`).
+One CV q cannot hold moored vessels and vessels under way: a track started on a moored
+vessel's report, with a CV velocity spread, takes its neighbour's report a minute later
+(Solent: moored vessels 150–300 m apart reporting every 3 minutes), and a q for the
+moving vessels widens every gate. The lag-1 triples whose two links both stay within
+the noise's :data:`FOUND` ellipse over at least the median span are *at rest*; the
+triples of the longest lag with :data:`MIN_TRIPLES` of them whose ends lie apart beyond
+it, and which the fitted σ and q hold, are *moving*. With at least :data:`REST_SHARE`
+of each (and :data:`MIN_TRIPLES`), the fit chooses ``motion = "imm"`` with the modes
+CV (q as above: the moving targets') and ``"stationary"``
+(:class:`~jointtrack.models.Stationary`, q from the at-rest links' spread beyond 2σ²,
+floored at 10⁻³σ²/gap), switching in continuous time at :data:`STAY_PER_SECOND` a
+second (a stated value, not fitted: :mod:`jointtrack.filters.imm`, "Switching in
+time") and a new track's mode probabilities in the proportion of the two classes.
+``max_speed`` is 1.5 × the 99 % point of the moving triples' speeds, or refused
+(the default, with the reason) when fewer than :data:`REST_SHARE` of them move: the
+trimmed core's speeds had been the moored vessels' (0.003 m/s on the first 30
+minutes of the bench's Solent scene). Measured: ``benchmarks/RESULTS.md``, "Issue 32:
+Solent with a stationary IMM mode".
+
 Close pairs and turns (scan files, JPDA/JIPDA; :func:`_choose_scan_models`). Both
 choices are stated with their counts in the sources, and a key ``[tracker]`` sets is
 left alone. ``coalescence_avoidance`` (JPDA*, :mod:`jointtrack.association.coalescence`):
