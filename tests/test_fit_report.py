@@ -66,6 +66,9 @@ def test_user_keys_are_kept_and_poisson_kinds_get_no_imm():
     assert f.sources["motion"] == "set in [tracker]"
     f = fit_tracker_settings(det, {"imm_switching_per": "scan"})
     assert "motion" not in f.table or f.table["motion"] != "imm"
+    f = fit_tracker_settings(det, {"imm_initial": [0.2, 0.8]})
+    assert f.table["motion"] == "imm" and list(f.table["imm_initial"]) == [0.2, 0.8]
+    assert f.sources["imm_initial"] == "set in [tracker]"
     for kind in ("pmb", "pmbm"):
         assert "imm_modes" not in fit_tracker_settings(det, kind=kind).table
 

@@ -990,18 +990,21 @@ def _choose_report_models(
         ("imm_switching_per", "second"),
         ("imm_initial", (share, 1.0 - share)),
     ):
-        wanted.append(key)
-        fitted[key] = (value, f"fitted: imm (CV + stationary): {text}")
-    fitted["imm_switching"] = (
-        fitted["imm_switching"][0],
-        f"stated: stay {stay} per second in continuous time (a target stops or gets under "
-        "way about once in a quarter of an hour)",
-    )
-    fitted["imm_initial"] = (
-        (share, 1.0 - share),
-        f"fitted: the shares of moving and at-rest triples ({n_mov:,} of {n_lag:,} : "
-        f"{n_rest:,} of {n_all:,})",
-    )
+        if key not in table:  # a key the user set is kept
+            wanted.append(key)
+            fitted[key] = (value, f"fitted: imm (CV + stationary): {text}")
+    if "imm_switching" in fitted:
+        fitted["imm_switching"] = (
+            fitted["imm_switching"][0],
+            f"stated: stay {stay} per second in continuous time (a target stops or gets "
+            "under way about once in a quarter of an hour)",
+        )
+    if "imm_initial" in fitted:
+        fitted["imm_initial"] = (
+            (share, 1.0 - share),
+            f"fitted: the shares of moving and at-rest triples ({n_mov:,} of {n_lag:,} : "
+            f"{n_rest:,} of {n_all:,})",
+        )
 
 
 def _fit_pd_gate(
