@@ -64,8 +64,10 @@ def test_user_keys_are_kept_and_poisson_kinds_get_no_imm():
     f = fit_tracker_settings(det, {"motion": "cv"})
     assert f.table["motion"] == "cv" and "imm_modes" not in f.table
     assert f.sources["motion"] == "set in [tracker]"
+    f = fit_tracker_settings(det, {"imm_modes": ["cv", "ct"]})
+    assert "motion" not in f.table and list(f.table["imm_modes"]) == ["cv", "ct"]
     f = fit_tracker_settings(det, {"imm_switching_per": "scan"})
-    assert "motion" not in f.table or f.table["motion"] != "imm"
+    assert f.table["motion"] == "imm" and f.table["imm_switching_per"] == "scan"
     f = fit_tracker_settings(det, {"imm_initial": [0.2, 0.8]})
     assert f.table["motion"] == "imm" and list(f.table["imm_initial"]) == [0.2, 0.8]
     assert f.sources["imm_initial"] == "set in [tracker]"

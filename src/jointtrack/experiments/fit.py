@@ -958,9 +958,10 @@ def _choose_report_models(
                     f"fitted: {SPEED_MARGIN:g} × the 99 % point ({v99:.4g}) of the speeds "
                     f"|z2 − z0|/(t2 − t0) of the {n_mov:,} moving triples {counts}",
                 )
-    keys = ("motion", "imm_modes", "imm_process_noise", "imm_switching", "imm_switching_per")
-    # JPDA/JIPDA only (PMB/PMBM take POISSON_FIT_KEYS), and never over a key the user set
-    if kind in ("pmb", "pmbm") or any(k in table for k in keys) or "process_noise" not in fitted:
+    # JPDA/JIPDA only (PMB/PMBM take POISSON_FIT_KEYS); the user's motion or modes stand
+    # (any other IMM key the user sets is kept beside the choice)
+    user_motion = "motion" in table or "imm_modes" in table
+    if kind in ("pmb", "pmbm") or user_motion or "process_noise" not in fitted:
         return
     both = n_rest >= max(MIN_TRIPLES, REST_SHARE * n_all) and enough_moving
     if not both:
