@@ -43,6 +43,23 @@ is positive definite) and embedded back; in the common state a mode's covariance
 is positive *semi*-definite (its inactive rows are zero), and the combined
 covariance of position and velocity is positive definite.
 
+A stationary mode (:class:`~jointtrack.models.Stationary`: the position a slow
+random walk, the velocity 0) has the position alone as its own components; its
+velocity is 0 with zero variance in the common state, as a CV mode's acceleration.
+
+Switching in time
+-----------------
+The chain above steps once per scan. With targets that report themselves one at a
+time (``reporting = "async"``) every report of every target is a scan — on Solent
+AIS 3.7 a second — so a per-scan stay probability of 0.95 mixes the modes
+completely within seconds, whatever the target did. With ``switching_per =
+"second"`` the matrix is the one-second transition Π₁ of a continuous-time Markov
+chain with generator ``G = log Π₁`` (rates per second, rows summing to 0; Norris,
+*Markov Chains*, Cambridge University Press 1997, §2.1, §3.1), and a prediction over
+Δt seconds mixes with ``Π(Δt) = e^{G Δt}`` (Π(1) = Π₁, Π(a)Π(b) = Π(a + b)): the
+switching a track sees between two of its own reports depends on the time between
+them, not on how many other targets reported in between.
+
 Numerics
 --------
 Mode probabilities are carried as logarithms, ``log μ`` (N, r), normalised
@@ -83,10 +100,16 @@ from jointtrack.filters.kalman import (
     update,
 )
 from jointtrack.filters.pda import pda_pairs_update
-from jointtrack.models.motion import ConstantAcceleration, ConstantVelocity, CoordinatedTurn
+from jointtrack.models.motion import (
+    ConstantAcceleration,
+    ConstantVelocity,
+    CoordinatedTurn,
+    Stationary,
+)
 
 __all__ = [
     "IMMModes",
+    "SWITCHING_PER",
     "imm_combine",
     "imm_mix",
     "imm_mixing",
@@ -95,6 +118,8 @@ __all__ = [
     "imm_pda_pairs_update",
     "imm_predict",
     "imm_update",
+    "switching_generator",
+    "switching_over",
 ]
 
 #: accepted |row sum − 1| of a switching matrix and |Σ μ − 1| of mode probabilities
@@ -154,7 +179,154 @@ def _switching_matrix(switching, r: int, name: str = "switching") -> np.ndarray:
     return P / sums[:, None]
 
 
-_KINDS = ((CoordinatedTurn, "ct"), (ConstantAcceleration, "ca"), (ConstantVelocity, "cv"))
+_KINDS = (
+    (CoordinatedTurn, "ct"),
+    (ConstantAcceleration, "ca"),
+    (ConstantVelocity, "cv"),
+    (Stationary, "stationary"),
+)
+
+#: how a switching matrix is meant: per scan (a step of the chain at every scan) or
+#: per second (the one-second transition of a continuous-time chain)
+SWITCHING_PER = ("scan", "second")
+
+
+_EMBEDDABLE = (
+    " (two modes with stay probabilities above 1/2, or r modes with stays above 1/r and "
+    "the rest shared equally, always are)"
+)
+
+
+def switching_generator(switching, name: str = "switching") -> np.ndarray:
+    """The generator ``G`` of the continuous-time chain whose one-second transition is
+    ``switching``: ``expm(G) = Π₁``, off-diagonal rates ≥ 0, rows summing to 0.
+
+    ``G = log Π₁`` (the principal matrix logarithm). Not every stochastic matrix is
+    the one-second transition of a continuous-time chain (the embedding problem):
+    a matrix with a zero or negative eigenvalue, or whose logarithm has a negative
+    off-diagonal rate, is refused with a ValueError naming ``name``. Every matrix
+    with stay probabilities above 1/2 on the diagonal of a two-mode chain, and
+    every ``p I + (1 − p)/(r − 1)(11ᵀ − I)`` with ``p > 1/r``, is embeddable.
+    """
+    from scipy.linalg import logm
+
+    P = np.asarray(switching, float)
+    r = len(P)
+    eig = np.linalg.eigvals(P)
+    if (np.abs(eig.imag) <= 1e-12).all() and (eig.real <= 1e-12).any():
+        raise ValueError(
+            f"{name}: as a one-second switching matrix (imm_switching_per = 'second') it "
+            f"needs positive eigenvalues, got {sorted(eig.real.tolist())}: it switches "
+            "faster than any continuous-time chain" + _EMBEDDABLE
+        )
+    # Π₁ − I from the off-diagonal shares (rows of Π₁ sum to one): switching
+    # probabilities far below the rounding of 1 on the diagonal are kept
+    E = np.where(np.eye(r, dtype=bool), 0.0, P)
+    E[np.diag_indices(r)] = -E.sum(axis=1)
+    if r == 1 or not E.any():
+        G = np.zeros((r, r))
+    elif np.abs(E).sum(axis=1).max() <= 0.5:
+        # log(I + E) = Σ_k (−1)^{k+1} Eᵏ/k, ‖E‖∞ ≤ 1/2: 64 terms leave < 2⁻⁶⁴/64, and a
+        # tiny rate keeps its relative accuracy (its first term is the share itself)
+        G, term = np.zeros((r, r)), np.eye(r)
+        for k in range(1, 65):
+            term = term @ E
+            G += term * ((-1.0) ** (k + 1) / k)
+    else:
+        with np.errstate(all="ignore"):
+            G = logm(P)
+    G = np.asarray(G)
+    if not np.isfinite(G).all() or (np.abs(np.imag(G)) > 1e-9).any():
+        raise ValueError(
+            f"{name}: as a one-second switching matrix (imm_switching_per = 'second') it "
+            "has no real logarithm: it is not the one-second transition of a continuous-time "
+            "chain" + _EMBEDDABLE
+        )
+    G = np.real(G)
+    off = ~np.eye(r, dtype=bool)
+    neg = off & (G < -1e-9)
+    if neg.any():
+        i, j = (int(v) for v in np.argwhere(neg)[0])
+        raise ValueError(
+            f"{name}: as a one-second switching matrix (imm_switching_per = 'second') its "
+            f"logarithm has a negative switching rate {G[i, j]:.6g} per second from mode {i} "
+            f"to mode {j}: it is not the one-second transition of a continuous-time chain"
+            + _EMBEDDABLE
+        )
+    G = np.where(off, np.maximum(G, 0.0), 0.0)
+    G[np.diag_indices(r)] = -G.sum(axis=1)  # rows of a generator sum to 0 exactly
+    # the rates cut to 0 above were rounding (≥ −1e-9): the chain must still give Π₁
+    from scipy.linalg import expm
+
+    err = float(np.max(np.abs(expm(G) - P)))
+    if not err <= 1e-9:
+        raise ValueError(
+            f"{name}: as a one-second switching matrix (imm_switching_per = 'second') it is "
+            f"not the one-second transition of a continuous-time chain (the nearest one "
+            f"differs by {err:.3g})" + _EMBEDDABLE
+        )
+    return G
+
+
+def switching_over(generator, dt) -> np.ndarray:
+    """``Π(Δt) = expm(G Δt)``, the switching matrix of a continuous-time chain over
+    ``dt`` seconds (``dt`` ≥ 0 finite; ``Π(0) = I``, ``Π(a)Π(b) = Π(a + b)``).
+
+    ``generator``: ``G`` (:func:`switching_generator`) or its :class:`_ChainInTime`
+    (the eigendecomposition, made once: a tracker asks at every scan). Entries are ≥ 0
+    (rounding below 0 is cut) and rows renormalised to sum to one.
+    """
+    chain = generator if isinstance(generator, _ChainInTime) else _ChainInTime(generator)
+    return chain(dt)
+
+
+class _ChainInTime:
+    """``Δt ↦ e^{GΔt}`` of one generator. Two modes (rates a, b): the closed form
+    ``π_01 = a/(a + b) · (1 − e^{−(a+b)Δt})``, ``π_10 = b/(a + b) · (1 − e^{−(a+b)Δt})``
+    (Norris 1997, §2.1), each switching probability to its relative accuracy (expm1).
+    More modes: ``I + V diag(expm1(λΔt)) V⁻¹`` when G has real eigenvalues and an
+    eigenbasis that reproduces it (equal shares among the modes), else
+    :func:`scipy.linalg.expm`."""
+
+    def __init__(self, generator):
+        self.G = np.asarray(generator, float)
+        lam, V = np.linalg.eig(self.G)
+        self.eig = None
+        top = float(np.max(np.abs(self.G))) if self.G.size else 0.0
+        if len(self.G) > 2 and (np.abs(lam.imag) <= 1e-12 * (1.0 + np.abs(lam.real))).all():
+            V, lam_r = np.real(V), np.real(lam)
+            if np.linalg.cond(V) < 1e6:
+                W = np.linalg.inv(V)
+                if np.max(np.abs((V * lam_r) @ W - self.G)) <= 1e-13 * top:
+                    self.eig = (lam_r, V, W)
+        # past 800 of the chain's slowest time constants every transient e^{−γΔt} is
+        # below the smallest float: Π(Δt) is the limit, which that span already gives
+        rates = -lam.real
+        slow = rates[rates > 1e-12 * top]
+        self.longest = 800.0 / float(slow.min()) if slow.size else math.inf
+
+    def __call__(self, dt) -> np.ndarray:
+        dt = float(dt)
+        if not (math.isfinite(dt) and dt >= 0):
+            raise ValueError(f"dt must be finite and ≥ 0 seconds, got {dt}")
+        r = len(self.G)
+        if dt == 0.0 or not self.G.any():
+            return np.eye(r)
+        span = min(dt, self.longest)
+        if r == 2:
+            a, b = self.G[0, 1], self.G[1, 0]
+            moved = -math.expm1(-(a + b) * span)  # 1 − e^{−(a+b)Δt}, no cancellation
+            p01, p10 = a / (a + b) * moved, b / (a + b) * moved
+            return np.array([[1.0 - p01, p01], [p10, 1.0 - p10]])
+        if self.eig is not None:
+            lam, V, W = self.eig
+            P = np.eye(r) + (V * np.expm1(lam * span)) @ W
+        else:
+            from scipy.linalg import expm
+
+            P = expm(self.G * span)
+        P = np.maximum(P, 0.0)
+        return P / P.sum(axis=1, keepdims=True)
 
 
 class IMMModes:
@@ -166,14 +338,22 @@ class IMMModes:
         :class:`~jointtrack.models.ConstantVelocity`,
         :class:`~jointtrack.models.ConstantAcceleration` or
         :class:`~jointtrack.models.CoordinatedTurn` (2-D), all of one spatial
-        dimension; two modes may be of one kind (e.g. CV with a small and a large q).
+        dimension, or :class:`~jointtrack.models.Stationary` (position only, velocity
+        0); two modes may be of one kind (e.g. CV with a small and a large q).
     switching : (r, r) array
         ``switching[i, j]`` = P(mode j now | mode i before): rows sum to one (to
         1e-9, renormalised); every column needs a positive entry.
     initial : (r,) array, optional
         mode probabilities of a new track, each > 0, summing to one (default uniform).
     names : sequence of str, optional
-        one per mode (default ``"cv"``, ``"ca"``, ``"ct"``).
+        one per mode (default ``"cv"``, ``"ca"``, ``"ct"``, ``"stationary"``).
+    switching_per : {"scan", "second"}
+        ``"scan"`` (default): ``switching`` is applied once per prediction, whatever
+        its Δt. ``"second"``: ``switching`` is the one-second transition ``Π₁`` of
+        a continuous-time chain, and a prediction over Δt seconds switches by
+        ``Π(Δt) = expm(Δt log Π₁)`` (= ``Π₁^Δt``; :func:`switching_generator`,
+        :func:`switching_over`) — a target between two of its own reports switches
+        as often as the elapsed time says, not once per other target's report.
 
     Attributes
     ----------
@@ -195,7 +375,7 @@ class IMMModes:
     (5, ('cv', 'ct'))
     """
 
-    def __init__(self, models, switching, initial=None, names=None):
+    def __init__(self, models, switching, initial=None, names=None, switching_per="scan"):
         models = list(models) if not isinstance(models, str) else None
         if not models:
             raise ValueError("models must be a non-empty sequence of motion models")
@@ -204,8 +384,8 @@ class IMMModes:
             kind = next((k for cls, k in _KINDS if isinstance(m, cls)), None)
             if kind is None:
                 raise ValueError(
-                    f"models[{j}] = {m!r} is not a ConstantVelocity, ConstantAcceleration or "
-                    "CoordinatedTurn model"
+                    f"models[{j}] = {m!r} is not a ConstantVelocity, ConstantAcceleration, "
+                    "CoordinatedTurn or Stationary model"
                 )
             kinds.append(kind)
         dims = {int(m.dim) for m in models}
@@ -226,6 +406,11 @@ class IMMModes:
         self.switching = _switching_matrix(switching, r)
         with np.errstate(divide="ignore"):
             self.log_switching = np.log(self.switching)
+        if switching_per not in SWITCHING_PER:
+            raise ValueError(f"switching_per must be 'scan' or 'second', got {switching_per!r}")
+        self.switching_per = switching_per
+        self.generator = switching_generator(self.switching) if switching_per == "second" else None
+        self._chain = None if self.generator is None else _ChainInTime(self.generator)
         self.initial = (
             np.full(r, 1.0 / r) if initial is None else _probability_vector(initial, r, "initial")
         )
@@ -243,7 +428,9 @@ class IMMModes:
         base = np.arange(2 * d)
         self.mode_indices = []
         for kind in kinds:
-            if kind == "cv":
+            if kind == "stationary":
+                idx = np.arange(d)
+            elif kind == "cv":
                 idx = base
             elif kind == "ca":
                 idx = np.concatenate([base, self.acceleration_indices])
@@ -253,6 +440,14 @@ class IMMModes:
 
     def __repr__(self) -> str:
         return f"IMMModes(names={self.names}, state_dim={self.state_dim})"
+
+    def log_switching_over(self, dt) -> np.ndarray:
+        """``log Π`` of a prediction over ``dt`` seconds: the per-scan matrix, or (with
+        ``switching_per = "second"``) ``log expm(Δt log Π₁)`` (−∞ where an entry is 0)."""
+        if self.generator is None:
+            return self.log_switching
+        with np.errstate(divide="ignore"):
+            return np.log(self._chain(dt))
 
     def initial_states(self, x0, P0, acceleration_var=0.0, turn_rate_var=0.0):
         """Per-mode states ``(x (K, r, n), P (K, r, n, n), log μ (K, r))`` of new tracks.
@@ -270,6 +465,8 @@ class IMMModes:
         x[:, :, :k] = x0[:, None]
         P[:, :, :k, :k] = P0[:, None]
         for j, kind in enumerate(self.kinds):
+            if kind == "stationary":  # its velocity is 0 exactly (zero variance)
+                x[:, j], P[:, j] = self.from_mode(j, *self.to_mode(j, x[:, j], P[:, j]))
             if kind == "ca":
                 a = self.acceleration_indices
                 P[:, j, a, a] = acceleration_var
@@ -436,6 +633,11 @@ def imm_mixing(log_mu, switching):
         r = len(pi)
         with np.errstate(divide="ignore"):
             log_pi = np.log(pi)
+    return _mixing(log_mu, log_pi, r)
+
+
+def _mixing(log_mu, log_pi, r: int):
+    """:func:`imm_mixing` with ``log Π`` given (its columns each with a finite entry)."""
     log_mu = np.atleast_2d(log_mu) if np.ndim(log_mu) == 1 else log_mu
     log_mu = _log_probabilities(log_mu, np.shape(log_mu)[0], r)
     joint = log_mu[:, :, None] + log_pi[None]  # log π_ij μ_i, (N, i, j)
@@ -508,10 +710,11 @@ def imm_predict(x, P, log_mu, modes: IMMModes, dt):
     ``x`` (N, r, n), ``P`` (N, r, n, n), ``log_mu`` (N, r) the modes' estimates
     and log probabilities after the previous scan; ``dt`` > 0 (a number). Returns
     each mode's prediction of its mixed initial condition and the predicted log
-    mode probabilities ``log c̄`` (steps 1–3 of the module docstring).
+    mode probabilities ``log c̄`` (steps 1–3 of the module docstring). The switching
+    is ``modes``' per-scan matrix, or over ``dt`` seconds (``switching_per = "second"``).
     """
     x, P = _checked(modes, x, P)
-    log_cbar, log_mix = imm_mixing(log_mu, modes)
+    log_cbar, log_mix = _mixing(log_mu, modes.log_switching_over(dt), modes.n_modes)
     x0, P0 = imm_mix(x, P, log_mix)
     xp, Pp = np.empty_like(x0), np.empty_like(P0)
     for j in range(modes.n_modes):

@@ -63,6 +63,7 @@ __all__ = [
     "ConstantAcceleration",
     "ConstantVelocity",
     "CoordinatedTurn",
+    "Stationary",
     "ca_noise",
     "ca_transition",
     "cv_noise",
@@ -409,6 +410,80 @@ class ConstantAcceleration(_KinematicModel):
     def noise(self, dt) -> np.ndarray:
         """Q(Δt), see :func:`ca_noise`."""
         return ca_noise(dt, self.q, self.dim)
+
+
+@dataclass(frozen=True)
+class Stationary(_KinematicModel):
+    """A target at rest: zero velocity, its position a slow random walk.
+
+    State ``[x, y(, z)]`` — the position alone; the velocity is exactly 0 (in an
+    IMM's common state, :class:`~jointtrack.filters.imm.IMMModes`, the velocity
+    components of this mode are 0 with zero variance). ``F(Δt) = I`` and
+    ``Q(Δt) = q Δt I``: the position is a Wiener process of power spectral
+    density ``q`` (m²/s, per axis) — a moored vessel swinging at its anchor, a
+    parked vehicle's position jitter. It is the order-0 member of the
+    continuous-time white-noise family of the module docstring (the noise drives
+    the position itself), so the semigroup identities hold exactly:
+    ``F(a+b) = I = F(b)F(a)``, ``Q(a+b) = (a + b) q I = Q(a) + Q(b)``.
+
+    Parameters
+    ----------
+    dim : {1, 2, 3}
+        spatial dimension.
+    q : float ≥ 0
+        power spectral density of the position's random walk (m²/s), per axis.
+
+    Examples
+    --------
+    >>> m = Stationary(dim=2, q=0.01)
+    >>> m.transition(60.0).tolist(), m.noise(60.0).diagonal().tolist()
+    ([[1.0, 0.0], [0.0, 1.0]], [0.6, 0.6])
+    """
+
+    _order = 1
+
+    @property
+    def max_dt(self) -> float:
+        """Largest time step for which ``noise`` is finite (``q Δt`` ≤ the largest float)."""
+        if self.q == 0.0:
+            return _FMAX
+        dt = min(_FMAX / self.q, _FMAX)
+        with np.errstate(over="ignore"):
+            while not np.isfinite(self.q * dt):
+                dt = float(dt * (1.0 - 4 * np.finfo(np.float64).eps))
+        return dt
+
+    @property
+    def velocity_indices(self) -> np.ndarray:
+        """No velocity components (the velocity is exactly 0): an empty array."""
+        return np.zeros(0, np.int64)
+
+    def _dt(self, dt) -> np.ndarray:
+        dt = _check_dt(dt)
+        big = dt > self.max_dt
+        if big.any():
+            i = int(np.argmax(big)) if dt.ndim else 0
+            val = float(dt) if dt.ndim == 0 else float(dt[i])
+            name = "dt" if dt.ndim == 0 else f"dt[{i}] (track {i})"
+            raise ValueError(
+                f"time step {name} = {val:.6g} is too large: the stationary process noise "
+                f"Q overflows beyond dt = {self.max_dt:.6g} with q = {self.q:g}"
+            )
+        return dt
+
+    def transition(self, dt) -> np.ndarray:
+        """F(Δt) = I (dim × dim), or an (N, dim, dim) stack for an array ``dt``."""
+        dt = self._dt(dt)
+        eye = np.eye(self.dim)
+        return eye if dt.ndim == 0 else np.broadcast_to(eye, (len(dt), self.dim, self.dim)).copy()
+
+    def noise(self, dt) -> np.ndarray:
+        """Q(Δt) = q Δt I (dim × dim), or an (N, dim, dim) stack for an array ``dt``."""
+        dt = self._dt(dt)
+        eye = np.eye(self.dim)
+        if dt.ndim == 0:
+            return (self.q * float(dt)) * eye
+        return (self.q * dt)[:, None, None] * eye
 
 
 # --------------------------------------------------------------------------- coordinated turn

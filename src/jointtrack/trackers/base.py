@@ -54,6 +54,7 @@ from jointtrack.models import (
     CoordinatedTurn,
     LinearPosition,
     RangeBearing,
+    Stationary,
 )
 from jointtrack.trackers.history import (
     TrackHistory,
@@ -201,17 +202,22 @@ def motion_model(config, motion=None):
 
 def imm_modes(config) -> IMMModes:
     """The :class:`~jointtrack.filters.imm.IMMModes` of a ``motion = "imm"`` configuration."""
-    q, d = config.process_noise, config.dim
+    d = config.dim
+    qs = getattr(config, "imm_process_noise", None) or (config.process_noise,) * len(
+        config.imm_modes
+    )
     build = {
-        "cv": lambda: ConstantVelocity(dim=d, q=q),
-        "ca": lambda: ConstantAcceleration(dim=d, q=q),
-        "ct": lambda: CoordinatedTurn(q=q, turn_rate_std=config.turn_rate_std),
+        "cv": lambda q: ConstantVelocity(dim=d, q=q),
+        "ca": lambda q: ConstantAcceleration(dim=d, q=q),
+        "ct": lambda q: CoordinatedTurn(q=q, turn_rate_std=config.turn_rate_std),
+        "stationary": lambda q: Stationary(dim=d, q=q),
     }
     return IMMModes(
-        [build[name]() for name in config.imm_modes],
+        [build[name](q) for name, q in zip(config.imm_modes, qs, strict=True)],
         config.imm_switching_matrix(),
         initial=config.imm_initial,
         names=config.imm_modes,
+        switching_per=getattr(config, "imm_switching_per", "scan"),
     )
 
 

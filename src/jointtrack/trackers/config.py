@@ -229,14 +229,30 @@ class TrackerConfig(ModelSettings):
     imm_modes : the modes of ``motion = "imm"``, distinct names among ``"cv"``
         (nearly constant velocity, q = ``process_noise``), ``"ct"`` (coordinated
         turn with the turn rate estimated, 2-D: acceleration noise
-        ``process_noise``, turn-rate noise ``turn_rate_std``) and ``"ca"``
-        (constant acceleration, jerk noise ``process_noise`` in m²/s⁵); default
+        ``process_noise``, turn-rate noise ``turn_rate_std``), ``"ca"``
+        (constant acceleration, jerk noise ``process_noise`` in m²/s⁵) and
+        ``"stationary"`` (at rest: velocity 0, the position a random walk of
+        ``process_noise`` m²/s; :class:`~jointtrack.models.Stationary`); default
         ``("cv", "ct")``.
+    imm_process_noise : None (default: every mode takes ``process_noise``) or one
+        q ≥ 0 per mode of ``imm_modes``, in that mode's unit (cv, ct: m²/s³; ca:
+        m²/s⁵; stationary: m²/s) — e.g. a moving mode's q and an at-rest mode's.
     imm_switching : the Markov switching matrix of the modes: a number p in
-        (0, 1], the probability of staying in a mode from one scan to the next
-        (the rest shared equally among the other modes), or a square
-        row-stochastic matrix, one row per mode, ``[i][j]`` = P(mode j | mode i
-        before); every column needs a positive entry. Default 0.95.
+        (0, 1], the probability of staying in a mode from one scan (or second,
+        ``imm_switching_per``) to the next (the rest shared equally among the
+        other modes), or a square row-stochastic matrix, one row per mode,
+        ``[i][j]`` = P(mode j | mode i before); every column needs a positive
+        entry. Default 0.95.
+    imm_switching_per : ``"scan"`` (default: ``imm_switching`` applies once per
+        scan, whatever its interval) or ``"second"``: ``imm_switching`` is the
+        one-second transition of a continuous-time chain and a scan Δt seconds
+        after the previous one switches by its Δt-th power (the matrix exponential
+        of Δt × its logarithm, :mod:`jointtrack.filters.imm`) — with reporting
+        targets (``reporting = "async"``, a scan per report) a target switches as
+        often as time says, not once per other target's report. The matrix must
+        then be such a transition (positive eigenvalues, a logarithm with
+        switching rates ≥ 0; two modes with stays above 1/2, or a stay p > 1/r with
+        the rest shared equally, are).
     imm_initial : mode probabilities of a new track, one per mode, each > 0,
         summing to 1; None (default) = uniform.
     turn_rate_std : σ of the coordinated-turn mode's turn-rate random walk,
@@ -295,6 +311,8 @@ class TrackerConfig(ModelSettings):
     imm_initial: tuple | None = None
     turn_rate_std: float = 0.02
     max_turn_rate: float = 0.2
+    imm_switching_per: str = "scan"
+    imm_process_noise: tuple | None = None
     coalescence_avoidance: bool = False
     id_continuation: float = 0.0
 
@@ -374,10 +392,19 @@ class TrackerConfig(ModelSettings):
                 f"{self.dim}"
             )
         try:
-            self.imm_switching_matrix()
+            M = self.imm_switching_matrix()
+            if self.imm_switching_per == "second":
+                from jointtrack.filters.imm import switching_generator
+
+                switching_generator(M, "imm_switching")
         except ValueError as exc:
             rest = str(exc).removeprefix("imm_switching")
             raise ValueError(f"TrackerConfig: imm_switching{rest}") from None
+        if self.imm_process_noise is not None and len(self.imm_process_noise) != r:
+            raise ValueError(
+                f"TrackerConfig: imm_process_noise must have one q per mode of imm_modes "
+                f"({r}: {list(self.imm_modes)}), got {len(self.imm_process_noise)}"
+            )
         if self.imm_initial is not None:
             from jointtrack.filters.imm import _probability_vector
 
@@ -695,7 +722,7 @@ def _check_noise(v, dim: int):
 
 
 #: Modes of ``motion = "imm"`` (``TrackerConfig.imm_modes``).
-IMM_MODES = ("cv", "ct", "ca")
+IMM_MODES = ("cv", "ct", "ca", "stationary")
 
 
 def _imm_modes(name, v):
@@ -743,6 +770,17 @@ def _imm_initial(name, v):
     return out
 
 
+def _imm_process_noise(name, v):
+    if v is None:
+        return None
+    want = "None or a list of process noise intensities q ≥ 0, one per mode of imm_modes"
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, str | bytes) or not isinstance(v, list | tuple) or not v:
+        raise _fail(name, want, v)
+    return tuple(_variance(name, a) for a in v)
+
+
 _CHECKS = {
     "dim": _dim,
     "motion": _choice(("cv", "ca", "imm")),
@@ -787,6 +825,8 @@ _CHECKS = {
     "imm_initial": _imm_initial,
     "turn_rate_std": _non_negative,
     "max_turn_rate": _positive,
+    "imm_switching_per": _choice(("scan", "second")),
+    "imm_process_noise": _imm_process_noise,
     "coalescence_avoidance": _bool,
     "id_continuation": _non_negative,
 }

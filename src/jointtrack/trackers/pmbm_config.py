@@ -45,6 +45,9 @@ _ADDED_SETTINGS = {
     "imm_initial": None,
     "turn_rate_std": 0.02,
     "max_turn_rate": 0.2,
+    # switching per second and per-mode q (issue 32): per scan, one q, as before
+    "imm_switching_per": "scan",
+    "imm_process_noise": None,
 }
 
 #: Fields shared with TrackerConfig, checked by its field checks.
@@ -76,6 +79,8 @@ _SHARED = (
     "imm_initial",
     "turn_rate_std",
     "max_turn_rate",
+    "imm_switching_per",
+    "imm_process_noise",
 )
 
 
@@ -88,7 +93,8 @@ class PMBMConfig(ModelSettings):
     dim, motion, process_noise, measurement_noise, sensor, sensor_position,
     range_noise, bearing_noise, p_d, p_survive, association, exact_max_tracks,
     approximation, seed, reporting, report_interval, p_survive_per, velocity_std,
-    r_labelled, imm_modes, imm_switching, imm_initial, turn_rate_std, max_turn_rate :
+    r_labelled, imm_modes, imm_switching, imm_initial, turn_rate_std, max_turn_rate,
+    imm_switching_per, imm_process_noise :
         as in :class:`~jointtrack.trackers.config.TrackerConfig` (and checked by it).
         ``motion = "imm"``: each Bernoulli (PMBM: each single-target hypothesis)
         carries the modes' states and probabilities of
@@ -208,6 +214,8 @@ class PMBMConfig(ModelSettings):
     imm_initial: tuple | None = None
     turn_rate_std: float = 0.02
     max_turn_rate: float = 0.2
+    imm_switching_per: str = "scan"
+    imm_process_noise: tuple | None = None
 
     def __post_init__(self):
         for name in _SHARED:
@@ -305,6 +313,8 @@ class PMBMConfig(ModelSettings):
             imm_initial=self.imm_initial,
             turn_rate_std=self.turn_rate_std,
             max_turn_rate=self.max_turn_rate,
+            imm_switching_per=self.imm_switching_per,
+            imm_process_noise=self.imm_process_noise,
         )
 
     def imm_switching_matrix(self) -> np.ndarray:

@@ -228,6 +228,10 @@ def _fill_added_settings(header: dict, arrays: dict) -> None:
         header["config"]["id_continuation"] = 0.0
         for name, shape in _RETIRED_EMPTY.items():
             arrays.setdefault(name, np.zeros(shape, np.int64 if name == "retired_ids" else float))
+    # the IMM's switching per second and per-mode q (issue 32) came after version 6:
+    # per scan and one q, as every earlier state ran
+    header["config"].setdefault("imm_switching_per", "scan")
+    header["config"].setdefault("imm_process_noise", None)
     if header["version"] < 5:  # the IMM settings (issue 32) did not exist
         for key, value in _IMM_SETTINGS.items():
             header["config"].setdefault(key, value)
