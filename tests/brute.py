@@ -1,4 +1,12 @@
-"""Brute-force references shared by the tests (itertools enumeration, tiny sizes only)."""
+"""Brute-force references shared by the tests (itertools enumeration, tiny sizes only).
+
+Exact arithmetic on integers: every float64 is a dyadic rational, an integer times
+2⁻¹⁰⁷⁴ (:func:`_scaled`), so a product of k weights is an integer times 2⁻¹⁰⁷⁴ᵏ. Each
+enumerated term below is a product of the same number of weights (one per row), so
+the terms add as plain integers and one :class:`~fractions.Fraction` is formed at the
+end — the same exact values as adding Fractions term by term, without the gcd that
+Fraction takes after every operation (that gcd was most of the property tests' CPU).
+"""
 
 from __future__ import annotations
 
@@ -7,20 +15,34 @@ from fractions import Fraction
 
 import numpy as np
 
+#: every finite float64 is an integer multiple of 2⁻¹⁰⁷⁴ (the smallest subnormal)
+_SCALE_BITS = 1074
+
+
+def _scaled(x) -> int:
+    """The float ``x`` times 2¹⁰⁷⁴: an integer, exactly."""
+    p, q = float(x).as_integer_ratio()  # q is a power of two ≤ 2¹⁰⁷⁴
+    return p * ((1 << _SCALE_BITS) // q)
+
+
+def _unscaled(total: int, factors: int) -> Fraction:
+    """``total`` · 2^(−1074 · factors): a sum of products of ``factors`` weights, exactly."""
+    return Fraction(total, 1 << (_SCALE_BITS * factors))
+
 
 def _exact_permanent(A) -> Fraction:
     A = np.asarray(A, dtype=float)
     n, m = A.shape
-    F = [[Fraction(float(x)) for x in row] for row in A]
-    total = Fraction(0)
+    F = [[_scaled(x) for x in row] for row in A]
+    total = 0
     for cols in itertools.permutations(range(m), n):
-        p = Fraction(1)
+        p = 1
         for i, j in enumerate(cols):
             p *= F[i][j]
             if p == 0:
                 break
         total += p
-    return total
+    return _unscaled(total, n)
 
 
 def brute_permanent(A) -> float:
@@ -32,11 +54,11 @@ def brute_marginals(A) -> np.ndarray:
     """P[t, i] = A[t, i] Per(A without row t, col i) / Per(A), by enumeration."""
     A = np.asarray(A, dtype=float)
     n, m = A.shape
-    F = [[Fraction(float(x)) for x in row] for row in A]
-    acc = [[Fraction(0)] * m for _ in range(n)]
-    total = Fraction(0)
+    F = [[_scaled(x) for x in row] for row in A]
+    acc = [[0] * m for _ in range(n)]
+    total = 0
     for cols in itertools.permutations(range(m), n):
-        p = Fraction(1)
+        p = 1
         for i, j in enumerate(cols):
             p *= F[i][j]
         if p == 0:
@@ -46,7 +68,8 @@ def brute_marginals(A) -> np.ndarray:
             acc[i][j] += p
     if total == 0:
         raise ZeroDivisionError("no feasible assignment")
-    return np.array([[float(x / total) for x in row] for row in acc])
+    # the common scale 2^(1074 n) cancels: the exact quotient, rounded once
+    return np.array([[float(Fraction(x, total)) for x in row] for row in acc])
 
 
 def _log_fraction(x: Fraction) -> float:
@@ -96,14 +119,14 @@ def brute_assignment(W, null=None, row_counts=None, col_counts=None):
     nl = [0.0] * R0 if null is None else [float(x) for x in np.broadcast_to(null, (R0,))]
     rows = [q for q in range(R0) for _ in range(rc[q])]
     cols = [j for j in range(C0) for _ in range(cc[j])]
-    F = [[Fraction(float(W[q, j])) for j in cols] for q in rows]
-    U = [Fraction(nl[q]) for q in rows]
+    F = [[_scaled(W[q, j]) for j in cols] for q in rows]
+    U = [_scaled(nl[q]) for q in rows]
     R, C = len(rows), len(cols)
-    acc = [[Fraction(0)] * C for _ in range(R)]
-    accn = [Fraction(0)] * R
-    total = Fraction(0)
+    acc = [[0] * C for _ in range(R)]
+    accn = [0] * R
+    total = 0
     for sigma in _matchings(R, C, [u != 0 for u in U]):
-        p = Fraction(1)
+        p = 1  # one weight per row (a column's or the null): R factors of 2^1074
         for r, c in enumerate(sigma):
             p *= U[r] if c is None else F[r][c]
             if p == 0:
@@ -117,12 +140,12 @@ def brute_assignment(W, null=None, row_counts=None, col_counts=None):
             else:
                 acc[r][c] += p
     if total == 0:
-        return total, None, None
+        return Fraction(0), None, None
     first_r = np.concatenate([[0], np.cumsum(rc)[:-1]]).astype(int)
     first_c = np.concatenate([[0], np.cumsum(cc)[:-1]]).astype(int)
-    P = [[acc[r][c] / total for c in first_c] for r in first_r]
-    Pn = [accn[r] / total for r in first_r]
-    return total, P, Pn
+    P = [[Fraction(acc[r][c], total) for c in first_c] for r in first_r]
+    Pn = [Fraction(accn[r], total) for r in first_r]
+    return _unscaled(total, R), P, Pn
 
 
 def log_fraction(x: Fraction) -> float:
@@ -160,8 +183,8 @@ def brute_grouped(W, null=None, row_counts=None, col_counts=None):
     rc = [1] * R0 if row_counts is None else [int(x) for x in row_counts]
     cc = [1] * C0 if col_counts is None else [int(x) for x in col_counts]
     nl = [0.0] * R0 if null is None else [float(x) for x in np.broadcast_to(null, (R0,))]
-    F = [[Fraction(float(W[q, c])) for c in range(C0)] for q in range(R0)]
-    U = [Fraction(x) for x in nl]
+    F = [[_scaled(W[q, c]) for c in range(C0)] for q in range(R0)]
+    U = [_scaled(x) for x in nl]
 
     def row_vectors(q, free):
         # every k[q] with Σ_c k[q][c] ≤ rc[q] (== if null is 0) and k[q][c] ≤ free[c]
@@ -179,14 +202,15 @@ def brute_grouped(W, null=None, row_counts=None, col_counts=None):
 
         yield from rec(0, rc[q])
 
-    total = Fraction(0)
-    acc = [[Fraction(0)] * C0 for _ in range(R0)]
-    accn = [Fraction(0)] * R0
+    # each row group q contributes rc[q] weights (k's and nulls): Σ rc factors of 2^1074
+    total = 0
+    acc = [[0] * C0 for _ in range(R0)]
+    accn = [0] * R0
 
     def rec(q, free, ks):
         nonlocal total
         if q == R0:
-            w = Fraction(1)
+            w = 1
             for qq, kq in enumerate(ks):
                 s = sum(kq)
                 mult = factorial(rc[qq]) // factorial(rc[qq] - s)
@@ -211,10 +235,10 @@ def brute_grouped(W, null=None, row_counts=None, col_counts=None):
 
     rec(0, list(cc), [])
     if total == 0:
-        return total, None, None
-    P = [[acc[q][c] / (total * rc[q] * cc[c]) for c in range(C0)] for q in range(R0)]
-    Pn = [accn[q] / (total * rc[q]) for q in range(R0)]
-    return total, P, Pn
+        return Fraction(0), None, None
+    P = [[Fraction(acc[q][c], total * rc[q] * cc[c]) for c in range(C0)] for q in range(R0)]
+    Pn = [Fraction(accn[q], total * rc[q]) for q in range(R0)]
+    return _unscaled(total, sum(rc)), P, Pn
 
 
 def mixed_derivative_fraction(a, F) -> Fraction:
@@ -223,19 +247,22 @@ def mixed_derivative_fraction(a, F) -> Fraction:
     Each factor takes one measurement (f_km) or none (f_k0), each measurement at
     most one factor; a measurement no factor takes is clutter (a_m).
     """
-    a = [Fraction(float(x)) for x in a]
-    F = [[Fraction(float(x)) for x in row] for row in np.asarray(F, float)]
+    a = [_scaled(x) for x in a]
+    F = [[_scaled(x) for x in row] for row in np.asarray(F, float)]
     M = len(a)
-    total = Fraction(0)
+    # a term has a weight per factor and per measurement left to clutter: at most
+    # len(F) + M weights; one with fewer is brought to that common scale by a shift
+    most = len(F) + M
+    total = 0
     for choice in itertools.product(range(M + 1), repeat=len(F)):  # 0 = none
         taken = [j for j in choice if j]
         if len(taken) != len(set(taken)):
             continue
-        w = Fraction(1)
+        w = 1
         for k, j in enumerate(choice):
             w *= F[k][j]
         for m in range(M):
             if m + 1 not in taken:
                 w *= a[m]
-        total += w
-    return total
+        total += w << (_SCALE_BITS * len(taken))
+    return _unscaled(total, most)

@@ -357,7 +357,9 @@ def test_cli_dry_run_and_sweep(tmp_path):
     assert "grid: 2 cells x 2 seeds = 4 runs" in result.output
     assert "pilot crossing jpda/exact" in result.output and "estimate:" in result.output
     assert not out.exists()  # a dry run writes nothing
-    result = runner.invoke(app, ["sweep", str(path), "--workers", "2", "--out", str(out)])
+    # the command's own LocalCluster: one worker process (each imports the package and
+    # loads its kernels, ~15 CPU-s); runs spread over two workers are the cluster tests'
+    result = runner.invoke(app, ["sweep", str(path), "--workers", "1", "--out", str(out)])
     # two runs fail on purpose: recorded, the others finish, the exit code says so
     assert result.exit_code == 1, result.output
     assert "4 runs: 2 ok, 2 failed, 0 missing" in result.output

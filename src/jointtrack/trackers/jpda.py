@@ -50,13 +50,12 @@ import logging
 import time
 
 import numpy as np
-from scipy import stats
 
 from jointtrack.assignment._checks import _as_real_array, as_float
 from jointtrack.association.clustering import clusters
 from jointtrack.association.clutter import cluster_heuristic_densities
 from jointtrack.association.coalescence import jpda_star_marginals
-from jointtrack.association.gating import likelihood_ratio_pairs
+from jointtrack.association.gating import gate_threshold, likelihood_ratio_pairs
 from jointtrack.errors import ExactLimitError
 from jointtrack.filters import (
     imm_combine,
@@ -654,7 +653,7 @@ class JPDATracker(ScanTracker):
         e = self.x[new, None, :d2] - xo[None]  # (new, old, d2)
         S = self.P[new, None, :d2, :d2] + Po[None]
         dist = np.einsum("abi,abi->ab", e, np.linalg.solve(S, e[..., None])[..., 0])
-        inside = dist <= float(stats.chi2.ppf(CONTINUATION_GATE, d2))
+        inside = dist <= gate_threshold(CONTINUATION_GATE, d2)
         # unambiguous pairs only: the new track in the gate of one track (deleted or
         # losing) and of no held one, and that track in the gate of no other new track
         # (two targets close together: no id is handed on a guess)
