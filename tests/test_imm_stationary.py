@@ -365,16 +365,9 @@ def _moored_among_frequent_reports(switching):
     [
         # no switching: the stationary mode alone holds the vessel (the control)
         [[1.0, 0.0], [0.0, 1.0]],
-        pytest.param(
-            [[0.999, 0.001], [0.001, 0.999]],
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="known limitation (issue 32, Solent): the tracker mixes the modes at "
-                "every scan, so between a track's own reports the stationary mode takes in "
-                "the CV mode's growing covariance at each of the other target's reports; "
-                "mixing once per own update over the whole interval would hold it",
-            ),
-        ),
+        # with switching: the track is predicted from its last update over the whole
+        # interval (one mixing), not mixed at each of the other target's reports
+        [[0.999, 0.001], [0.001, 0.999]],
     ],
 )
 def test_a_moored_vessel_between_other_targets_reports_keeps_one_track(switching):

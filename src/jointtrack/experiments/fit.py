@@ -146,11 +146,13 @@ Solent with a stationary IMM mode"): the bench's Solent scene, bare command, cov
 0.810 → 0.870, purity 0.560 → 0.709, ids per vessel 7.08 → 5.58; the plain Solent
 file's first 20 minutes 0.506 → 0.526 (purity 0.762 → 0.816) — its vessels at rest
 reporting every 3 minutes are still covered ~0.15 (whole file 0.474 → 0.505). Two
-causes are reproduced in process — between a track's own reports the tracker mixes
-its modes at every other vessel's report (the stationary mode takes in the CV mode's
-spread), and a new track's prior reporting rate (``report_interval``, the links' mean
-gap, 11.7 s there) has it deleted before its vessel's next report — but removing both
-gives 0.19 on that slice: the rest is not yet explained.
+causes are reproduced in process — mixing the modes at every other vessel's report
+(gone: a reporting target's track is predicted from its last update, purity 0.816 →
+0.834 on that slice, the class unchanged at 0.148), and a new track's prior reporting
+rate (``report_interval``, the links' mean gap, 11.7 s there; the links cannot see a
+3-minute reporter: :data:`REPORT_WINDOW` reports ≈ 108 s) that has it deleted before
+its vessel's next report — report_interval 180 s gives 0.158, with new tracks at rest
+0.265 (purity 0.782): measured, not chosen here.
 
 Close pairs and turns (scan files, JPDA/JIPDA; :func:`_choose_scan_models`). Both
 choices are stated with their counts in the sources, and a key ``[tracker]`` sets is

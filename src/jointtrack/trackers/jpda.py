@@ -86,6 +86,7 @@ from jointtrack.trackers.state_io import (
     validate_mode_arrays,
     validate_retired_arrays,
     validate_tracker_arrays,
+    validate_update_arrays,
 )
 
 __all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackHistory", "TrackerConfig"]
@@ -161,6 +162,15 @@ class JPDATracker(ScanTracker):
         self.mode_x = np.zeros((0, r, nc))
         self.mode_P = np.zeros((0, r, nc, nc))
         self.mode_log_prob = np.zeros((0, r))
+        # Each track's state after its last update and that update's time: with
+        # reporting = "async" a track no report updated is predicted from there over
+        # the whole interval, not scan by scan (see _predict_from_update)
+        self.updated_time = np.zeros(0)
+        self.updated_x = np.zeros((0, n))
+        self.updated_P = np.zeros((0, n, n))
+        self.updated_mode_x = np.zeros((0, r, nc))
+        self.updated_mode_P = np.zeros((0, r, nc, nc))
+        self.updated_mode_log_prob = np.zeros((0, r))
         self.ids = np.zeros(0, np.int64)
         self.confirmed = np.zeros(0, bool)
         self.hit_history = np.zeros(0, np.int64)  # bit k: hit k scans ago
@@ -207,8 +217,12 @@ class JPDATracker(ScanTracker):
             z = np.hstack([z, velocities])
             self._sensor, self._mdim = self._position_velocity, 2 * c.dim
 
+        if dt is None:  # the first scan: tracks started without a time are taken to be at it
+            self.updated_time[:] = t
         if dt is not None and dt > 0 and len(self.ids):
-            if self._imm is not None:
+            if c.reporting == "async":
+                self._predict_from_update(t)
+            elif self._imm is not None:
                 # mixing and mode-conditioned prediction; the predicted mode
                 # probabilities c̄ stand until an update (a track without a pair keeps them)
                 self.mode_x, self.mode_P, self.mode_log_prob = imm_predict(
@@ -340,6 +354,9 @@ class JPDATracker(ScanTracker):
                     lab_rows[jumped], z[lab_cols[jumped]], _rows(velocities, lab_cols[jumped])
                 )
                 self.existence[lab_rows] = c.r_labelled  # the report names a real target
+            # the states predictions start from: a scanning sensor's tracks are all
+            # predicted scan by scan; a reporting target's from its last update
+            self._mark_updated(touched if c.reporting == "async" else slice(None), t)
             if c.existence and labelled.any():
                 # a labelled track is detected with P_D,i (no gate: the label decides)
                 unheard = labelled.copy()
@@ -403,6 +420,47 @@ class JPDATracker(ScanTracker):
             n_continued=n_continued,
             **imm,
         )
+
+    def _predict_from_update(self, t) -> None:
+        """Predict every track from its last update (``updated_*``) to ``t`` (reporting targets).
+
+        A reporting target is heard at its own rate, while the tracker steps at
+        every other target's report. Predicting scan by scan would mix the IMM's
+        modes at each of those reports: between a moored vessel's reports 3 minutes
+        apart the stationary mode would take in the CV mode's growing covariance
+        several hundred times. One prediction over the whole interval — one mixing,
+        the switching over the interval (``imm_switching_per = "second"``) — is the
+        model's own prediction, and n steps without an update give exactly the
+        prediction over their sum. Tracks with equal intervals are predicted together.
+        """
+        gaps = t - self.updated_time
+        for gap in np.unique(gaps):
+            rows = np.flatnonzero(gaps == gap)
+            if self._imm is not None:
+                xs, Ps, lps = (
+                    self.updated_mode_x[rows],
+                    self.updated_mode_P[rows],
+                    self.updated_mode_log_prob[rows],
+                )
+                if gap > 0:
+                    xs, Ps, lps = imm_predict(xs, Ps, lps, self._imm, gap)
+                self.mode_x[rows], self.mode_P[rows], self.mode_log_prob[rows] = xs, Ps, lps
+            else:
+                x, P = self.updated_x[rows], self.updated_P[rows]
+                if gap > 0:
+                    F, Q = self._motion.transition(gap), self._motion.noise(gap)
+                    x, P = predict(x, P, F, Q)
+                self.x[rows], self.P[rows] = x, P
+        if self._imm is not None:
+            self._combine(slice(None))
+
+    def _mark_updated(self, rows, t) -> None:
+        """Record the tracks ``rows``' current states as their last update, at ``t``."""
+        self.updated_time[rows] = t
+        self.updated_x[rows], self.updated_P[rows] = self.x[rows], self.P[rows]
+        self.updated_mode_x[rows] = self.mode_x[rows]
+        self.updated_mode_P[rows] = self.mode_P[rows]
+        self.updated_mode_log_prob[rows] = self.mode_log_prob[rows]
 
     def _combine(self, rows) -> None:
         """x, P of the tracks ``rows``: the modes' combined (moment-matched) position
@@ -699,6 +757,12 @@ class JPDATracker(ScanTracker):
         "mode_x",
         "mode_P",
         "mode_log_prob",
+        "updated_time",
+        "updated_x",
+        "updated_P",
+        "updated_mode_x",
+        "updated_mode_P",
+        "updated_mode_log_prob",
     )
 
     def _keep(self, keep):
@@ -818,6 +882,12 @@ class JPDATracker(ScanTracker):
         self.mode_x = np.concatenate([self.mode_x, mx])
         self.mode_P = np.concatenate([self.mode_P, mP])
         self.mode_log_prob = np.concatenate([self.mode_log_prob, ml])
+        self.updated_time = np.concatenate([self.updated_time, np.full(k, float(time))])
+        self.updated_x = np.concatenate([self.updated_x, x0])
+        self.updated_P = np.concatenate([self.updated_P, P0])
+        self.updated_mode_x = np.concatenate([self.updated_mode_x, mx])
+        self.updated_mode_P = np.concatenate([self.updated_mode_P, mP])
+        self.updated_mode_log_prob = np.concatenate([self.updated_mode_log_prob, ml])
         self.ids = np.concatenate([self.ids, ids])
         self.confirmed = np.concatenate([self.confirmed, np.full(k, confirmed)])
         self.hit_history = np.concatenate([self.hit_history, np.ones(k, np.int64)])
@@ -913,6 +983,12 @@ class JPDATracker(ScanTracker):
         "retired_x",
         "retired_P",
         "retired_time",
+        "updated_time",
+        "updated_x",
+        "updated_P",
+        "updated_mode_x",
+        "updated_mode_P",
+        "updated_mode_log_prob",
     )
     # state key -> attribute (``history()`` is the track-history method)
     _ATTRS = {"history": "hit_history"}
@@ -920,6 +996,7 @@ class JPDATracker(ScanTracker):
     def _validate_state(self, path, arrays: dict, scalars: dict) -> None:
         validate_tracker_arrays(path, arrays, scalars, self.state_dim, self.config.dim)
         validate_mode_arrays(path, arrays, self._imm)
+        validate_update_arrays(path, arrays, scalars, self.state_dim, self._imm)
         if self.config.existence and (arrays["existence"] <= 0.0).any():
             # a JIPDA track of existence 0 is deleted before any state is saved
             raise StateFileError(f"{path}: field 'existence' holds a track of existence 0")

@@ -42,6 +42,7 @@ __all__ = [
     "validate_counters",
     "validate_mode_arrays",
     "validate_retired_arrays",
+    "validate_update_arrays",
     "write_state",
 ]
 
@@ -235,6 +236,17 @@ def _fill_added_settings(header: dict, arrays: dict) -> None:
     if header["version"] < 5:  # the IMM settings (issue 32) did not exist
         for key, value in _IMM_SETTINGS.items():
             header["config"].setdefault(key, value)
+    # each track's last update (issue 32, reporting targets predicted from it) came
+    # after version 6: the saved state at the saved time, where an earlier run predicted
+    # from (absent fields the validation names stay absent)
+    if "updated_time" not in arrays and "ids" in arrays:
+        t = header["scalars"].get("time")
+        ok = isinstance(t, int | float) and not isinstance(t, bool)
+        t = float(t) if ok and abs(t) < 1e300 else 0.0  # a bad time is refused later
+        arrays["updated_time"] = np.full(len(arrays["ids"]), t)
+        for name in ("x", "P", "mode_x", "mode_P", "mode_log_prob"):
+            if name in arrays:
+                arrays.setdefault("updated_" + name, np.array(arrays[name], copy=True))
 
 
 #: the id-continuation fields of a JPDA state (empty: nothing remembered), by shape
@@ -303,6 +315,34 @@ def validate_retired_arrays(path, arrays: dict, scalars: dict, width: int) -> No
         raise bad("field 'retired_ids' holds repeated ids or ids the tracker never issued")
     if np.isin(ids, arrays["ids"]).any():
         raise bad("field 'retired_ids' holds the id of a live track")
+
+
+def validate_update_arrays(path, arrays: dict, scalars: dict, state_dim: int, modes) -> None:
+    """Check a JPDA state's last-update fields (``updated_time`` (N,), ``updated_x``
+    (N, n), ``updated_P`` (N, n, n) and the IMM's ``updated_mode_*``): finite, no
+    update after the state's time, valid covariances; StateFileError naming the field."""
+
+    def bad(what: str) -> StateFileError:
+        return StateFileError(f"{path}: {what}")
+
+    check_array_fields(
+        path, arrays, {"updated_time": ("f", 1), "updated_x": ("f", 2), "updated_P": ("f", 3)}
+    )
+    N = len(arrays["ids"])
+    for name, shape in (
+        ("updated_time", (N,)),
+        ("updated_x", (N, state_dim)),
+        ("updated_P", (N, state_dim, state_dim)),
+    ):
+        if arrays[name].shape != shape:
+            raise bad(f"field {name!r} has shape {arrays[name].shape}, expected {shape}")
+    problem = covariance_problem(arrays["updated_P"])
+    if problem:
+        raise bad(f"field 'updated_P' holds a covariance that {problem}")
+    t = scalars.get("time")
+    if N and isinstance(t, int | float) and (arrays["updated_time"] > t).any():
+        raise bad("field 'updated_time' holds a time after the state's time")
+    validate_mode_arrays(path, arrays, modes, prefix="updated_")
 
 
 def _upgrade(header: dict, arrays: dict) -> None:
