@@ -16,6 +16,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from filterpy_bank import filterpy_bank
 from jointtrack.filters import (
     IMMModes,
     imm_combine,
@@ -215,29 +216,6 @@ def test_mode_update_never_zero_or_nan():
 # ----------------------------------------------------------------------------- FilterPy
 
 
-def _filterpy_bank(modes, dt, H, R, x0, P0):
-    from filterpy.kalman import KalmanFilter
-
-    n = modes.state_dim
-    bank, xs, Ps = [], np.zeros((1, modes.n_modes, n)), np.zeros((1, modes.n_modes, n, n))
-    for j, m in enumerate(modes.models):
-        idx = modes.mode_indices[j]
-        F = np.zeros((n, n))
-        F[np.ix_(idx, idx)] = m.transition(dt)
-        Q = np.zeros((n, n))
-        Q[np.ix_(idx, idx)] = m.noise(dt)
-        kf = KalmanFilter(n, H.shape[0])
-        kf.F, kf.Q, kf.H, kf.R = F, Q, H, R
-        xi = np.zeros(n)
-        xi[idx] = x0[idx]
-        Pi = np.zeros((n, n))
-        Pi[np.ix_(idx, idx)] = P0[np.ix_(idx, idx)]
-        kf.x, kf.P = xi.copy(), Pi.copy()
-        bank.append(kf)
-        xs[0, j], Ps[0, j] = xi, Pi
-    return bank, xs, Ps
-
-
 @pytest.mark.parametrize(
     "models, switching, initial",
     [
@@ -270,7 +248,7 @@ def test_against_filterpy_imm(models, switching, initial, seed):
     x0 = rng.normal(size=n) * 5
     A = rng.normal(size=(n, n))
     P0 = A @ A.T + 10 * np.eye(n)
-    bank, xs, Ps = _filterpy_bank(modes, dt, H, R, x0, P0)
+    bank, xs, Ps = filterpy_bank(modes, dt, H, R, x0, P0)
     imm = IMMEstimator(bank, modes.initial, modes.switching)
     log_mu = modes.log_initial[None].copy()
     for k in range(12):

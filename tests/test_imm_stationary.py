@@ -17,6 +17,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from filterpy_bank import filterpy_bank
 from jointtrack.filters.imm import (
     IMMModes,
     imm_combine,
@@ -221,29 +222,6 @@ def test_stationary_mode_has_zero_velocity_in_the_common_state():
     assert Pp[0, 1, 0, 0] > 4.0
 
 
-def _filterpy_bank(modes, dt, H, R, x0, P0):
-    from filterpy.kalman import KalmanFilter
-
-    n = modes.state_dim
-    bank, xs, Ps = [], np.zeros((1, modes.n_modes, n)), np.zeros((1, modes.n_modes, n, n))
-    for j, m in enumerate(modes.models):
-        idx = modes.mode_indices[j]
-        F = np.zeros((n, n))
-        F[np.ix_(idx, idx)] = m.transition(dt)
-        Q = np.zeros((n, n))
-        Q[np.ix_(idx, idx)] = m.noise(dt)
-        kf = KalmanFilter(n, H.shape[0])
-        kf.F, kf.Q, kf.H, kf.R = F, Q, H, R
-        xi = np.zeros(n)
-        xi[idx] = x0[idx]
-        Pi = np.zeros((n, n))
-        Pi[np.ix_(idx, idx)] = P0[np.ix_(idx, idx)]
-        kf.x, kf.P = xi.copy(), Pi.copy()
-        bank.append(kf)
-        xs[0, j], Ps[0, j] = xi, Pi
-    return bank, xs, Ps
-
-
 @pytest.mark.parametrize("seed", [0, 1])
 def test_cv_and_stationary_against_filterpy_imm(seed):
     """A vessel moored for 6 reports, then under way: the combined state, covariance
@@ -259,7 +237,7 @@ def test_cv_and_stationary_against_filterpy_imm(seed):
     R = np.array([[4.0, 1.0], [1.0, 9.0]])
     x0 = np.array([0.0, 0.0, 0.0, 0.0])
     P0 = np.diag([16.0, 16.0, 4.0, 4.0])
-    bank, xs, Ps = _filterpy_bank(modes, dt, H, R, x0, P0)
+    bank, xs, Ps = filterpy_bank(modes, dt, H, R, x0, P0)
     imm = IMMEstimator(bank, modes.initial, modes.switching)
     log_mu = modes.log_initial[None].copy()
     for k in range(14):

@@ -756,15 +756,20 @@ def _imm_switching(name, v):
     return _probability(name, v)
 
 
-def _imm_initial(name, v):
-    if v is None:
-        return None
-    want = "None or a list of mode probabilities > 0 (one per mode) summing to 1"
+def _per_mode_list(name, v, want: str):
+    """``v`` as a non-empty list (an array is one) of per-mode values, else the error."""
     if isinstance(v, np.ndarray):
         v = v.tolist()
     if isinstance(v, str | bytes) or not isinstance(v, list | tuple) or not v:
         raise _fail(name, want, v)
-    out = tuple(_real(name, a, want) for a in v)
+    return v
+
+
+def _imm_initial(name, v):
+    if v is None:
+        return None
+    want = "None or a list of mode probabilities > 0 (one per mode) summing to 1"
+    out = tuple(_real(name, a, want) for a in _per_mode_list(name, v, want))
     if not all(math.isfinite(a) and a > 0 for a in out):
         raise _fail(name, want + " (a mode of probability 0 could never be entered)", v)
     return out
@@ -774,11 +779,7 @@ def _imm_process_noise(name, v):
     if v is None:
         return None
     want = "None or a list of process noise intensities q ≥ 0, one per mode of imm_modes"
-    if isinstance(v, np.ndarray):
-        v = v.tolist()
-    if isinstance(v, str | bytes) or not isinstance(v, list | tuple) or not v:
-        raise _fail(name, want, v)
-    return tuple(_variance(name, a) for a in v)
+    return tuple(_variance(name, a) for a in _per_mode_list(name, v, want))
 
 
 _CHECKS = {

@@ -738,6 +738,17 @@ class JPDATracker(ScanTracker):
             self._keep(~ended)
         return taken
 
+    #: each track's last update (asynchronous reporting: a track is predicted from here over
+    #: the whole interval since, so the IMM mixes once per interval of its own)
+    _UPDATE_ARRAYS = (
+        "updated_time",
+        "updated_x",
+        "updated_P",
+        "updated_mode_x",
+        "updated_mode_P",
+        "updated_mode_log_prob",
+    )
+
     #: per-track quantities of the current scan (``_scan_detection``)
     _SCAN_ARRAYS = ("_scan_pd", "_scan_pdg", "_scan_missed", "_scan_pd_ratio", "_scan_survival")
 
@@ -757,12 +768,7 @@ class JPDATracker(ScanTracker):
         "mode_x",
         "mode_P",
         "mode_log_prob",
-        "updated_time",
-        "updated_x",
-        "updated_P",
-        "updated_mode_x",
-        "updated_mode_P",
-        "updated_mode_log_prob",
+        *_UPDATE_ARRAYS,
     )
 
     def _keep(self, keep):
@@ -983,12 +989,7 @@ class JPDATracker(ScanTracker):
         "retired_x",
         "retired_P",
         "retired_time",
-        "updated_time",
-        "updated_x",
-        "updated_P",
-        "updated_mode_x",
-        "updated_mode_P",
-        "updated_mode_log_prob",
+        *_UPDATE_ARRAYS,
     )
     # state key -> attribute (``history()`` is the track-history method)
     _ATTRS = {"history": "hit_history"}
