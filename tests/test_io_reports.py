@@ -733,6 +733,9 @@ def test_windows_beyond_the_maximum_are_refused_by_name(window, n):
 )
 @example(window=1e9, offsets=[0, 1], first=9 * 10**18)
 @example(window=5e8, offsets=[0, 10**9], first=-(9 * 10**18))
+# the overflow branch's ends were int / int there (one rounding), not float(int) / 1e9
+# as in the int64 branch: 9286979779.000008 against 9286979779.000006
+@example(window=286979779.0, offsets=[11, 13], first=8_999_999_999_999_995_705)
 def test_window_ends_are_exact_up_to_the_maximum_window(window, offsets, first):
     # the ends t0 + k·w in whole nanoseconds, without int64 wrap-around: with t0 near
     # the end of int64 nanoseconds (2262) the next window's end wrapped to a negative

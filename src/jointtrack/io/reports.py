@@ -364,8 +364,10 @@ class Reports:
         span_ns = (n_ends - 1) * w_ns
         if span_ns < 2**63 and abs(int(ns[0]) + span_ns) < 2**63:
             ends = (ns[0] + np.arange(n_ends, dtype=np.int64) * w_ns) / _NS
-        else:  # the last end overflows int64: exact Python integers (few windows then)
-            ends = np.array([(int(ns[0]) + j * w_ns) / _NS for j in range(n_ends)])
+        else:  # the last end overflows int64: exact Python integers (few windows then),
+            # rounded to float64 before the division as the int64 branch above is, so an
+            # end is the same float whichever branch computes it (int / int would round once)
+            ends = np.array([float(int(ns[0]) + j * w_ns) / _NS for j in range(n_ends)])
         return k.astype(np.int64), ends
 
     def reduce(self, window) -> Reports:
