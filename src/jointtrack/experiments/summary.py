@@ -22,9 +22,11 @@ from jointtrack.trackers import TrackerConfig
 __all__ = [
     "PARTICLE_START_NOTE",
     "association_line",
+    "confirmation_scans",
     "count_cluster",
     "particle_metrics",
     "print_summary",
+    "start_evidence",
     "start_description",
     "summary_tables",
     "tracker_description",
@@ -207,6 +209,152 @@ def _ospa_mean(truth, tracks, scan_times, c, p) -> float:
         Y = ep[et == t]
         vals.append(ospa(X, Y, c, p))
     return float(np.mean(vals)) if vals else float("nan")
+
+
+#: Monte Carlo samples of the expected existence gain per scan (:func:`start_evidence`)
+EVIDENCE_SAMPLES = 4000
+#: the summary notes a slow start when a lone target needs more scans than this to confirm
+SLOW_START_SCANS = 10
+
+
+def _log_odds_survived(ell: float, log_ps: float) -> float:
+    """logit(p_s · r) for r = expit(ell), in log space (no underflow near r = 0 or 1)."""
+    log_r = -np.logaddexp(0.0, -ell)
+    lp = log_ps + log_r
+    return float(lp - np.log(-np.expm1(lp)))
+
+
+def _expected_log_gain(cfg, sqrt_det_s: float, samples: int, seed: int) -> float:
+    """E[log Λ] of one IPDA existence update of a lone, existing target's track.
+
+    The odds update of a lone track (:func:`~jointtrack.trackers.existence.existence_update`
+    with one track) is odds⁺ = odds⁻ · Λ, Λ = 1 − P_D·P_G + Σ_i P_D N(z_i; ẑ, S)/λ over the
+    returns in its gate (P_D·P_G is P_D with ``miss_model = "1-pd"``). The target's return
+    is there with probability P_D, with d² = (z − ẑ)ᵀS⁻¹(z − ẑ) ~ χ²_m and counted when
+    d² < γ; Poisson(λ V_G) clutter returns are uniform in the gate (d² = γ U^{2/m}).
+    The expectation is a Monte Carlo mean over ``samples`` draws of a fixed ``seed``
+    (the same draws at every S: common random numbers), in log space.
+    """
+    from scipy import special
+
+    from jointtrack.association.gating import gate_threshold
+
+    m = cfg.dim
+    pg = float(cfg.p_g)
+    # p_g = 1 is the infinite gate: returns beyond χ² 1 − 1e-12 add < 1e-12 of a peak
+    gamma = gate_threshold(min(pg, 1.0 - 1e-12), m)
+    pdg = cfg.p_d * (pg if cfg.miss_model == "1-pd*pg" else 1.0)
+    lam = float(cfg.clutter_density)
+    log_unit = special.gammaln(m / 2 + 1) - (m / 2) * math.log(math.pi)  # 1 / unit-ball volume
+    log_vg = (m / 2) * math.log(gamma) + math.log(sqrt_det_s) - log_unit
+    mu = lam * math.exp(log_vg)  # clutter returns expected in the gate
+    log_a = math.log(cfg.p_d) - math.log(lam) - (m / 2) * math.log(2 * math.pi)
+    log_a -= math.log(sqrt_det_s)  # the peak likelihood ratio P_D N(ẑ; ẑ, S)/λ
+    rng = np.random.default_rng(seed)
+    n_clutter = rng.poisson(mu, samples)
+    who = np.repeat(np.arange(samples), n_clutter)
+    d2 = gamma * rng.random(who.size) ** (2.0 / m)
+    own = (rng.random(samples) < cfg.p_d) & ((t2 := rng.chisquare(m, samples)) < gamma)
+    who = np.concatenate([who, np.flatnonzero(own)])
+    terms = log_a - 0.5 * np.concatenate([d2, t2[own]])
+    with np.errstate(divide="ignore"):
+        log_miss = math.log1p(-pdg) if pdg < 1 else -math.inf
+    top = np.full(samples, log_miss)
+    np.maximum.at(top, who, terms)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rest = np.exp(log_miss - top) + np.bincount(
+            who, np.exp(terms - top[who]), minlength=samples
+        )
+        log_gain = top + np.log(rest)
+    log_gain[~np.isfinite(top)] = -math.inf  # no return and a certain detection
+    return float(log_gain.mean())
+
+
+def start_evidence(
+    cfg, dt: float, *, samples: int = EVIDENCE_SAMPLES, seed: int = 0, max_scans: int = 1000
+) -> dict | None:
+    """How fast a lone target's track earns the existence to be confirmed, from the settings.
+
+    The track is started on the target's return as the tracker's one-point
+    initiation starts it (existence ``r_init``, position covariance R, velocity
+    σ = max_speed/2) and updated at every scan: its existence log-odds, from
+    logit(r_init), gain the expected log Λ of :func:`_expected_log_gain` at
+    the scan's innovation covariance S (the Kalman filter's covariance from
+    the initiation one, a return at every scan) and lose the survival
+    (odds of p_s·r) between scans. ``expected_scans`` is the first scan at which
+    the expected log-odds reach logit(r_confirm) (the scan of the initiating
+    return is scan 1; None if not within ``max_scans``): Wald's approximation
+    (the mean drift, no overshoot) of the JIPDA test a lone IPDA runs.
+
+    Returns None for settings it does not apply to (M-of-N confirmation, no
+    clutter density given, a range–bearing sensor, IMM motion, reporting
+    targets); else ``{"threshold_nats", "gain_first_scan", "gain_steady",
+    "expected_scans", "samples"}`` (gains in nats per scan).
+    """
+    from jointtrack.trackers import JPDATracker
+
+    if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating | np.integer):
+        raise ValueError(f"dt must be a number of seconds > 0, got {dt!r}")
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be finite and > 0, got {dt!r}")
+    if not isinstance(cfg, TrackerConfig):
+        return None
+    if not cfg.existence or cfg.clutter_density is None or cfg.sensor != "position":
+        return None
+    if cfg.motion == "imm" or cfg.reporting != "scan":
+        return None
+    trk = JPDATracker(cfg)
+    _x0, P0 = trk._initial_states(np.zeros((1, cfg.dim)))
+    P = P0[0]
+    F, Q = trk._motion.transition(dt), trk._motion.noise(dt)
+    H, R = trk._sensor.H, trk._sensor.R
+    log_ps = math.log(cfg.p_survive) * (dt if cfg.p_survive_per == "second" else 1.0)
+    ell = math.log(cfg.r_init) - math.log1p(-cfg.r_init)
+    goal = math.log(cfg.r_confirm) - math.log1p(-cfg.r_confirm) if cfg.r_confirm < 1 else math.inf
+    threshold = goal - ell
+    gains, scans = [], None
+    for k in range(1, max_scans + 1):
+        if k > 1:
+            P = F @ P @ F.T + Q
+            ell = _log_odds_survived(ell, log_ps)
+        S = H @ P @ H.T + R
+        g = _expected_log_gain(cfg, math.sqrt(np.linalg.det(S)), samples, seed)
+        gains.append(g)
+        ell += g
+        P = P - P @ H.T @ np.linalg.solve(S, H @ P)
+        P = 0.5 * (P + P.T)
+        if scans is None and ell >= goal:
+            scans = k
+        if scans is not None and k >= 50:
+            break  # 50 scans settle the covariance for the steady-state gain
+    return {
+        "threshold_nats": threshold,
+        "gain_first_scan": gains[0],
+        "gain_steady": gains[-1],
+        "expected_scans": scans,
+        "samples": int(samples),
+    }
+
+
+def confirmation_scans(scan_times, truth: tuple, stats) -> dict:
+    """Scans each target took to be confirmed: ``{target id: scans or None}``.
+
+    A target is confirmed at the first scan at which a reported (confirmed)
+    track is its GOSPA partner within the cut-off — an association of
+    :func:`~jointtrack.metrics.track_statistics` ``stats`` (gate c); the count
+    runs from the target's first scan in ``truth`` (``(times, ids, positions)``),
+    which is scan 1, to that scan. None: no track was ever its partner.
+    ``scan_times``: the run's scan times (sorted); truth and association times
+    are among them.
+    """
+    times = np.asarray(scan_times, float)
+    tt, ti = np.asarray(truth[0], float), np.asarray(truth[1])
+    out = {}
+    for tid in np.unique(ti).tolist():
+        first = int(np.searchsorted(times, tt[ti == tid].min()))
+        hit = stats.assoc_times[stats.assoc_truth_ids == tid]
+        out[int(tid)] = int(np.searchsorted(times, hit.min())) - first + 1 if hit.size else None
+    return out
 
 
 def _version() -> str:
