@@ -15,8 +15,10 @@ confirmation scans (and the median of tracker − oracle), and the issue's lines
 PASS/FAIL: GOSPA ≤ 1.15 × floor (1.3 for PMB/PMBM), ≤ 1 switch per run (≤ 2),
 median confirmation ≤ oracle + 2 scans, ≤ 0.1 false per scan. ``--out
 FILE.json`` writes every number (per seed too) and ``FILE.png`` beside it (GOSPA
-per scan, mean over seeds: the floor and each tracker, the phases shaded). The
-command exits 1 when a run failed (the other runs are still reported).
+per scan, mean over seeds: the floor and each tracker, the phases shaded); the
+file is rewritten (atomically) after every scene and seed, and a run killed
+part-way resumes from it with the same command (only unfinished seeds are run).
+The command exits 1 when a run failed (the other runs are still reported).
 
 Usage: ``python benchmarks/from_nothing.py [--seeds 5] [--scenes bojilov,abreast,crossing]
 [--trackers jipda,pmb,pmbm[,stonesoup]] [--returns all|own] [--budget 300] [--out FILE.json]``.
@@ -150,6 +152,38 @@ def plot(path: Path, aggs: dict, runs: dict) -> None:
     plt.close(fig)
 
 
+def _write(path: Path, doc: dict) -> None:
+    from jointtrack._atomic import atomic_file
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_file(path) as tmp:
+        tmp.write_text(json.dumps(doc, indent=1, default=float))
+
+
+def _resume(path: Path, setup: dict, scenes) -> dict:
+    """{(scene, seed): run} already in ``path`` from a run with the same ``setup``."""
+    if not path.exists():
+        return {}
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise SystemExit(f"--out {path}: not a from_nothing result ({exc}); remove it") from None
+    if not isinstance(doc, dict) or doc.get("setup") != setup:
+        raise SystemExit(
+            f"--out {path} holds a run with other settings ({doc.get('setup')!r}, this one "
+            f"{setup!r}); remove it or choose another --out"
+        )
+    out = {}
+    for scene in scenes:
+        for r in doc.get("runs", {}).get(scene, []):
+            # JSON keys are strings: the targets' ids back to ints
+            r["oracle"] = {int(k): v for k, v in r["oracle"].items()}
+            for sc in (r["floor"], *r["trackers"].values()):
+                sc["confirm_scans"] = {int(k): v for k, v in sc["confirm_scans"].items()}
+            out[scene, int(r["seed"])] = r
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=5, help="seeds 0..N−1 (default 5)")
@@ -180,12 +214,20 @@ def main(argv=None) -> int:
     console = make_console(stderr=False)
     runs: dict = {s: [] for s in scenes}
     failed = []
+    # every finished (scene, seed) is written at once: a killed run resumes from the file
+    # (same --trackers and --returns), redoing only the unfinished ones
+    setup = {"trackers": kinds, "returns": args.returns}
+    done = _resume(out, setup, scenes) if out is not None else {}
     steps = len(scenes) * args.seeds * (2 + len(kinds))
     with progress_bar(console, unit="steps", enabled=True, remaining=True) as bar:
         task = bar.add_task("from nothing", total=steps)
         for scene in scenes:
             for seed in range(args.seeds):
                 bar.update(task, description=f"{scene} seed {seed}")
+                if (scene, seed) in done:
+                    runs[scene].append(done[scene, seed])
+                    bar.update(task, advance=2 + len(kinds))
+                    continue
                 try:
                     r = fn.evaluate(
                         scene,
@@ -198,6 +240,8 @@ def main(argv=None) -> int:
                         ),
                     )
                     runs[scene].append(r)
+                    if out is not None:
+                        _write(out, {"setup": setup, "partial": True, "runs": runs})
                 except Exception:  # noqa: BLE001 - report the run that failed, keep the others
                     failed.append(f"{scene} seed {seed}: {traceback.format_exc(limit=3)}")
     aggs = {s: fn.aggregate(runs[s]) for s in scenes if runs[s]}
@@ -205,8 +249,15 @@ def main(argv=None) -> int:
         print_scene(console, agg)
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
-        doc = {"command": " ".join(sys.argv), "args": vars(args), "scenes": aggs, "runs": runs}
-        out.write_text(json.dumps(doc, indent=1, default=float))
+        doc = {
+            "command": " ".join(sys.argv),
+            "args": vars(args),
+            "setup": setup,
+            "partial": bool(failed),
+            "scenes": aggs,
+            "runs": runs,
+        }
+        _write(out, doc)
         if aggs:
             plot(out.with_suffix(".png"), aggs, runs)
         console.print(f"wrote {out}" + (f" and {out.with_suffix('.png')}" if aggs else ""))
