@@ -1,0 +1,180 @@
+"""The run summary says how a run from nothing started (issue 33, item 5).
+
+Per-target scans to confirm with truth (omitted without), and the slow-start
+note from the expected existence evidence per scan (``start_evidence``), which
+is checked against a direct simulation of lone IPDA tracks.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from jointtrack.bench.from_nothing import jipda_config, oracle_confirmation
+from jointtrack.experiments.run import run_detections, run_scenario
+from jointtrack.experiments.summary import (
+    SLOW_START_SCANS,
+    confirmation_scans,
+    start_evidence,
+    summary_tables,
+)
+from jointtrack.metrics import track_statistics
+from jointtrack.scenarios import bojilov, crossing, simulate_scenario
+
+
+def _rows(metrics) -> dict:
+    """The summary's main table as {what: [values]}."""
+    table = summary_tables(metrics)[0]
+    what = [str(c) for c in table.columns[0]._cells]
+    value = [str(c) for c in table.columns[1]._cells]
+    out: dict = {}
+    for w, v in zip(what, value, strict=True):
+        out.setdefault(w, []).append(v)
+    return out
+
+
+def _lone_target(seed, n_scans=30, clutter_density=60 / 360000, p_d=0.7):
+    """One target at 5 m/s, σ = 10, in clutter on a box just around its path."""
+    traj = np.array([[5.0 * k, 0.0, 5.0, 0.0] for k in range(n_scans)])
+    region = np.array([[-60.0, 5.0 * n_scans + 60], [-80.0, 80.0]])
+    area = float(np.prod(region[:, 1] - region[:, 0]))
+    return simulate_scenario(
+        "lone",
+        np.arange(float(n_scans)),
+        [np.array([0])] * n_scans,
+        [traj[k : k + 1] for k in range(n_scans)],
+        region=region,
+        p_d=p_d,
+        clutter_rate=clutter_density * area,
+        R=100.0 * np.eye(2),
+        process_noise=1e-4,
+        rng=seed,
+    )
+
+
+def test_expected_scans_match_lone_ipda_simulation():
+    """start_evidence's expected scans (Wald: mean drift, no overshoot, the Kalman
+    covariance) against lone IPDA tracks run by the tracker itself (the oracle, never
+    deleted) on 24 seeds: the mean confirmation scan within 25 % of the formula's
+    (measured: 8.4 ± 0.8 against 8; the scans' spread is ≈ 4)."""
+    scenes = [_lone_target(s, n_scans=20, clutter_density=60 / 360000, p_d=0.9) for s in range(24)]
+    cfg = jipda_config(scenes[0])
+    expected = start_evidence(cfg, 1.0)["expected_scans"]
+    assert 6 <= expected <= 12  # not a trivial case: the test says something about the drift
+    sim = [oracle_confirmation(sc, restart=False)[0]["scans"] for sc in scenes]
+    done = [v for v in sim if v is not None]
+    assert len(done) >= 20
+    assert abs(np.mean(done) - expected) <= 0.25 * expected, (sim, expected)
+
+
+def test_evidence_grows_with_the_detection_rate_and_falls_with_clutter():
+    cfg = jipda_config(_lone_target(0))
+    base = start_evidence(cfg, 1.0)
+    sharper = start_evidence(dataclasses.replace(cfg, p_d=0.95), 1.0)
+    cluttered = start_evidence(
+        dataclasses.replace(cfg, clutter_density=cfg.clutter_density * 8), 1.0
+    )
+    assert sharper["gain_last_scan"] > base["gain_last_scan"] > cluttered["gain_last_scan"]
+    assert sharper["expected_scans"] < base["expected_scans"] < cluttered["expected_scans"]
+    assert base["threshold_nats"] == pytest.approx(
+        math.log(0.9 / 0.1) - math.log(0.02 / 0.98), rel=1e-12
+    )
+
+
+def test_evidence_is_not_claimed_where_it_does_not_apply():
+    cfg = jipda_config(_lone_target(0))
+    assert start_evidence(dataclasses.replace(cfg, existence=False), 1.0) is None
+    assert start_evidence(dataclasses.replace(cfg, clutter_density=None), 1.0) is None
+    for dt in (0.0, -1.0, math.nan, math.inf, True, "1", 1j):
+        with pytest.raises(ValueError, match="dt must be"):
+            start_evidence(cfg, dt)
+
+
+def test_slow_start_note_on_the_headline_scene_not_on_an_easy_one(tmp_path):
+    m = run_scenario(
+        "bojilov", start_from="nothing", max_scans=3, plots=False, out_dir=tmp_path / "b"
+    )
+    ev = m["start_evidence"]
+    assert ev["slow"] and ev["expected_scans"] > SLOW_START_SCANS
+    assert 0.3 <= ev["gain_last_scan"] <= 0.8  # the issue's 0.4–0.7 nats per scan
+    notes = [n for n in _rows(m)["note"] if n.startswith("slow start")]
+    assert len(notes) == 1 and f"about {ev['expected_scans']} scans" in notes[0]
+    m = run_scenario(
+        "crossing", start_from="nothing", max_scans=3, plots=False, out_dir=tmp_path / "c"
+    )
+    assert not m["start_evidence"]["slow"]
+    assert not any(n.startswith("slow start") for n in m["notes"])
+    m = run_scenario(
+        "bojilov", start_from="truth", max_scans=3, plots=False, out_dir=tmp_path / "t"
+    )
+    assert "start_evidence" not in m and "confirmation" not in m  # not a start from nothing
+
+
+def test_scans_to_confirm_with_truth_and_omitted_without(tmp_path):
+    sc = crossing(seed=2, n_scans=60, angle_deg=90.0)
+    m = run_scenario(sc, start_from="nothing", plots=False, out_dir=tmp_path / "w", max_scans=14)
+    c = m["gospa"]["c"]
+    # brute force: the targets are > 2c apart in the first 14 scans (crossing at t = 29.5),
+    # so a target's GOSPA partner within c is any track within c of it
+    tracks = np.loadtxt(m["files"]["tracks"], delimiter=",", skiprows=1, ndmin=2)
+    want = {}
+    for tid in (0, 1):
+        want[str(tid)] = None
+        for k, t in enumerate(sc.times[:14]):
+            pos = sc.truth_states[k][sc.truth_ids[k] == tid][0, :2]
+            at = tracks[tracks[:, 0] == t]
+            if len(at) and np.min(np.hypot(*(at[:, 2:4] - pos).T)) < c:
+                want[str(tid)] = k + 1
+                break
+    got = m["confirmation"]
+    assert got["scans_per_target"] == want
+    row = _rows(m)["scans to confirm"][0]
+    assert all(f"{t}: {'never' if v is None else v}" in row for t, v in want.items())
+    # without truth: no per-target line, nothing guessed
+    m = run_detections(
+        sc.as_detections(), sc.tracker_config(), out_dir=tmp_path / "d", max_scans=14, plots=False
+    )
+    assert "confirmation" not in m and "scans to confirm" not in _rows(m)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    first=st.lists(st.integers(0, 6), min_size=1, max_size=3),
+    hit=st.lists(st.one_of(st.none(), st.integers(0, 9)), min_size=3, max_size=3),
+)
+def test_confirmation_scans_against_brute_force(first, hit):
+    """Targets born at scan first_j, a track on target j from scan hit_j (None: never):
+    scans = hit_j − first_j + 1 counted from the birth (tracks before the birth are false)."""
+    times = np.arange(10.0) * 2.5
+    rows_t, rows_i, rows_p = [], [], []
+    trk_t, trk_i, trk_p = [], [], []
+    for j, f in enumerate(first):
+        for k in range(f, 10):
+            p = np.array([1000.0 * j, 7.0 * k])
+            rows_t.append(times[k]), rows_i.append(j), rows_p.append(p)
+            if hit[j] is not None and k >= hit[j]:
+                trk_t.append(times[k]), trk_i.append(50 + j), trk_p.append(p + 0.5)
+    truth = (np.array(rows_t), np.array(rows_i), np.array(rows_p))
+    tracks = (np.array(trk_t), np.array(trk_i, dtype=np.int64), np.array(trk_p).reshape(-1, 2))
+    stats = track_statistics(*truth, *tracks, gate=20.0)
+    got = confirmation_scans(times, truth, stats)
+    want = {j: (None if hit[j] is None else max(hit[j], f) - f + 1) for j, f in enumerate(first)}
+    assert got == want
+
+
+def test_confirmation_median_counts_never_as_late(tmp_path):
+    """Two of five targets never confirmed in 12 scans of the headline scene: the
+    median is the third-latest confirmed target's, or none when most never confirm."""
+    m = run_scenario(
+        bojilov(seed=0, n_scans=12), start_from="nothing", plots=False, out_dir=tmp_path / "b"
+    )
+    conf = m["confirmation"]
+    vals = [math.inf if v is None else v for v in conf["scans_per_target"].values()]
+    med = float(np.median(vals))
+    assert conf["median"] == (med if math.isfinite(med) else None)
+    assert conf["never"] == sum(v is None for v in conf["scans_per_target"].values())
