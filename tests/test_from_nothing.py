@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from jointtrack.bench import from_nothing as fn
+from jointtrack.experiments.run import run_scenario
 from jointtrack.scenarios import crossing, simulate_scenario
 
 
@@ -218,3 +219,35 @@ def test_aggregate_pass_lines():
     assert all(row["checks"].values())
     worse = fn.aggregate([_fake(0, 20.0, 30.0, 3, 0.5, {0: 40}, {0: 16})])["jipda"]["checks"]
     assert not any(worse.values())
+
+
+def test_evaluate_two_short_seeds(tmp_path):
+    """A 2-seed, 8-scan crossing case end to end: the floor confirms each target exactly
+    at its oracle scan, and a tracker is scored as its own run scores itself."""
+    kw = {"n_scans": 8}
+    runs = [fn.evaluate("crossing", s, ["jipda"], scenario_kwargs=kw) for s in (0, 1)]
+    for r in runs:
+        assert len(r["phases"]) == 8
+        assert all(v is None or 1 <= v <= 8 for v in r["oracle"].values())
+        assert r["floor"]["confirm_scans"] == r["oracle"]
+    m = run_scenario(
+        "crossing",
+        seed=1,
+        start_from="nothing",
+        tracker="jipda",
+        scenario_kwargs=kw,
+        plots=False,
+        out_dir=tmp_path,
+    )
+    assert runs[1]["trackers"]["jipda"]["gospa"] == pytest.approx(m["gospa"]["mean"], rel=1e-12)
+    assert runs[1]["trackers"]["jipda"]["switches"] == m["tracks"]["n_id_switches"]
+    agg = fn.aggregate(runs)
+    assert agg["floor"]["ratio"] == {"mean": 1.0, "std": 0.0}
+    want = np.mean([r["trackers"]["jipda"]["gospa"] / r["floor"]["gospa"] for r in runs])
+    assert agg["jipda"]["ratio"]["mean"] == pytest.approx(want, rel=1e-12)
+    assert set(agg["jipda"]["checks"]) == {
+        "GOSPA ≤ 1.15 × floor",
+        "switches ≤ 1/run",
+        "median confirmation ≤ oracle + 2",
+        "false ≤ 0.1/scan",
+    }
