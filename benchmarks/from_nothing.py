@@ -9,7 +9,8 @@ tracker=K)`` builds it; Stone Soup's tutorial JPDA tracker with ``--trackers
 ...,stonesoup`` when installed. Definitions (oracle, floor, phases, scores):
 :mod:`jointtrack.bench.from_nothing`.
 
-Printed per scene: GOSPA mean ± std over seeds, its parts per phase, the ratio
+Printed per scene: GOSPA mean ± std over seeds, its parts per phase (over the
+seeds that have the phase: their number in parentheses when not all), the ratio
 to the floor, switches per run, false confirmed tracks per scan, the median
 confirmation scans (and the median of tracker − oracle), and the issue's lines
 PASS/FAIL: GOSPA ≤ 1.15 × floor (1.3 for PMB/PMBM), ≤ 1 switch per run (≤ 2),
@@ -46,6 +47,14 @@ def _opt(v, spec=".1f") -> str:
     return "–" if v is None else format(v, spec)
 
 
+def _phase_cell(phases: dict, p: str, n_seeds: int) -> str:
+    """A phase's mean GOSPA, with the number of seeds that have it when not all do."""
+    if p not in phases:
+        return "–"
+    n = phases[p]["n_seeds"]
+    return _opt(phases[p]["gospa"]["mean"]) + (f" ({n})" if n < n_seeds else "")
+
+
 def print_scene(console, agg: dict) -> None:
     from rich.table import Table
 
@@ -72,10 +81,7 @@ def print_scene(console, agg: dict) -> None:
             kind,
             _pm(row["gospa"]),
             _pm(row["ratio"], ".2f"),
-            *(
-                _opt(row["phases"][p]["gospa"]["mean"]) if p in row["phases"] else "–"
-                for p in fn.PHASES
-            ),
+            *(_phase_cell(row["phases"], p, len(seeds)) for p in fn.PHASES),
             _pm(row["switches"]),
             _pm(row["false_per_scan"], ".3f"),
             f"{_opt(row['confirm_median'])} ({row['confirm_never']} never)",
