@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -79,7 +82,7 @@ def _two_targets(n_scans=12):
     return crossing(seed=3, n_scans=n_scans, clutter_per_scan=0.0)
 
 
-@settings(max_examples=15, deadline=None)
+@settings(max_examples=12, deadline=None)
 @given(
     starts=st.lists(st.one_of(st.none(), st.integers(0, 11)), min_size=2, max_size=2),
     false_scans=st.lists(st.integers(0, 11), max_size=5, unique=True),
@@ -251,3 +254,72 @@ def test_evaluate_two_short_seeds(tmp_path):
         "median confirmation ≤ oracle + 2",
         "false ≤ 0.1/scan",
     }
+
+
+# ----------------------------------------------------------------------------- the command line
+
+_SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "from_nothing.py"
+
+
+@pytest.fixture(scope="module")
+def script():
+    spec = importlib.util.spec_from_file_location("from_nothing_bench", _SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _canned(scene, seed, trackers, **_kw):
+    """A stand-in for evaluate: a 3-scan result whose numbers depend on the seed."""
+    series = [10.0 + seed, 5.0, 5.0]
+    ph = {p: {"n_scans": 0} for p in fn.PHASES}
+    ph["start"] = {"n_scans": 3, "gospa": 6.0 + seed, "localisation": 1.0, "missed": 2.0,
+                   "false": 0.0}  # fmt: skip
+    score = {"gospa": 6.0 + seed, "gospa_series": series, "phases": ph,
+             "confirm_scans": {0: 1}, "switches": 0, "false_per_scan": 0.0}  # fmt: skip
+    return {"scene": scene, "seed": seed, "n_scans": 3, "oracle": {0: 1}, "phases": [0, 0, 0],
+            "floor": score, "trackers": {k: dict(score) for k in trackers}}  # fmt: skip
+
+
+def test_a_killed_benchmark_resumes_from_its_file(script, tmp_path, monkeypatch):
+    """Seed 1 fails (fault injection): exit 1, seed 0 kept in --out; the same command again
+    runs seed 1 only and writes what an uninterrupted run writes."""
+    out = tmp_path / "r.json"
+    argv = ["--seeds", "2", "--scenes", "crossing", "--trackers", "jipda", "--out", str(out)]
+    calls = []
+
+    def failing(scene, seed, trackers, **kw):
+        calls.append(seed)
+        if seed == 1:
+            raise RuntimeError("killed")
+        return _canned(scene, seed, trackers)
+
+    monkeypatch.setattr(script.fn, "evaluate", failing)
+    # the figure is matplotlib's (seconds to import): a stand-in records that it was drawn
+    monkeypatch.setattr(script, "plot", lambda path, aggs, runs: path.write_text(str(len(runs))))
+    assert script.main(argv) == 1
+    doc = json.loads(out.read_text())
+    assert doc["partial"] and [r["seed"] for r in doc["runs"]["crossing"]] == [0]
+    calls.clear()
+    monkeypatch.setattr(script.fn, "evaluate", lambda *a, **k: calls.append(a[1]) or _canned(*a))
+    assert script.main(argv) == 0
+    assert calls == [1]
+    resumed = json.loads(out.read_text())
+    fresh = tmp_path / "f.json"
+    assert script.main([*argv[:-1], str(fresh)]) == 0
+    fresh_doc = json.loads(fresh.read_text())
+    for key in ("scenes", "runs", "setup", "partial"):
+        assert resumed[key] == fresh_doc[key]
+    assert out.with_suffix(".png").exists()
+    # another --trackers is refused by name, the file left as it was
+    with pytest.raises(SystemExit, match="other settings"):
+        script.main([*argv[:5], "pmb", *argv[6:]])
+    assert json.loads(out.read_text()) == resumed
+
+
+def test_the_command_refuses_unknown_names(script, capsys):
+    for argv in (["--scenes", "many"], ["--trackers", "jipda,kalman"], ["--seeds", "0"]):
+        with pytest.raises(SystemExit):
+            script.main(argv)
+        err = capsys.readouterr().err
+        assert "many" in err or "kalman" in err or "--seeds" in err
