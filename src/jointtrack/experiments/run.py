@@ -45,7 +45,10 @@ the tracker's own initiation (two-point or one-point, then JIPDA existence or
 M-of-N confirmation) must find the targets; ``"truth"`` starts any scenario from
 its truth. A detections file has no true states, so it always starts from
 nothing. ``metrics.json`` says which start was used: ``start`` (``"truth"`` or
-``"nothing"``; ``start_from_truth`` is the same as a boolean). GOSPA and OSPA
+``"nothing"``; ``start_from_truth`` is the same as a boolean); a run from nothing
+adds ``confirmation`` (with a truth: scans to confirm per target) and
+``start_evidence`` (the expected evidence per scan and scans to confirm of a lone
+target's track, :func:`~jointtrack.experiments.summary.start_evidence`). GOSPA and OSPA
 use ``[metrics]`` ``c`` and ``p`` when set, else the scenario's own
 (:func:`scenario_metric_settings`: ``coalescence`` is scored with c = 10, p = 2
 as in its paper), else c = 5σ and p = 2.
