@@ -86,6 +86,18 @@ def test_evidence_grows_with_the_detection_rate_and_falls_with_clutter():
     )
 
 
+def test_evidence_from_subnormal_to_huge_clutter_density():
+    """No NaN, no overflow, and slower starts as the clutter grows, at any magnitude."""
+    cfg = jipda_config(_lone_target(0))
+    scans = []
+    for lam in (5e-324, 1e-300, 1e-6, 1e-3, 1e-2, 1.0, 1e300):
+        ev = start_evidence(dataclasses.replace(cfg, clutter_density=lam), 1.0)
+        assert all(math.isfinite(ev[k]) for k in ("gain_first_scan", "gain_last_scan"))
+        scans.append(math.inf if ev["expected_scans"] is None else ev["expected_scans"])
+    assert scans[0] == scans[1] == 1  # a return is all the evidence needed
+    assert scans == sorted(scans) and scans[-1] == math.inf
+
+
 def test_evidence_is_not_claimed_where_it_does_not_apply():
     cfg = jipda_config(_lone_target(0))
     assert start_evidence(dataclasses.replace(cfg, existence=False), 1.0) is None

@@ -215,6 +215,10 @@ def _ospa_mean(truth, tracks, scan_times, c, p) -> float:
 EVIDENCE_SAMPLES = 2000
 #: scans of the lone track :func:`start_evidence` follows at least (its gain then: gain_last_scan)
 STEADY_SCANS = 50
+#: expected clutter returns in a gate above which their sum is taken as its mean (the
+#: gain is then O(1/μ) nats per scan, e.g. 0.025 at μ ≈ 30: no start to speak of, and the
+#: Monte Carlo would draw ~μ·samples returns)
+MAX_GATE_CLUTTER = 50.0
 #: the summary notes a slow start when a lone target needs more scans than this to confirm
 SLOW_START_SCANS = 10
 
@@ -235,7 +239,10 @@ def _expected_log_gain(cfg, sqrt_det_s: float, samples: int, seed: int) -> float
     is there with probability P_D, with d² = (z − ẑ)ᵀS⁻¹(z − ẑ) ~ χ²_m and counted when
     d² < γ; Poisson(λ V_G) clutter returns are uniform in the gate (d² = γ U^{2/m}).
     The expectation is a Monte Carlo mean over ``samples`` draws of a fixed ``seed``
-    (the same draws at every S: common random numbers), in log space.
+    (the same draws at every S: common random numbers), in log space; a gate
+    expecting more than :data:`MAX_GATE_CLUTTER` clutter returns gives the
+    law-of-large-numbers limit log(1 − P_D·P_G + P_D·p_g) (0 with the default
+    miss model: no evidence).
     """
     from scipy import special
 
@@ -250,6 +257,10 @@ def _expected_log_gain(cfg, sqrt_det_s: float, samples: int, seed: int) -> float
     log_unit = special.gammaln(m / 2 + 1) - (m / 2) * math.log(math.pi)  # 1 / unit-ball volume
     log_vg = (m / 2) * math.log(gamma) + math.log(sqrt_det_s) - log_unit
     mu = lam * math.exp(log_vg)  # clutter returns expected in the gate
+    if mu > MAX_GATE_CLUTTER:
+        # the clutter's sum is its mean (law of large numbers): Σ P_D N/λ over the gate's
+        # clutter → P_D·P_G, and the target's own return adds O(1/μ)
+        return math.log1p(-pdg + cfg.p_d * pg) if pdg < 1 else 0.0
     log_a = math.log(cfg.p_d) - math.log(lam) - (m / 2) * math.log(2 * math.pi)
     log_a -= math.log(sqrt_det_s)  # the peak likelihood ratio P_D N(ẑ; ẑ, S)/λ
     rng = np.random.default_rng(seed)
@@ -285,8 +296,10 @@ def start_evidence(
     the initiation one, a return at every scan) and lose the survival
     (odds of p_s·r) between scans. ``expected_scans`` is the first scan at which
     the expected log-odds reach logit(r_confirm) (the scan of the initiating
-    return is scan 1; None if not within ``max_scans``): Wald's approximation
-    (the mean drift, no overshoot) of the JIPDA test a lone IPDA runs.
+    return is scan 1; None if not within ``max_scans``, or when the log-odds stop
+    growing): Wald's approximation (the mean drift, no overshoot) of the JIPDA
+    test a lone IPDA runs. Past :data:`STEADY_SCANS` the gain of that scan is
+    used for the rest.
 
     Returns None for settings it does not apply to (M-of-N confirmation, no
     clutter density given, a range–bearing sensor, IMM motion, reporting
@@ -322,8 +335,9 @@ def start_evidence(
             ell = _log_odds_survived(ell, log_ps)
         S = H @ P @ H.T + R
         s = math.sqrt(np.linalg.det(S))
-        # the covariance has converged (to 1e-9): the same gain (saves the Monte Carlo)
-        if last_s is None or abs(s - last_s) > 1e-9 * s:
+        # past STEADY_SCANS, or once the covariance has converged (to 1e-9), the last
+        # gain stands (saves the Monte Carlo; the gate then changes by well under 1 %)
+        if k <= STEADY_SCANS and (last_s is None or abs(s - last_s) > 1e-9 * s):
             g = _expected_log_gain(cfg, s, samples, seed)
         last_s = s
         gains.append(g)
@@ -332,8 +346,8 @@ def start_evidence(
         P = 0.5 * (P + P.T)
         if scans is None and ell >= goal:
             scans = k
-        if scans is not None and k >= STEADY_SCANS:
-            break
+        if k >= STEADY_SCANS and (scans is not None or g <= 0.0):
+            break  # confirmed, or never: the log-odds no longer grow
     return {
         "threshold_nats": threshold,
         "gain_first_scan": gains[0],
