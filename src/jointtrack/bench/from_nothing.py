@@ -332,7 +332,8 @@ def tracker_tracks(
 
     ``kind`` in :data:`TRACKERS`: ``run_scenario(name, start_from="nothing",
     seed=seed, tracker=kind)`` (written to ``out_dir``, default a temporary
-    directory), or Stone Soup's tutorial JPDA tracker (``budget``: its seconds).
+    directory), or Stone Soup's tutorial JPDA tracker (``budget``: its seconds;
+    RuntimeError when it stops at the budget — a partial run is not scored).
     """
     if kind not in TRACKERS:
         raise ValueError(f"tracker must be one of {', '.join(TRACKERS)}, got {kind!r}")
@@ -343,6 +344,11 @@ def tracker_tracks(
         if not stonesoup_available():
             raise ValueError("tracker 'stonesoup' needs Stone Soup (the bench extra)")
         r = run_stonesoup(scene, budget)
+        if not r.completed:  # scored, the scans it did not reach would read as all missed
+            raise RuntimeError(
+                f"stonesoup on {name} seed {seed} reached its budget of {budget:g} s after "
+                f"{r.n_scans} of {scene.n_scans} scans; give a larger --budget"
+            )
         return r.times, r.ids, r.positions
     return _run_tracks(name, seed, out_dir, scenario_kwargs, start_from="nothing", tracker=kind)
 
