@@ -147,6 +147,11 @@ def test_scans_to_confirm_with_truth_and_omitted_without(tmp_path):
     assert got["scans_per_target"] == want
     row = _rows(m)["scans to confirm"][0]
     assert all(f"{t}: {'never' if v is None else v}" in row for t, v in want.items())
+    # many targets: the spread, not a list (metrics.json keeps each)
+    many = {str(i): (None if i % 5 == 0 else i) for i in range(40)}
+    m["confirmation"] = {**got, "scans_per_target": many, "never": 8, "median": 22.5}
+    row = _rows(m)["scans to confirm"][0]
+    assert row.startswith("40 targets, quartiles 10.5–29.5, 8 never; median 22.5"), row
     # without truth: no per-target line, nothing guessed
     m = run_detections(
         sc.as_detections(), sc.tracker_config(), out_dir=tmp_path / "d", max_scans=14, plots=False
