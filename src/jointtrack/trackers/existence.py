@@ -113,7 +113,7 @@ from scipy.spatial import cKDTree
 
 from jointtrack.association.gating import slab_count
 
-__all__ = ["existence_update", "merge_duplicates", "silence_outcomes"]
+__all__ = ["existence_update", "merge_duplicates", "most_probable_event", "silence_outcomes"]
 
 
 def existence_update(r, beta0, weights, rows, pdg, missed=None):
@@ -148,6 +148,30 @@ def existence_update(r, beta0, weights, rows, pdg, missed=None):
         safe = np.where(none, 1.0, total)
         return r_post, np.where(none, 1.0, exists_missed / safe), weights / safe[rows]
     return r_post, exists_missed / total, weights / total[rows]
+
+
+def most_probable_event(beta0, weights, rows):
+    """Each track's most probable association event as β of 0 and 1 (point 5).
+
+    ``beta0`` (n,) and ``weights`` (pairs, track ``rows``) are one track's
+    probabilities of "no return" and of each gated return. Returns ``(beta0,
+    weights)`` with 1 on the largest of them (a return only when it is strictly
+    more probable than "no return"; among equal returns the first pair) and 0
+    elsewhere: the PDA update with these β is the Kalman update on that return,
+    or none.
+    """
+    beta0 = np.asarray(beta0, float)
+    weights = np.asarray(weights, float)
+    rows = np.asarray(rows, np.int64)
+    chosen = np.zeros(len(weights))
+    if len(weights):
+        # pairs by track, the largest weight first (stable: the first pair on ties)
+        order = np.lexsort((-weights, rows))
+        first = order[np.r_[True, rows[order][1:] != rows[order][:-1]]]
+        take = first[weights[first] > beta0[rows[first]]]
+        chosen[take] = 1.0
+    hit = np.bincount(rows, chosen, minlength=len(beta0)) > 0
+    return np.where(hit, 0.0, 1.0), chosen
 
 
 def _missed_share(top, bottom):

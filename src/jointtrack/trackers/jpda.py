@@ -70,7 +70,11 @@ from jointtrack.filters.imm import IMMModes
 from jointtrack.models import ConstantVelocity
 from jointtrack.trackers.base import ClusterRecord, ScanResult, ScanTracker
 from jointtrack.trackers.config import TrackerConfig
-from jointtrack.trackers.existence import existence_update, merge_duplicates
+from jointtrack.trackers.existence import (
+    existence_update,
+    merge_duplicates,
+    most_probable_event,
+)
 from jointtrack.trackers.history import TrackHistory, is_datetime
 from jointtrack.trackers.initiation import pair_returns
 from jointtrack.trackers.reporting import (
@@ -598,8 +602,9 @@ class JPDATracker(ScanTracker):
 
         With ``tentative_association = "alternatives"`` the tentative tracks
         (``loud`` False) are each associated alone — single-track PDA, exact —
-        whatever other tentative tracks gate their returns
-        (:mod:`jointtrack.trackers.existence`, point 5).
+        whatever other tentative tracks gate their returns, and the β returned
+        are those of each track's most probable event (its state follows one
+        history; :mod:`jointtrack.trackers.existence`, point 5).
         """
         c = self.config
         n, M = len(tracks), len(z)
@@ -651,6 +656,9 @@ class JPDATracker(ScanTracker):
             self.existence[tracks], beta0, weights = existence_update(
                 r, beta0, weights, rows, self._scan_pdg[tracks], missed=missed
             )
+            if not loud and c.tentative_association == "alternatives":
+                # each alternative follows one history: its most probable return
+                beta0, weights = most_probable_event(beta0, weights, rows)
         return (
             beta0,
             (rows, cols, weights),
