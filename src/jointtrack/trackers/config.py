@@ -180,14 +180,16 @@ class TrackerConfig(ModelSettings):
         ``"alternatives"``: tentative tracks on one target are alternative
         hypotheses of that target, not competitors — each is a single-target IPDA
         (exact PDA) on the returns weighted by the probability that no confirmed
-        track took them, its existence accumulating as a lone IPDA's; a tentative
+        track took them, its existence accumulating as a lone IPDA's and its
+        state following its most probable return; a tentative
         track reaching ``r_confirm`` on returns that a confirmed track (or one
         confirmed before it at this scan) already explains is a duplicate and
         stays tentative; merged duplicates keep the larger existence, not the
         union (see :mod:`jointtrack.trackers.existence`, point 5). Measured on the
-        Bojilov scene from nothing it confirms sooner and covers more but does not
-        reach the start-up floor (``benchmarks/RESULTS.md``), so it is not the
-        default. With ``existence`` only.
+        Bojilov scene from nothing it confirms sooner, covers more and scores
+        better (GOSPA 45–49 against 57) but does not reach the start-up floor
+        (25.9; ``benchmarks/RESULTS.md``), so it is not the default. With
+        ``existence`` only.
     seed : seed of the random generator used by randomised approximations
         (an integer ≥ 0, or None).
 

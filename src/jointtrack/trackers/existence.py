@@ -79,7 +79,12 @@ apart at 1 unit/s, σ = 5, P_D = 0.9, 60 clutter returns per scan):
    94–198 tracks solved by LBP). They are alternative hypotheses of one target,
    not competing targets: each is then associated alone — single-target IPDA,
    exact PDA — on the returns weighted by the probability that no confirmed
-   track took them, and its existence follows the lone IPDA's. What keeps the
+   track took them, and its existence follows the lone IPDA's; its *state*
+   follows one history, the Kalman update on its most probable event
+   (:func:`most_probable_event`), while the other histories are the other
+   alternatives (every return starts one). The PDA update instead collapses the
+   histories of a track's first scans into one Gaussian: in 93 % clutter such a
+   track confirmed with a 4–7 m/s velocity error and held it. What keeps the
    alternatives from all confirming is the returns' history, not the state
    distance (lanes 2σ apart look alike in state): a track reaching r_confirm
    whose likelihood lies at least ``DUPLICATE_SHARE`` (of
@@ -88,10 +93,11 @@ apart at 1 unit/s, σ = 5, P_D = 0.9, 60 clutter returns per scan):
    lane, whose likelihood lies on its own returns, confirms beside it; merged
    duplicates keep the larger existence (the union would count one target's
    returns twice). Measured (``benchmarks/RESULTS.md``, issue 33): on the
-   Bojilov scene from nothing coverage rises from 0.40–0.58 to 0.55–0.72 and
-   runs are ~50 times faster (no LBP), but GOSPA stays far above the start-up
-   floor: tracks that confirm in 10–15 scans carry velocity errors of ~5 m/s
-   (the scene's process noise is 1e-4) and swap lanes when the targets bunch.
+   Bojilov scene from nothing GOSPA 56.8 → 49.2 (seeds 0–4) and 57.2 → 45.4
+   (held-out 5–9), median confirmation 28 → 14–18 scans, coverage 0.40–0.58 →
+   0.60–0.80, runs ~50 times faster (no LBP); still far above the start-up floor
+   (25.9) with 6–28 identity switches a run, and the abreast scene 0–8 % worse
+   than joint — so not the default.
 
 Confirmation and deletion are thresholds on r (``r_confirm``, ``r_delete``):
 the JIPDA odds update is Wald's sequential probability ratio test, so the
