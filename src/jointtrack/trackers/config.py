@@ -190,6 +190,16 @@ class TrackerConfig(ModelSettings):
         better (GOSPA 45–49 against 57) but does not reach the start-up floor
         (25.9; ``benchmarks/RESULTS.md``), so it is not the default. With
         ``existence`` only.
+    tentative_process_noise : q (m²/s³, ≥ 0) of white-noise acceleration added to
+        the prediction of every tentative track, on top of the motion model's
+        (default 0: none). A tentative track started from one return carries a
+        velocity guessed from a few returns, some of them clutter; with the small
+        q of a nearly-constant-velocity scene its velocity variance shrinks as if
+        each were the target's, so a track that followed clutter confirms with a
+        wrong velocity it never corrects. The extra noise keeps the tentative
+        velocity open; a confirmed track predicts with the model alone. Scan
+        reporting, ``motion`` "cv" or "ca" only (measured: ``benchmarks/RESULTS.md``,
+        issue 33).
     seed : seed of the random generator used by randomised approximations
         (an integer ≥ 0, or None).
 
@@ -317,6 +327,7 @@ class TrackerConfig(ModelSettings):
     r_report: float = 0.3
     merge_threshold: float = 1.0
     tentative_association: str = "joint"
+    tentative_process_noise: float = 0.0
     seed: int | None = 0
     miss_model: str = "1-pd*pg"
     reporting: str = "scan"
@@ -394,6 +405,12 @@ class TrackerConfig(ModelSettings):
             self.existence or self.tentative_association == "joint",
             "tentative_association = 'alternatives' needs existence = true (JIPDA): "
             "alternatives are weighed by their existence",
+        )
+        need(
+            self.tentative_process_noise == 0.0
+            or (self.motion != "imm" and self.reporting == "scan"),
+            "tentative_process_noise > 0 needs motion 'cv' or 'ca' and reporting = 'scan' "
+            f"(got motion = {self.motion!r}, reporting = {self.reporting!r})",
         )
         if self.reporting == "async":
             need(self.existence, "reporting = 'async' needs existence = true (JIPDA)")
@@ -838,6 +855,7 @@ _CHECKS = {
     "r_report": _probability,
     "merge_threshold": _non_negative,
     "tentative_association": _choice(TENTATIVE_ASSOCIATIONS),
+    "tentative_process_noise": _non_negative,
     "seed": _seed,
     "miss_model": _choice(MISS_MODELS),
     "reporting": _choice(REPORTING),

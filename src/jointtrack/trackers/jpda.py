@@ -68,6 +68,7 @@ from jointtrack.filters import (
 )
 from jointtrack.filters.imm import IMMModes
 from jointtrack.models import ConstantVelocity
+from jointtrack.models.motion import cv_noise
 from jointtrack.trackers.base import ClusterRecord, ScanResult, ScanTracker
 from jointtrack.trackers.config import TrackerConfig
 from jointtrack.trackers.existence import (
@@ -242,6 +243,12 @@ class JPDATracker(ScanTracker):
                 self.x, self.P = predict(
                     self.x, self.P, self._motion.transition(dt), self._motion.noise(dt)
                 )
+                if c.tentative_process_noise > 0:
+                    # a tentative velocity is a guess from a few returns (config docstring)
+                    d2 = 2 * c.dim
+                    self.P[~self.confirmed, :d2, :d2] += cv_noise(
+                        dt, c.tentative_process_noise, c.dim
+                    )
         self._scan_detection(t, 0.0 if dt is None else dt)
         if c.existence and len(self.ids):
             # survival to the time this scan's evidence is about (see _scan_detection)
