@@ -472,6 +472,8 @@ JPDA_ONLY_KEYS = (
     "r_delete",
     "r_report",
     "merge_threshold",
+    "tentative_association",
+    "tentative_process_noise",
     "miss_model",
     "exact_max_bits_tentative",
     # not in the Poisson trackers (yet): they seed new Bernoullis with reported

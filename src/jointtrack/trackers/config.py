@@ -14,6 +14,7 @@ __all__ = [
     "MAX_VARIANCE",
     "MISS_MODELS",
     "REPORTING",
+    "TENTATIVE_ASSOCIATIONS",
     "ModelSettings",
     "TrackerConfig",
     "check_field",
@@ -24,6 +25,8 @@ __all__ = [
 MISS_MODELS = ("1-pd*pg", "1-pd")
 #: How targets are detected (see ``TrackerConfig.reporting``).
 REPORTING = ("scan", "async")
+#: How JIPDA's tentative tracks share returns (see ``TrackerConfig.tentative_association``).
+TENTATIVE_ASSOCIATIONS = ("joint", "alternatives")
 #: Largest standard-deviation-like setting: ``max_speed``, ``max_acceleration``
 #: (each halved into a per-axis σ) and ``velocity_std``, which the tracker squares
 #: into covariances. Equal to the coordinate limit
@@ -171,6 +174,32 @@ class TrackerConfig(ModelSettings):
     merge_threshold : two tracks whose state distance (x₁ − x₂)ᵀ(P₁ + P₂)⁻¹(x₁ − x₂)
         is below this, at least one of them tentative, are duplicates of one
         target and merged (0: never; two confirmed tracks are never merged).
+    tentative_association : how JIPDA's tentative tracks share returns.
+        ``"joint"`` (the default): one joint association of all tentative tracks
+        (after the confirmed ones), so tracks on one target split its returns.
+        ``"alternatives"``: tentative tracks on one target are alternative
+        hypotheses of that target, not competitors — each is a single-target IPDA
+        (exact PDA) on the returns weighted by the probability that no confirmed
+        track took them, its existence accumulating as a lone IPDA's and its
+        state following its most probable return; a tentative
+        track reaching ``r_confirm`` on returns that a confirmed track (or one
+        confirmed before it at this scan) already explains is a duplicate and
+        stays tentative; merged duplicates keep the larger existence, not the
+        union (see :mod:`jointtrack.trackers.existence`, point 5). Measured on the
+        Bojilov scene from nothing it confirms sooner, covers more and scores
+        better (GOSPA 45–49 against 57) but does not reach the start-up floor
+        (25.9; ``benchmarks/RESULTS.md``), so it is not the default. With
+        ``existence`` only.
+    tentative_process_noise : q (m²/s³, ≥ 0) of white-noise acceleration added to
+        the prediction of every tentative track, on top of the motion model's
+        (default 0: none). A tentative track started from one return carries a
+        velocity guessed from a few returns, some of them clutter; with the small
+        q of a nearly-constant-velocity scene its velocity variance shrinks as if
+        each were the target's, so a track that followed clutter confirms with a
+        wrong velocity it never corrects. The extra noise keeps the tentative
+        velocity open; a confirmed track predicts with the model alone. Scan
+        reporting, ``motion`` "cv" or "ca" only (measured: ``benchmarks/RESULTS.md``,
+        issue 33).
     seed : seed of the random generator used by randomised approximations
         (an integer ≥ 0, or None).
 
@@ -297,6 +326,8 @@ class TrackerConfig(ModelSettings):
     r_delete: float = 0.005
     r_report: float = 0.3
     merge_threshold: float = 1.0
+    tentative_association: str = "joint"
+    tentative_process_noise: float = 0.0
     seed: int | None = 0
     miss_model: str = "1-pd*pg"
     reporting: str = "scan"
@@ -370,6 +401,17 @@ class TrackerConfig(ModelSettings):
         self._check_noise_conditioning()
         if self.motion == "imm":  # the IMM settings are unused otherwise
             self._check_imm()
+        need(
+            self.existence or self.tentative_association == "joint",
+            "tentative_association = 'alternatives' needs existence = true (JIPDA): "
+            "alternatives are weighed by their existence",
+        )
+        need(
+            self.tentative_process_noise == 0.0
+            or (self.motion != "imm" and self.reporting == "scan"),
+            "tentative_process_noise > 0 needs motion 'cv' or 'ca' and reporting = 'scan' "
+            f"(got motion = {self.motion!r}, reporting = {self.reporting!r})",
+        )
         if self.reporting == "async":
             need(self.existence, "reporting = 'async' needs existence = true (JIPDA)")
             need(
@@ -812,6 +854,8 @@ _CHECKS = {
     "r_delete": _open_probability,
     "r_report": _probability,
     "merge_threshold": _non_negative,
+    "tentative_association": _choice(TENTATIVE_ASSOCIATIONS),
+    "tentative_process_noise": _non_negative,
     "seed": _seed,
     "miss_model": _choice(MISS_MODELS),
     "reporting": _choice(REPORTING),

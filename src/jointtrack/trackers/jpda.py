@@ -56,6 +56,7 @@ from jointtrack.association.clustering import clusters
 from jointtrack.association.clutter import cluster_heuristic_densities
 from jointtrack.association.coalescence import jpda_star_marginals
 from jointtrack.association.gating import gate_threshold, likelihood_ratio_pairs
+from jointtrack.association.pda import pda_pair_marginals
 from jointtrack.errors import ExactLimitError
 from jointtrack.filters import (
     imm_combine,
@@ -67,9 +68,14 @@ from jointtrack.filters import (
 )
 from jointtrack.filters.imm import IMMModes
 from jointtrack.models import ConstantVelocity
+from jointtrack.models.motion import cv_noise
 from jointtrack.trackers.base import ClusterRecord, ScanResult, ScanTracker
 from jointtrack.trackers.config import TrackerConfig
-from jointtrack.trackers.existence import existence_update, merge_duplicates
+from jointtrack.trackers.existence import (
+    existence_update,
+    merge_duplicates,
+    most_probable_event,
+)
 from jointtrack.trackers.history import TrackHistory, is_datetime
 from jointtrack.trackers.initiation import pair_returns
 from jointtrack.trackers.reporting import (
@@ -94,6 +100,10 @@ __all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackHistory", "Tracke
 #: id continuation: the χ²_{2·dim} probability of the gate in which a new track's position
 #: and velocity must lie around a deleted (or losing) track's (module docstring)
 CONTINUATION_GATE = 0.99
+#: tentative_association = "alternatives": the share of a confirming tentative track's
+#: likelihood on returns confirmed tracks explain that makes it a duplicate
+#: (:meth:`JPDATracker._duplicate_confirmations`)
+DUPLICATE_SHARE = 0.15
 
 log = logging.getLogger("jointtrack.tracker")
 
@@ -233,6 +243,12 @@ class JPDATracker(ScanTracker):
                 self.x, self.P = predict(
                     self.x, self.P, self._motion.transition(dt), self._motion.noise(dt)
                 )
+                if c.tentative_process_noise > 0:
+                    # a tentative velocity is a guess from a few returns (config docstring)
+                    d2 = 2 * c.dim
+                    self.P[~self.confirmed, :d2, :d2] += cv_noise(
+                        dt, c.tentative_process_noise, c.dim
+                    )
         self._scan_detection(t, 0.0 if dt is None else dt)
         if c.existence and len(self.ids):
             # survival to the time this scan's evidence is about (see _scan_detection)
@@ -276,6 +292,7 @@ class JPDATracker(ScanTracker):
         # see only the returns no confirmed track gated, so they cannot glue true
         # targets' clusters together (cf. a separate initiator, Blackman & Popoli §6).
         available = np.ones(Mu)  # JIPDA: P(return not taken by an earlier pass)
+        tentative_pairs = None  # JIPDA: the tentative pass's pairs (duplicate confirmations)
         ungated = np.ones(Mu, bool)  # JIPDA: returns no pass gated (two-point seeds)
         for group, loud in (
             (np.flatnonzero(self.confirmed & ~labelled), True),
@@ -284,15 +301,19 @@ class JPDATracker(ScanTracker):
             if len(group) == 0:
                 continue
             if c.existence:
-                b0, (pr, pc, pw), h, free_local, info, used = self._associate(
+                if not loud:
+                    claimed = 1.0 - available  # by the confirmed tracks
+                b0, (pr, pc, pw), h, free_local, info, used, raw = self._associate(
                     group, zu, loud, available=available
                 )
+                if not loud:
+                    tentative_pairs = (group[pr], pc, used, raw)
                 available = np.clip(available - np.bincount(pc, used, minlength=Mu), 0.0, 1.0)
                 in_no_gate = np.zeros(Mu, bool)
                 in_no_gate[free_local] = True
                 ungated &= in_no_gate
             else:
-                b0, (pr, pc, pw), h, free_local, info, _ = self._associate(group, zu[free], loud)
+                b0, (pr, pc, pw), h, free_local, info, _, _ = self._associate(group, zu[free], loud)
                 pc = free[pc]
                 free = free[free_local]
             beta0[group] = b0
@@ -364,7 +385,12 @@ class JPDATracker(ScanTracker):
                 r, missed = self.existence[unheard], self._scan_missed[unheard]
                 self.existence[unheard] = r * missed / ((1.0 - r) + r * missed)
             before = set(self.ids[self.confirmed].tolist())
-            self._track_logic(hit, t)
+            held = None
+            if c.existence and c.tentative_association == "alternatives" and tentative_pairs:
+                # a duplicate of a confirmed track does not confirm (point 5); it stays
+                # tentative with its existence, and confirms once its returns are its own
+                held = self._duplicate_confirmations(claimed, *tentative_pairs)
+            self._track_logic(hit, t, held)
             if not self.confirmed.all():  # only a tentative track can be a duplicate
                 keep, self.existence = merge_duplicates(
                     self.x,
@@ -374,6 +400,7 @@ class JPDATracker(ScanTracker):
                     self.confirmed,
                     c.dim,
                     c.merge_threshold,
+                    alternatives=c.tentative_association == "alternatives",
                 )
                 self._keep(keep)
             n_continued = self._continue_ids(before, t)
@@ -572,12 +599,19 @@ class JPDATracker(ScanTracker):
         likelihood ratios of the gated pairs, then per cluster: single tracks by
         PDA (exact for one track, all at once), the others by the configured
         method. Returns ``(beta0, (rows, cols, weights), hit, unassociated,
-        (sizes, seconds, methods, fallbacks), used)`` with rows/cols local to
+        (sizes, seconds, methods, fallbacks), used, raw)`` with rows/cols local to
         ``tracks``/``z``; with JIPDA it updates the tracks' existence, the β are
         conditioned on existence and ``used`` holds the unconditional pair
         probabilities (what the returns' availability and birth existence need),
-        else None. ``available`` (M,): the probability that each return was not
+        else None. ``raw``: each pair's likelihood ratio before ``available``
+        scaled it. ``available`` (M,): the probability that each return was not
         taken by an earlier pass; it scales the likelihood ratios.
+
+        With ``tentative_association = "alternatives"`` the tentative tracks
+        (``loud`` False) are each associated alone — single-track PDA, exact —
+        whatever other tentative tracks gate their returns, and the β returned
+        are those of each track's most probable event (its state follows one
+        history; :mod:`jointtrack.trackers.existence`, point 5).
         """
         c = self.config
         n, M = len(tracks), len(z)
@@ -608,21 +642,30 @@ class JPDATracker(ScanTracker):
                 **self._measurement_model(),
             )
             g = dataclasses.replace(g, log_g=log_g)
-        L_pairs, _ = likelihood_ratio_pairs(g, pd_r, lam / scale)
+        raw, _ = likelihood_ratio_pairs(g, pd_r, lam / scale)
+        L_pairs = raw
         if available is not None:  # a return taken by an earlier pass is less likely ours
-            L_pairs = L_pairs * available[g.cols]
+            L_pairs = raw * available[g.cols]
         missed = self._scan_missed[tracks]
         miss = (1.0 - r) + r * missed  # 1 − r P_D P_G
         rows, cols = g.rows, g.cols
-        beta0, weights, groups, info = self._pair_marginals(
-            self.ids[tracks], g, L_pairs, miss, loud, groups
-        )
+        if not loud and c.existence and c.tentative_association == "alternatives":
+            # alternatives of one target do not compete for its returns: each alone
+            beta0, weights = pda_pair_marginals(rows, L_pairs, miss)
+            info = ([], [], [], [])
+        else:
+            beta0, weights, groups, info = self._pair_marginals(
+                self.ids[tracks], g, L_pairs, miss, loud, groups
+            )
         used = None
         if c.existence:
             used = weights.copy()  # unconditional: how much each pair explains its return
             self.existence[tracks], beta0, weights = existence_update(
                 r, beta0, weights, rows, self._scan_pdg[tracks], missed=missed
             )
+            if not loud and c.tentative_association == "alternatives":
+                # each alternative follows one history: its most probable return
+                beta0, weights = most_probable_event(beta0, weights, rows)
         return (
             beta0,
             (rows, cols, weights),
@@ -630,9 +673,43 @@ class JPDATracker(ScanTracker):
             groups.unassociated,
             info,
             used,
+            raw,
         )
 
-    def _track_logic(self, hit, t):
+    def _duplicate_confirmations(self, claimed, rows, cols, used, raw):
+        """Tentative tracks about to confirm on returns a confirmed track explains (a mask:
+        they stay tentative this scan).
+
+        ``tentative_association = "alternatives"`` (:mod:`jointtrack.trackers.existence`,
+        point 5). ``claimed`` (M,): the probability that each return of the scan
+        is a confirmed track's; ``rows`` (tracks), ``cols`` (returns), ``used``
+        (unconditional pair probabilities) and ``raw`` (likelihood ratios before
+        the returns' availability scaled them) the tentative pass's gated pairs.
+        In decreasing existence, a tentative track reaching ``r_confirm`` is a
+        duplicate when at least :data:`DUPLICATE_SHARE` of its likelihood lies on
+        claimed returns, Σ_m L(m)·claimed(m) / Σ_m L(m); otherwise it confirms and
+        its own returns count as claimed for the tracks after it. A target's
+        alternatives then confirm once, while a target in the next lane, whose
+        likelihood lies on its own returns, confirms beside a confirmed neighbour.
+        """
+        c = self.config
+        duplicate = np.zeros(len(self.ids), bool)
+        ready = np.flatnonzero(
+            ~self.confirmed & (self.labels == "") & (self.existence >= c.r_confirm)
+        )
+        if not len(ready):
+            return duplicate
+        claimed = claimed.copy()
+        for i in ready[np.argsort(-self.existence[ready], kind="stable")]:
+            mine = np.flatnonzero(rows == i)
+            total = raw[mine].sum()
+            if total > 0 and raw[mine] @ claimed[cols[mine]] >= DUPLICATE_SHARE * total:
+                duplicate[i] = True
+            else:
+                claimed[cols[mine]] = np.minimum(claimed[cols[mine]] + used[mine], 1.0)
+        return duplicate
+
+    def _track_logic(self, hit, t, held=None):
         c = self.config
         self.age += 1
         self.last_hit = np.where(hit, t, self.last_hit)
@@ -643,7 +720,8 @@ class JPDATracker(ScanTracker):
         pos_var = np.einsum("nii->n", self.P[:, : c.dim, : c.dim]) / c.dim
         blown = np.sqrt(pos_var) > c.max_position_std
         if c.existence:
-            self.confirmed |= self.existence >= c.r_confirm
+            ready = self.existence >= c.r_confirm
+            self.confirmed |= ready if held is None else ready & ~held
             dead = self.existence < c.r_delete
         else:
             hits = np.array([bin(h).count("1") for h in self.hit_history], dtype=np.int64)

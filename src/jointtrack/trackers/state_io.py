@@ -233,6 +233,11 @@ def _fill_added_settings(header: dict, arrays: dict) -> None:
     # per scan and one q, as every earlier state ran
     header["config"].setdefault("imm_switching_per", "scan")
     header["config"].setdefault("imm_process_noise", None)
+    # tentative_association (issue 33) came after version 6: one joint association, as
+    # every earlier state ran
+    header["config"].setdefault("tentative_association", "joint")
+    # tentative_process_noise (issue 33) came after version 6: none, as every earlier state ran
+    header["config"].setdefault("tentative_process_noise", 0.0)
     if header["version"] < 5:  # the IMM settings (issue 32) did not exist
         for key, value in _IMM_SETTINGS.items():
             header["config"].setdefault(key, value)
