@@ -171,7 +171,8 @@ def test_past_the_budget_the_tiers_are_exact(sc, K, extra):
     """
     # each distinct tuple's set-up, and some: the tiers' thresholds
     budget = pmbm_module._TUPLE_WORK * len(sc["hyp"]) + extra
-    trk = _tracker(sc, p_g=1.0, max_hypotheses=K, max_ranking_work=budget)
+    # duplicate_distance 0: the PMB step it is compared with keeps every Bernoulli
+    trk = _tracker(sc, p_g=1.0, max_hypotheses=K, max_ranking_work=budget, duplicate_distance=0.0)
     k_h = np.maximum(1, np.ceil(K * trk.hypothesis_weights())).astype(int)
     res = trk.step(0.0, sc["z"])
     # no record: no tuple with two Bernoullis to rank, and within the budget
@@ -283,8 +284,8 @@ def test_a_burst_never_starts_an_unbounded_dense_approximation(monkeypatch, kind
         return fallback(*args, max_work=max_work, **kw)
 
     monkeypatch.setattr(budget_module, "fallback_pair_marginals", counted)
-    if kind == "pmb":
-        trk, results = _blob(PMBTracker, 300)
+    if kind == "pmb":  # not merged as one target's duplicates: a cluster of ≥ 100
+        trk, results = _blob(PMBTracker, 300, duplicate_distance=0.0)
     else:
         trk = JPDATracker(TrackerConfig(**{k: v for k, v in BURST.items() if k != "birth_density"}))
         rng = np.random.default_rng(0)

@@ -154,6 +154,10 @@ def _config(sc, **kw):
         prior_density=sc["u"],
         r_prune=0.0,
         r_recycle=0.0,  # exact comparisons: no Bernoulli moves into the intensity
+        # the textbook update the enumeration defines (Williams 2015 eq. (58)–(60)): each
+        # Bernoulli's whole mixture merged, no Bernoullis merged with each other
+        keep_apart=False,
+        duplicate_distance=0.0,
         **kw,
     )
 

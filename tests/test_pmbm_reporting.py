@@ -178,7 +178,7 @@ def test_async_pmb_posterior_equals_the_exact_enumeration(sc):
         reporting="async", p_survive_per="second", p_survive=1.0, p_d=p_d, p_g=1.0,
         clutter_density=sc["lam"], report_interval=T, birth_density=0.0,
         prior_density=sc["u"], measurement_noise=9.0, process_noise=0.3, r_prune=0.0,
-        r_recycle=0.0,
+        r_recycle=0.0, keep_apart=False, duplicate_distance=0.0,  # the textbook update
     )  # fmt: skip
     trk = PMBTracker(cfg)
     born = [t0 - a for a in sc["age"]]
@@ -371,10 +371,11 @@ def test_a_version_5_state_is_migrated_and_continues_exactly(kind, tmp_path, mon
     new = {"born", "report_count", "sth_born", "sth_reports", *kind._LABELLED}
     new |= {p + k for p in ("", "sth_") for k in ("mode_x", "mode_P", "mode_log_prob")}
     arrays = {k: getattr(trk, trk._attr(k)) for k in kind._ARRAYS if k not in new}
-    from jointtrack.trackers.pmbm_config import _ADDED_SETTINGS
+    from jointtrack.trackers.pmbm_config import _ADDED_SETTINGS, ISSUE_33_SETTINGS
 
-    # the settings added in version 6: reporting targets and the IMM
-    added = set(_ADDED_SETTINGS) - {"max_ranking_work"}
+    # the settings added in version 6: reporting targets and the IMM (not those of
+    # issue 33, added later within version 6)
+    added = set(_ADDED_SETTINGS) - {"max_ranking_work"} - set(ISSUE_33_SETTINGS)
     assert {"reporting", "r_labelled", "imm_modes"} <= added
     config = {k: v for k, v in cfg.to_dict().items() if k not in added}
     monkeypatch.setattr(state_io, "VERSION", 5)

@@ -38,15 +38,26 @@ column is unused is a new target or clutter with weight 1. So:
   :meth:`~jointtrack.trackers.base.ScanTracker._pair_marginals` as the JPDA
   tracker; the probability that measurement j is a new target is
   1 − Σ_i β_ij. Each Bernoulli's mixture over its hypotheses is then merged to
-  one Bernoulli (Williams 2015 eq. (58)–(60)).
+  one Bernoulli (Williams 2015 eq. (58)–(60)) — by default (``keep_apart``)
+  without the returns that the most probable association event gives to
+  another Bernoulli, so that two close targets' Bernoullis do not both merge to
+  the middle (the coalescence of JPDA: H. A. P. Blom and E. A. Bloem,
+  "Probabilistic data association avoiding track coalescence", *IEEE
+  Transactions on Automatic Control* 45(2), 2000); the existences stay the
+  exact marginals. Bernoullis whose states are within ``duplicate_distance``
+  are one target's and are merged (the id reported first is kept).
 * :class:`PMBMTracker` keeps up to ``max_hypotheses`` global hypotheses; from
   each prior hypothesis of normalised weight w_h the ⌈max_hypotheses · w_h⌉
   best new ones come from Murty's algorithm on the package's one LSAP
   (:func:`jointtrack.association.kbest_hypotheses`), per cluster of tracks
   that share gated measurements, the clusters' ranked lists combined exactly
-  (García-Fernández et al. §V). Estimator 1 of that paper (§VI-A): the
-  Bernoullis with r ≥ ``r_estimate`` in the most probable global hypothesis.
-  A track keeps the id it was born with.
+  (García-Fernández et al. §V). The estimate (``estimator``): by default
+  estimator 1 of that paper (§VI-A), the Bernoullis with r ≥ ``r_estimate`` in
+  the most probable global hypothesis; or each track — one Bernoulli's lineage,
+  with the id it was born with — whose existence summed over the global
+  hypotheses is ≥ ``r_estimate``, at its state in the most probable hypothesis
+  holding it (tracks that are alternatives for one target, within
+  ``duplicate_distance``, reported once). A track keeps the id it was born with.
 
 Approximations, each with its knob in :class:`~jointtrack.trackers.pmbm_config.PMBMConfig`:
 
@@ -79,6 +90,10 @@ Approximations, each with its knob in :class:`~jointtrack.trackers.pmbm_config.P
   sparse LBP tier's work by the sparse tiers directly. A 2,000-return clutter
   burst costs PMBM ~8 s CPU per scan instead of not finishing in 15 minutes
   (``benchmarks/RESULTS.md``, "Issue 31").
+* **measurement-driven birth** (``birth_per_return``, default 0): each
+  return no Bernoulli explains adds a birth component at its position for the
+  next scan (B. Ristic, D. Clark, B.-N. Vo and B.-T. Vo, "Adaptive target birth
+  intensity for PHD and CPHD filters", *IEEE T-AES* 48(2), 2012).
 * **uniform birth** ignores the edges of ``birth_region`` (a measurement
   inside it gets the full density, one outside none).
 
@@ -552,11 +567,20 @@ class _PoissonTracker(ScanTracker):
         rho = self._clutter + e
         return rho, e, x_new, P_new
 
-    def _thin_and_prune_poisson(self, recycled=None) -> None:
-        """(1 − P_D) thinning of the undetected (eq. (19)), recycling, pruning and merging.
+    def _thin_and_prune_poisson(self, recycled=None, unexplained=None) -> None:
+        """(1 − P_D) thinning of the undetected (eq. (19)), recycling, births, pruning, merging.
 
         ``recycled``: ``(w, m, P)`` of posterior Bernoullis moved into the
         intensity (weight = existence; Williams 2012), added after the thinning.
+        ``unexplained``: ``(z, q)``, the scan's returns and each one's probability
+        of not having come from a prior Bernoulli; with ``birth_per_return`` > 0
+        each return adds a birth component at its position (one-point: zero-mean
+        velocity, :meth:`_report_states`) of weight ``birth_per_return`` · q — the
+        measurement-driven birth of Ristic et al. 2012 (module docstring), with
+        JIPDA's per-return initiation weight r_init · (1 − P(return from a track)).
+        Births so follow the returns no track explains, wherever a target is lost
+        or appears late, instead of a uniform density small enough for 60 clutter
+        returns a scan.
         """
         c = self.config
         miss = self._u_missed
@@ -566,6 +590,12 @@ class _PoissonTracker(ScanTracker):
             w = np.concatenate([w, recycled[0]])
             m = np.concatenate([m, recycled[1]])
             P = np.concatenate([P, recycled[2]])
+        if c.birth_per_return > 0 and unexplained is not None and len(unexplained[0]):
+            z, q = unexplained
+            xb, Pb = self._report_states(z)
+            w = np.concatenate([w, c.birth_per_return * np.clip(q, 0.0, 1.0)])
+            m = np.concatenate([m, xb])
+            P = np.concatenate([P, Pb])
         self.poisson_w, self.poisson_m, self.poisson_P = prune_and_merge(
             w, m, P, prune=c.poisson_prune, merge=c.poisson_merge, cap=c.max_poisson_components
         )
@@ -602,15 +632,18 @@ class _PoissonTracker(ScanTracker):
         """
         # loud=False for PMB: fallbacks are logged at debug level and reported in the result
         pairs = _GatedPairs(len(r), len(z), rows, cols)
-        beta0, w, _, info = self._pair_marginals(ids, pairs, L, miss, loud)
+        beta0, w, groups, info = self._pair_marginals(ids, pairs, L, miss, loud)
         taken = np.bincount(cols, w, minlength=len(z))
         if det.scan:
             r_post, b0, wc = existence_update(r, beta0, w, rows, self._p_d)
         else:
             r_post, b0, wc = existence_update(r, beta0, w, rows, det.pdg, missed=det.missed)
-        x_post, P_post, modes = self._update_set(x, P, modes, z, b0, rows, cols, wc)
         # the reports each Bernoulli took, given it exists (its own reporting rate)
         reports = np.bincount(rows, wc, minlength=len(r))
+        if self.config.keep_apart:
+            owner = _best_event_owners(groups, rows, cols, L, miss, len(z))
+            b0, wc = _apart_weights(b0, wc, rows, cols, owner)
+        x_post, P_post, modes = self._update_set(x, P, modes, z, b0, rows, cols, wc)
         return r_post, x_post, P_post, taken, info, reports, modes
 
     # --------------------------------------------------------------- checks
@@ -788,12 +821,17 @@ class PMBTracker(_PoissonTracker):
             for a, b in zip(self._modes(), self._new_modes(x_new, P_new), strict=True)
         ]
         weak = (r < c.r_recycle) & (r >= c.r_prune) & ~reported
-        self._thin_and_prune_poisson((r[weak], x[weak], P[weak]))
+        self._thin_and_prune_poisson((r[weak], x[weak], P[weak]), (zu, 1.0 - taken))
         keep = (r >= c.r_prune) & (r > 0) & ~weak  # r = 0: no Bernoulli at all
         self.x, self.P, self.existence, ids = x[keep], P[keep], r[keep], ids[keep]
         self.born, self.report_count = born[keep], report_count[keep]
         self.mode_x, self.mode_P, self.mode_log_prob = (a[keep] for a in modes)
-        self.reported = reported[keep] | (self.existence >= c.r_estimate)
+        self.reported = reported[keep]
+        self.ids = ids
+        if c.duplicate_distance > 0 and len(ids) > 1:
+            self._merge_duplicates()
+            ids = self.ids
+        self.reported = self.reported | (self.existence >= c.r_estimate)
         new = ids == 0
         ids[new] = np.arange(self.next_id, self.next_id + int(new.sum()))
         self.next_id += int(new.sum())
@@ -820,6 +858,39 @@ class PMBTracker(_PoissonTracker):
             n_coincident=n_coincident,
         )
 
+    def _merge_duplicates(self) -> None:
+        """Bernoullis of one target are one Bernoulli (``ids`` 0: born this scan).
+
+        Groups of :func:`_duplicate_groups` (means within ``duplicate_distance``);
+        each group becomes its leader — reported before never reported, then the
+        oldest id, then the most probable — with existence 1 − Π(1 − r) (at least
+        one of them exists) and the mixture's mean and covariance (moment matching,
+        weights r). With an IMM the leader keeps its own modes.
+        """
+        c = self.config
+        r, ids = self.existence, self.ids
+        rank = np.lexsort((-r, np.where(ids > 0, ids, np.iinfo(np.int64).max), ~self.reported))
+        # two returns of one scan are two targets (or clutter): their new Bernoullis
+        # are never one target's duplicates
+        group = _duplicate_groups(
+            self.x, self.P, rank, c.duplicate_distance, c.dim, exclusive=ids == 0
+        )
+        n_groups = int(group.max()) + 1
+        if n_groups == len(ids):
+            return
+        lead = np.full(n_groups, -1, np.int64)
+        for i in rank[::-1]:  # the first in rank order of each group is written last
+            lead[group[i]] = i
+        _, x, P = moment_match(r, group, self.x, self.P, n_groups)
+        # log P(none exists) = Σ log(1 − r): r = 1 gives −inf, and 1 − Π(1 − r) = 1
+        with np.errstate(divide="ignore"):
+            log_none = np.bincount(group, np.log1p(-r), minlength=n_groups)
+        reported = np.bincount(group, self.reported, minlength=n_groups) > 0
+        self._keep_bernoullis(lead)
+        self.existence, self.reported = -np.expm1(log_none), reported
+        if self._imm is None:  # with an IMM x, P are the leader's modes combined
+            self.x, self.P = x, P
+
     def _validate_state(self, path, arrays, scalars):
         n = self.state_dim
         spec = {
@@ -842,6 +913,135 @@ class PMBTracker(_PoissonTracker):
         validate_mode_arrays(path, arrays, self._imm)
         ids = np.concatenate([arrays["ids"], arrays["labelled_ids"]])
         validate_counters(path, ids, scalars)
+
+
+#: Largest cluster (Bernoullis × returns) whose most probable association event
+#: :func:`_best_event_owners` finds: one assignment of an (N, N + M) matrix. The
+#: clusters of the built-in scenes are far below it; a clutter burst's giant cluster
+#: keeps the plain marginal update (its Bernoullis are clutter-born, not lanes).
+APART_MAX_CELLS = 1 << 16
+
+
+def _best_event_owners(groups, rows, cols, L, miss, M) -> np.ndarray:
+    """``owner[j]``: the Bernoulli the most probable association event gives return j.
+
+    Per cluster of two or more Bernoullis (one Bernoulli has nobody to be kept
+    apart from) of at most :data:`APART_MAX_CELLS` cells, the MAP event by the
+    package's one assignment solver (:func:`~jointtrack.association.kbest_hypotheses`
+    with k = 1); −1 for returns the event leaves to clutter or a new target, and
+    for the returns of the other clusters.
+    """
+    owner = np.full(M, -1, np.int64)
+    if not len(rows):
+        return owner
+    # the pairs of each cluster, and each Bernoulli's and return's place in its cluster
+    pair_cluster = groups.track_cluster[rows]
+    order = np.argsort(pair_cluster, kind="stable")
+    bounds = np.searchsorted(pair_cluster[order], np.arange(len(groups) + 1))
+    local = np.zeros(len(groups.track_cluster), np.int64)
+    local_m = np.zeros(M, np.int64)
+    for k, cl in enumerate(groups):
+        tr, ms = cl.tracks, cl.measurements
+        if len(tr) < 2 or not len(ms) or len(tr) * (len(tr) + len(ms)) > APART_MAX_CELLS:
+            continue
+        local[tr] = np.arange(len(tr))
+        local_m[ms] = np.arange(len(ms))
+        p = order[bounds[k] : bounds[k + 1]]
+        Lc = np.zeros((len(tr), len(ms)))
+        Lc[local[rows[p]], local_m[cols[p]]] = L[p]
+        try:
+            a = kbest_hypotheses(Lc, np.ascontiguousarray(miss[tr], float), k=1).assignments[0]
+        except InfeasibleAssignmentError:  # P_D = 1, r = 1: no event; nothing to keep apart
+            continue
+        hit = a > 0
+        owner[ms[a[hit] - 1]] = tr[hit]
+    return owner
+
+
+def _apart_weights(b0, wc, rows, cols, owner):
+    """Association weights of the Bernoullis' *state* update, kept apart by the MAP event.
+
+    ``b0``, ``wc``: each Bernoulli's miss and pair probabilities given that it
+    exists (:func:`~jointtrack.trackers.existence.existence_update`). A pair
+    whose return the most probable event gives to *another* Bernoulli
+    (``owner``, :func:`_best_event_owners`) is dropped, and the Bernoulli's other
+    pairs take its weight in proportion (its probability of having been detected,
+    1 − b0, is kept); a Bernoulli left with no pair is updated as missed.
+
+    Why: the track-oriented PMB merges each Bernoulli's mixture over its
+    hypotheses into one Gaussian (Williams 2015 eq. (58)–(60)). Two Bernoullis of
+    targets closer than the measurement noise each weigh both targets' returns
+    about equally, so both merged means sit between the lanes and the estimates
+    hop from lane to lane — the coalescence of JPDA (Blom & Bloem, module
+    docstring). Keeping
+    the returns of the best event apart, as JPDA* keeps the best permutation,
+    lets each Bernoulli follow its own target; the existences, the returns'
+    probabilities of a new target and the reports stay the exact marginals.
+    """
+    if not len(wc):
+        return b0, wc
+    other = (owner[cols] >= 0) & (owner[cols] != rows)
+    if not other.any():
+        return b0, wc
+    n = len(b0)
+    total = np.bincount(rows, wc, minlength=n)
+    kept_w = np.where(other, 0.0, wc)
+    kept = np.bincount(rows, kept_w, minlength=n)
+    some = kept > 0
+    # share of the kept weight, then times the total: total / kept overflows when the
+    # kept weight is subnormal beside a normal total
+    share = np.divide(kept_w, kept[rows], out=np.zeros(len(wc)), where=some[rows])
+    return np.where(some, b0, 1.0), share * total[rows]
+
+
+def _duplicate_groups(x, P, rank, distance, dim, exclusive=None) -> np.ndarray:
+    """Group labels of Bernoullis whose means are within ``distance`` of a leader's.
+
+    Greedy in ``rank`` order (as Vo & Ma 2006, Table II): each Bernoulli not yet
+    grouped leads a group of every ungrouped one whose mean differs from its own by
+    a squared Mahalanobis distance ≤ ``distance`` in the sum of the two
+    covariances (the whole state: position and velocity). A group holds at most one
+    of the ``exclusive`` Bernoullis (bool mask; the nearest to its leader). Candidates
+    come from a KD-tree on the positions: the position part of that distance is at
+    most the whole, and at least |Δpos|² over the sum of the two position
+    covariances' traces.
+    """
+    from scipy.spatial import cKDTree
+
+    n = len(x)
+    group = np.full(n, -1, np.int64)
+    pos = x[:, :dim]
+    tr = np.trace(P[:, :dim, :dim], axis1=1, axis2=2)
+    radius = math.sqrt(distance * 2.0 * float(tr.max())) if distance > 0 else 0.0
+    # the tree in units of the largest coordinate: squared distances of positions near
+    # the coordinate limit (1e150 and more) would overflow in it
+    scale = max(float(np.abs(pos).max()), radius, 1.0)
+    if math.isfinite(scale):
+        near = cKDTree(pos / scale).query_ball_point(pos / scale, radius / scale)
+    else:  # a radius beyond the float range: every pair is a candidate
+        near = [list(range(n))] * n
+    g = 0
+    for i in rank:
+        if group[i] >= 0:
+            continue
+        group[i] = g
+        cand = np.asarray([j for j in near[i] if group[j] < 0], np.int64)
+        if len(cand):
+            with np.errstate(all="ignore"):  # inf/NaN distances (near the limit) never merge
+                d = x[cand] - x[i]
+                S = P[cand] + P[i]
+                d2 = np.einsum("ki,ki->k", d, np.linalg.solve(S, d[:, :, None])[:, :, 0])
+            close = d2 <= distance
+            if exclusive is not None:
+                own = close & exclusive[cand]
+                if exclusive[i]:
+                    close &= ~own
+                elif own.sum() > 1:
+                    close &= ~own
+                    close[np.flatnonzero(own)[np.argmin(d2[own])]] = True
+            group[cand[close]] = g
+        g += 1
+    return group
 
 
 def _check_existence(path, name, r) -> None:
@@ -1118,6 +1318,10 @@ class PMBMTracker(_PoissonTracker):
         keep = np.flatnonzero((w >= c.hypothesis_prune) | (new_logw == 0.0))
         keep = keep[np.argsort(-w[keep], kind="stable")][: c.max_hypotheses]
         hyp, logw = new_rows[keep], new_logw[keep]
+        # each return's probability of not having come from a prior track: its new
+        # track's column is −1 exactly in the hypotheses that gave it to a prior one
+        wk = np.exp(logw - logw.max())
+        unexplained = (z, (wk @ (hyp[:, T:] >= 0)) / wk.sum())
         # the children the kept hypotheses hold, and only those, are computed (a clutter
         # burst gates millions of pairs; Kalman updates of them all would not be used)
         ref = np.unique(hyp[hyp >= 0])
@@ -1163,15 +1367,10 @@ class PMBMTracker(_PoissonTracker):
         )
         order = np.argsort(-self.hyp_logw, kind="stable")
         self.hyp, self.hyp_logw = self.hyp[order], self.hyp_logw[order]
-        self._thin_and_prune_poisson(recycled)
+        self._thin_and_prune_poisson(recycled, unexplained)
         self.time = t
         self.n_scans += 1
-        # estimator 1: the Bernoullis of the best global hypothesis with r ≥ r_estimate
-        best = self.hyp[0]
-        present = np.flatnonzero(best >= 0)
-        s = best[present]
-        report = self.sth_r[s] >= c.r_estimate
-        s, tracks = s[report], present[report]
+        s, tracks, present = self._estimate()
         self.track_reported[tracks] = True
         gated = np.zeros(M, bool)
         gated[cols] = True
@@ -1183,7 +1382,7 @@ class PMBMTracker(_PoissonTracker):
             self.sth_P[s].copy(),
             self.sth_r[s].copy(),
             self.sth_mode_log_prob[s],
-            n_tentative=int(len(present) - len(s)),
+            n_tentative=int(len(np.setdiff1d(present, tracks))),
             n_measurements=len(z_all),
             n_unassociated=int((~gated).sum()),
             cluster_sizes=sizes,
@@ -1193,6 +1392,51 @@ class PMBMTracker(_PoissonTracker):
             cluster_fallbacks=fallbacks,
             n_coincident=n_coincident,
         )
+
+    def _estimate(self):
+        """``(sths, tracks, present)``: the STHs reported, their tracks, and the tracks
+        in the best global hypothesis (the rest of them are counted as tentative).
+
+        ``estimator = "best"``: estimator 1 of García-Fernández et al. (§VI-A), the
+        Bernoullis of the most probable global hypothesis with r ≥ ``r_estimate``.
+        ``estimator = "track"``: each track (one Bernoulli's lineage, one id) by its
+        existence over all the global hypotheses, Σ_h w_h r_h (0 where h has no
+        Bernoulli of it) ≥ ``r_estimate``, with the state of its Bernoulli in the
+        most probable hypothesis that holds it; of tracks whose states are within
+        ``duplicate_distance`` (alternatives for one target) only the one reported
+        before, else the most probable. Why: in a cluster of close targets
+        the most probable hypothesis changes from scan to scan between near-equal
+        ones; estimator 1 then drops and restores tracks (and with them the
+        coverage) scan by scan, while a track's existence summed over the
+        hypotheses moves only as the evidence does, and its id is its lineage's.
+        """
+        c = self.config
+        best = self.hyp[0]
+        present = np.flatnonzero(best >= 0)
+        if c.estimator == "best":
+            s = best[present]
+            report = self.sth_r[s] >= c.r_estimate
+            return s[report], present[report], present
+        w = self.hypothesis_weights()
+        held = self.hyp >= 0
+        r = np.where(held, self.sth_r[np.maximum(self.hyp, 0)], 0.0)
+        existence = w @ r
+        tracks = np.flatnonzero(existence >= c.r_estimate)
+        # hypotheses are sorted by weight: the first that holds each track is its best
+        sths = self.hyp[np.argmax(held[:, tracks], axis=0), tracks]
+        if c.duplicate_distance > 0 and len(tracks) > 1:
+            # tracks that are alternatives for one target (one in some hypotheses, the
+            # other in the rest: a return that went to a prior track or started its own)
+            # are one estimate, the track reported before (else the more probable)
+            rank = np.lexsort((-existence[tracks], ~self.track_reported[tracks]))
+            group = _duplicate_groups(
+                self.sth_x[sths], self.sth_P[sths], rank, c.duplicate_distance, c.dim
+            )
+            lead = np.full(int(group.max()) + 1, -1, np.int64)
+            lead[group[rank[::-1]]] = rank[::-1]
+            lead = np.sort(lead)
+            tracks, sths = tracks[lead], sths[lead]
+        return sths, tracks, present
 
     def _drop_void_hypotheses(self):
         """Single-target hypotheses whose existence underflowed to 0 are no Bernoulli.

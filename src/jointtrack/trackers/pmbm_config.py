@@ -24,7 +24,10 @@ from jointtrack.trackers.config import (
 from jointtrack.trackers.config import _non_negative as config_non_negative
 from jointtrack.trackers.config import _positive as config_positive
 
-__all__ = ["BIRTH_MODELS", "PMBMConfig"]
+__all__ = ["BIRTH_MODELS", "ESTIMATORS", "PMBMConfig"]
+
+#: PMBM estimators: estimator 1, or a track's existence over all global hypotheses.
+ESTIMATORS = ("best", "track")
 
 #: Kinds of birth (and prior) intensity of undetected targets.
 BIRTH_MODELS = ("uniform", "gaussian")
@@ -33,6 +36,11 @@ BIRTH_MODELS = ("uniform", "gaussian")
 #: older state's run continues exactly as before (no ranking budget).
 _ADDED_SETTINGS = {
     "max_ranking_work": None,
+    # issue 33: the PMB state update kept apart by the most probable event; before, merged
+    "keep_apart": False,
+    "duplicate_distance": 0.0,
+    "birth_per_return": 0.0,
+    "estimator": "best",
     # reporting targets (issue 32): a scanning sensor, survival per scan, as before
     "reporting": "scan",
     "report_interval": 60.0,
@@ -49,6 +57,10 @@ _ADDED_SETTINGS = {
     "imm_switching_per": "scan",
     "imm_process_noise": None,
 }
+
+#: The settings of issue 33 (PMB/PMBM from nothing): a state saved before them
+#: continues with the values in _ADDED_SETTINGS.
+ISSUE_33_SETTINGS = ("keep_apart", "duplicate_distance", "birth_per_return", "estimator")
 
 #: Fields shared with TrackerConfig, checked by its field checks.
 _SHARED = (
@@ -125,6 +137,16 @@ class PMBMConfig(ModelSettings):
     birth_density : uniform births per unit area (volume) per scan (per second
         with ``reporting = "async"``).
     birth_region : None (unbounded) or ``((xmin, xmax), (ymin, ymax)[, (zmin, zmax)])``.
+    birth_per_return : measurement-driven (adaptive) birth, in [0, 1): each
+        unlabelled return adds to the undetected intensity of the next scan a
+        Gaussian at its position (zero-mean velocity of per-axis σ =
+        ``max_speed``/2) of weight birth_per_return × the probability that no
+        prior Bernoulli took it (Ristic et al. 2012; as the JIPDA tracker's
+        per-return initiation, ``r_init``). A target lost, or appearing where the
+        uniform density is thin, is then found from its own returns as fast as
+        JIPDA finds one. Default 0 (births only from ``birth_model``);
+        :func:`~jointtrack.experiments.config.make_pmbm_config` sets it for scenes
+        and files with no birth model known.
     prior_density : undetected targets per unit area at the first scan
         (uniform model; None = the steady state of birth, survival and
         missed detection, birth_density / (1 − P_S (1 − P_D))).
@@ -145,9 +167,38 @@ class PMBMConfig(ModelSettings):
         target's evidence is kept in the intensity until it is strong. A
         Bernoulli once reported is never recycled (it keeps its id through
         missed detections until its existence falls below ``r_prune``).
+    keep_apart : PMB (and PMBM clusters merged past the ranking budget): each
+        Bernoulli's *state* is updated by its association probabilities without the
+        returns that the most probable association event gives to another Bernoulli
+        (its other pairs take their weight in proportion); the existences stay the
+        exact marginals. Without it (False) two Bernoullis of targets closer than the
+        measurement noise both merge to the middle and their estimates hop between
+        the lanes (the coalescence of JPDA; Blom & Bloem 2000). Default True; a
+        state saved before this setting existed loads with False.
+    duplicate_distance : PMB: Bernoullis whose means (position and velocity)
+        differ by a squared Mahalanobis distance at most this (in the sum of their
+        covariances) are one target's and are merged after each update — the one
+        reported first (else the oldest) keeps its id, with existence
+        1 − Π(1 − r) and the moment-matched state (0 = never). Why: a target's
+        returns start a Bernoulli while the Poisson intensity still holds its
+        recycled evidence, so one target gets two or three Bernoullis of existence
+        ≈ 0.5 that split its returns and are both reported. Default 1.0 (two
+        distinct targets' states are far further apart once their velocities are
+        known); a state saved before this setting existed loads with 0.
     r_estimate : Bernoullis reported as targets have existence ≥ this
-        (PMBM: in the most probable global hypothesis; estimator 1 of
-        García-Fernández et al. 2018).
+        (PMBM: as ``estimator`` says).
+    estimator : PMBM estimate: ``"best"`` (default) — estimator 1 of
+        García-Fernández et al. 2018 (§VI-A), the Bernoullis of the most probable
+        global hypothesis with r ≥ ``r_estimate``, whose tracks come and go as that
+        hypothesis changes between near-equal ones in a cluster of close targets;
+        or ``"track"`` — each track (a Bernoulli's lineage: its id from the return
+        that started it) whose existence summed over the global hypotheses,
+        Σ_h w_h r_h, is ≥ ``r_estimate``, at its state in the most probable
+        hypothesis holding it (alternatives for one target within
+        ``duplicate_distance`` reported once). Measured (``benchmarks/RESULTS.md``,
+        "Issue 33"): ``"track"`` cuts the headline scene's id switches from nothing
+        (12.2 → 9.0 per run) at equal GOSPA, but costs the coalescence scene 11 %
+        (2.31 → 2.57), so it is not the default.
     max_hypotheses : PMBM cap on global hypotheses (the k of Murty's algorithm
         is ⌈max_hypotheses · w_h⌉ for a prior hypothesis of weight w_h).
     hypothesis_prune : PMBM global hypotheses with a normalised weight below
@@ -190,6 +241,7 @@ class PMBMConfig(ModelSettings):
     birth_density: float = 1e-7
     birth_region: tuple | None = None
     prior_density: float | None = None
+    birth_per_return: float = 0.0
     birth_weights: tuple = ()
     birth_means: tuple = ()
     birth_covs: tuple = ()
@@ -199,7 +251,10 @@ class PMBMConfig(ModelSettings):
     max_poisson_components: int = 100
     r_prune: float = 1e-5
     r_recycle: float = 0.1
+    keep_apart: bool = True
+    duplicate_distance: float = 1.0
     r_estimate: float = 0.4
+    estimator: str = "best"
     max_hypotheses: int = 200
     hypothesis_prune: float = 1e-4
     max_ranking_work: int | None = 2**25
@@ -249,16 +304,32 @@ class PMBMConfig(ModelSettings):
             set_(self, "prior_density", _non_negative("prior_density", self.prior_density))
         set_(self, "prior_weight", _non_negative("prior_weight", self.prior_weight))
         self._check_gaussian_birth()
-        for name in ("poisson_prune", "r_prune", "r_recycle", "hypothesis_prune"):
+        for name in (
+            "poisson_prune",
+            "r_prune",
+            "r_recycle",
+            "hypothesis_prune",
+            "birth_per_return",
+        ):
             v = _non_negative(name, getattr(self, name))
             if v >= 1:
                 raise _fail(name, "a number in [0, 1)", v)
             set_(self, name, v)
         set_(self, "poisson_merge", _non_negative("poisson_merge", self.poisson_merge))
+        set_(
+            self,
+            "duplicate_distance",
+            _non_negative("duplicate_distance", self.duplicate_distance),
+        )
         for name in ("max_poisson_components", "max_hypotheses"):
             set_(self, name, _count(name, getattr(self, name)))
         if self.max_ranking_work is not None:
             set_(self, "max_ranking_work", _work("max_ranking_work", self.max_ranking_work))
+        if self.estimator not in ESTIMATORS:
+            raise _fail("estimator", " or ".join(map(repr, ESTIMATORS)), self.estimator)
+        if not isinstance(self.keep_apart, bool | np.bool_):
+            raise _fail("keep_apart", "true or false", self.keep_apart)
+        set_(self, "keep_apart", bool(self.keep_apart))
         r = _non_negative("r_estimate", self.r_estimate)
         if not 0 < r <= 1:
             raise _fail("r_estimate", "a number in (0, 1]", r)
