@@ -1,23 +1,16 @@
 """benchmarks/fit_realdata.py's split of the straight flight a run lost (issue 32):
 each lost truth point in exactly one kind, each id change a new flight, a rebirth or an overlap."""
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from benchmark_scripts import load_benchmark
 from jointtrack.metrics.selfreport import score_self_reports
-
-_PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "fit_realdata.py"
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("fit_realdata_bench", _PATH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("fit_realdata")
 
 
 def _rows(ident, times, pos):

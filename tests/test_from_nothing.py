@@ -3,16 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from benchmark_scripts import load_benchmark
 from jointtrack.bench import from_nothing as fn
 from jointtrack.experiments.run import run_scenario
 from jointtrack.scenarios import crossing, simulate_scenario
@@ -258,15 +257,10 @@ def test_evaluate_two_short_seeds(tmp_path):
 
 # ----------------------------------------------------------------------------- the command line
 
-_SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "from_nothing.py"
-
 
 @pytest.fixture(scope="module")
 def script():
-    spec = importlib.util.spec_from_file_location("from_nothing_bench", _SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_benchmark("from_nothing")
 
 
 def _canned(scene, seed, trackers, **_kw):
