@@ -1,12 +1,13 @@
 """`jointtrack run` loses nothing: SIGKILL at any stage of any scan, then `--resume` alone.
 
-Each case runs the CLI in a subprocess that kills itself (fault injection,
+Each case runs the CLI in a process of its own that kills itself (fault injection,
 ``JOINTTRACK_FAULT``, see :mod:`jointtrack.experiments.writers`) at a chosen
 stage of a chosen scan, then resumes with ``--resume CHECKPOINT`` and no other
 flag, and compares the tracks with an uninterrupted run row for row. Only the
 killed runs need a process of their own; the uninterrupted runs, the resumes and
 the refusals run the CLI in this process (:func:`_cli_here`; CI time: each
-subprocess pays ≈ 5 CPU-seconds of imports and kernel loading).
+process of its own pays for loading kernels and, unless forked from
+:mod:`cli_process`'s server, ≈ 2.5 CPU-seconds of imports).
 """
 
 from __future__ import annotations
@@ -15,14 +16,13 @@ import contextlib
 import json
 import os
 import signal
-import subprocess
-import sys
 
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
+import cli_process
 from cli_checks import one_line_error
 from jointtrack.cli import app
 
@@ -35,24 +35,18 @@ clutter_per_scan = 4.0
 """
 
 
-def _cli_command(args, fault=None):
-    """``(argv, env)`` of the CLI in a subprocess, with the fault to inject (or None)."""
+def _cli_env(fault=None) -> dict:
+    """This process's environment with the fault to inject (or None)."""
     env = dict(os.environ)
     env.pop("JOINTTRACK_FAULT", None)
     if fault:
         env["JOINTTRACK_FAULT"] = fault
-    # Ctrl-C as from a terminal: a runner that ignores SIGINT (pytest-xdist's workers do)
-    # passes SIG_IGN on to its children, and Python then installs no KeyboardInterrupt
-    code = (
-        "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-        "from jointtrack.cli import main; sys.argv[0] = 'jointtrack'; main()"
-    )
-    return [sys.executable, "-c", code, *map(str, args)], env
+    return env
 
 
 def _cli(args, cwd, fault=None):
-    argv, env = _cli_command(args, fault)
-    return subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+    """The CLI in a process of its own (:mod:`cli_process`), to its end or its fault."""
+    return cli_process.run(args, cwd, _cli_env(fault), timeout=300)
 
 
 def _cli_here(args, cwd):

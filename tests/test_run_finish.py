@@ -23,18 +23,18 @@ import copy
 import json
 import os
 import signal
-import subprocess
 import time
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+import cli_process
 from cli_checks import one_line_error
 from jointtrack.cli import app
 from jointtrack.scenarios import crossing
 from jointtrack.trackers.state_io import read_run
-from test_run_durable import _cli, _cli_command
+from test_run_durable import _cli, _cli_env
 from test_run_realdata import write_ais
 
 runner = CliRunner()
@@ -252,12 +252,9 @@ def supervise(cmd, cwd, kill=None, deadline: float = 900.0):
     None if never seen) and to its end, and whether it was killed. ``kill(elapsed,
     started)``: SIGKILL the run as soon as it returns true (a run that ended before
     exits 0)."""
-    argv, env = _cli_command(cmd)
     parts = cwd / "out" / ".tracks-parts"
     t0 = time.monotonic()
-    proc = subprocess.Popen(
-        argv, cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
-    )
+    proc = cli_process.start(cmd, cwd, _cli_env(), keep_stdout=False)
     started = None
     killed = False
     try:
@@ -271,8 +268,8 @@ def supervise(cmd, cwd, kill=None, deadline: float = 900.0):
                 killed = True
                 break
             time.sleep(0.002)
-        _, err = proc.communicate()
-        assert killed or proc.returncode == 0, err
+        proc.wait()
+        assert killed or proc.returncode == 0, proc.stderr
         return started, time.monotonic() - t0, killed
     finally:
         if proc.poll() is None:
