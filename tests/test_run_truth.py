@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 
 from cli_checks import one_line_error
 from jointtrack.cli import app
-from jointtrack.experiments.config import scenario_tracker_settings
+from jointtrack.experiments.config import FROM_NOTHING_JIPDA, scenario_tracker_settings
 from jointtrack.experiments.run import run_detections
 from jointtrack.io import (
     DataFileError,
@@ -72,9 +72,11 @@ def scenario_run(tmp_path_factory):
     settings = scenario_tracker_settings(sc)
     metrics = json.loads((out / "metrics.json").read_text())
     # the keys the detections run's fit would choose beyond the scenario's settings
-    # (id continuation, JPDA*, the motion model) pinned to the scenario run's values:
-    # the same run, so the same scores
-    for key in ("id_continuation", "coalescence_avoidance", "motion", "turn_rate_std"):
+    # (id continuation, JPDA*, the motion model), and those a scenario run from nothing
+    # takes (experiments.config.FROM_NOTHING_JIPDA; detections runs do not, yet), pinned
+    # to the scenario run's values: the same run, so the same scores
+    pinned = ("id_continuation", "coalescence_avoidance", "motion", "turn_rate_std")
+    for key in pinned + tuple(FROM_NOTHING_JIPDA):
         settings.setdefault(key, metrics["tracker"][key])
     assert None not in settings.values()  # TOML has no null
     tracker = tmp / "tracker.toml"
@@ -146,7 +148,7 @@ def test_iso_times_without_truth_state_the_epoch(tmp_path):
 
 def test_truth_table_in_memory(tmp_path, scenario_run):
     sc, _ref_out, ref, _tracker, _det, _truth = scenario_run
-    cfg = scenario_tracker_settings(sc)
+    cfg = scenario_tracker_settings(sc) | FROM_NOTHING_JIPDA  # as the scenario run from nothing
     m = run_detections(
         sc.as_detections(), cfg, tmp_path / "out", truth=sc.truth_table(), plots=False,
         metrics_opts={"c": ref["gospa"]["c"]},

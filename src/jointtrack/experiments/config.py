@@ -571,6 +571,28 @@ def jpda_kind_overrides(kind: str, tracker: Mapping) -> dict:
     return out
 
 
+#: The JIPDA settings of a run from nothing, unless ``[tracker]`` sets them (issue 33):
+#: tentative tracks scored as alternatives (each a lone IPDA, so a target's evidence is
+#: not split between the tracks born on its returns; :mod:`jointtrack.trackers.existence`,
+#: point 5) and, because every clutter-born track is then a test of its own, a stricter
+#: confirmation — Wald's bound odds(r_init)/odds(r_confirm) per test is what keeps the
+#: false confirmed tracks at ≈ 0.1 per scan on the Bojilov scene (0.9: 0.26, 0.97: 0.10,
+#: 0.99: 0.05). Measured on seeds 0–9 of the five built-in scenes against the joint
+#: association: ``benchmarks/RESULTS.md``, "JIPDA from nothing: the default".
+FROM_NOTHING_JIPDA = {"tentative_association": "alternatives", "r_confirm": 0.97}
+
+
+def from_nothing_overrides(kind: str | None, tracker: Mapping) -> dict:
+    """``[tracker]`` overrides with :data:`FROM_NOTHING_JIPDA` for the keys they do not
+    set, when the run is JIPDA (``kind`` ``"jipda"``, or None with ``existence`` not
+    false); other kinds' overrides unchanged. For runs that start from nothing."""
+    out = dict(tracker)
+    if kind in (None, "jipda") and out.get("existence", True) is True:
+        for key, value in FROM_NOTHING_JIPDA.items():
+            out.setdefault(key, value)
+    return out
+
+
 def kind_of_config(cfg) -> str:
     """The kind a tracker configuration runs: ``jpda``/``jipda`` (TrackerConfig, by
     ``existence``); a PMBMConfig does not say whether it is PMB or PMBM (None)."""

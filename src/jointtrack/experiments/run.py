@@ -224,6 +224,7 @@ from jointtrack.experiments.config import (  # noqa: F401 - re-exported
     check_sensor,
     default_start,
     detections_extent,
+    from_nothing_overrides,
     jpda_kind_overrides,
     kind_of_config,
     load_config,
@@ -1310,11 +1311,7 @@ def run_scenario(
         identity = {"scenario": run_name(scenario.name), "seed": scenario.seed, "kwargs": kwargs}
     start = start_setting(start_from, start_from_truth, "run_scenario:", noun="argument")
     kind = _check_kind(tracker, config, pmbm, particle)
-    if start is None:
-        # the particle tracker follows the targets it is started with: from the truth
-        start = "truth" if particle is not None else default_start(scenario.name)
-        if kind in POISSON_KINDS:
-            start = "nothing"
+    start = resolved_start(start, scenario.name, kind, particle)
     if kind in POISSON_KINDS and start == "truth":
         raise RunConfigError(_POISSON_TRUTH_START)
     start_from_truth = start == "truth"
@@ -1323,6 +1320,8 @@ def run_scenario(
         cfg = config
     else:
         over = jpda_kind_overrides(kind, dict(config or {}))
+        if start == "nothing" and particle is None:
+            over = from_nothing_overrides(kind, over)
         cfg = make_tracker_config(scenario_tracker_settings(scenario), over)
     if kind in POISSON_KINDS and not isinstance(cfg, PMBMConfig):
         cfg, notes = make_pmbm_config(
@@ -1374,6 +1373,19 @@ def run_scenario(
         particle=particle,
         kind=kind,
     )
+
+
+def resolved_start(start: str | None, scenario_name: str, kind: str | None, particle=None) -> str:
+    """The start of a run on a built-in scenario: ``start`` when given, else the
+    particle tracker's ``"truth"`` (it follows the targets it is started with), the
+    Poisson trackers' ``"nothing"``, or :func:`default_start` of the scenario."""
+    if start is not None:
+        return start
+    if particle is not None:
+        return "truth"
+    if kind in POISSON_KINDS:
+        return "nothing"
+    return default_start(scenario_name)
 
 
 def _check_kind(tracker, config, pmbm, particle=None) -> str | None:

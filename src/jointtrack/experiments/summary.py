@@ -638,7 +638,12 @@ def start_description(metrics: Mapping) -> str:
         confirm = f"confirmed at JIPDA existence ≥ {tr.get('r_confirm', 0.9):g}"
     else:
         confirm = f"confirmed by {tr.get('confirm_m', 2)}-of-{tr.get('confirm_n', 3)} hits"
-    text = f"tracks started from nothing ({init} initiation, {confirm})"
+    if tr.get("tentative_association") == "alternatives":
+        # jointtrack.trackers.existence, point 5: what makes a target confirm at a lone IPDA's pace
+        init += " initiation, tentative tracks scored as alternatives (each a lone IPDA)"
+    else:
+        init += " initiation"
+    text = f"tracks started from nothing ({init}, {confirm})"
     if bojilov:
         text += "; the paper's experiment starts from the truth"
     return text
