@@ -12,3 +12,12 @@ def assert_same_state(after: dict, before: dict) -> None:
             np.testing.assert_array_equal(after[key], value, err_msg=key)
         else:
             assert after[key] == value, key
+
+
+def assert_steps_alike(a, b, scans, fields=("ids", "x", "P", "existence")) -> None:
+    """Trackers ``a`` and ``b`` (e.g. a run and its saved-and-loaded copy) step through
+    ``scans`` (``(t, z)`` pairs) to the same ``fields`` of every ScanResult, bit for bit."""
+    for t, z in scans:
+        ra, rb = a.step(t, z), b.step(t, z)
+        for name in fields:
+            np.testing.assert_array_equal(getattr(ra, name), getattr(rb, name), err_msg=name)

@@ -23,6 +23,7 @@ from scipy.stats import chi2
 from jointtrack.models import ConstantVelocity
 from jointtrack.trackers import JPDATracker, TrackerConfig
 from jointtrack.trackers.existence import merge_duplicates, most_probable_event
+from state_checks import assert_steps_alike
 
 # ---------------------------------------------------------------------------
 # reference: a lone IPDA from its equations
@@ -310,11 +311,7 @@ def test_saved_alternatives_continue_identically(tmp_path):
         a.step(t, z)
     b = JPDATracker.load(a.save(tmp_path / "mid.npz"))
     assert b.config.tentative_association == "alternatives"
-    for t, z in scans[10:]:
-        ra, rb = a.step(t, z), b.step(t, z)
-        np.testing.assert_array_equal(ra.ids, rb.ids)
-        np.testing.assert_array_equal(ra.x, rb.x)
-        np.testing.assert_array_equal(ra.existence, rb.existence)
+    assert_steps_alike(a, b, scans[10:])
 
 
 def test_state_written_before_the_setting_loads_as_joint(tmp_path):

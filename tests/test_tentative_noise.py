@@ -15,6 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from jointtrack.trackers import JPDATracker, TrackerConfig
+from state_checks import assert_steps_alike
 
 
 def _cv(dt, q):
@@ -123,11 +124,7 @@ def test_saved_run_with_tentative_noise_continues_identically(tmp_path):
         a.step(t, z)
     b = JPDATracker.load(a.save(tmp_path / "mid.npz"))
     assert b.config.tentative_process_noise == 0.25
-    for t, z in scans[8:]:
-        ra, rb = a.step(t, z), b.step(t, z)
-        np.testing.assert_array_equal(ra.ids, rb.ids)
-        np.testing.assert_array_equal(ra.x, rb.x)
-        np.testing.assert_array_equal(ra.P, rb.P)
+    assert_steps_alike(a, b, scans[8:])
 
 
 def test_state_written_before_the_setting_loads_without_extra_noise(tmp_path):
