@@ -615,9 +615,10 @@ def run_command(
             # like --scenario and --seed, the flag wins over the config's table
             start = start_from if start_from is not None else table_start
             sc = runmod.make_scenario(name, sd, sc_table, source=cfg.source)
-            if runmod.resolved_start(start, sc.name, kind, particle) == "nothing":
-                if particle is None:
-                    jpda_table = runmod.from_nothing_overrides(kind, jpda_table)
+            # as run_scenario does with a mapping (this path hands it a built TrackerConfig)
+            from_nothing = runmod.resolved_start(start, sc.name, kind, particle) == "nothing"
+            if from_nothing and particle is None:
+                jpda_table = runmod.from_nothing_overrides(kind, jpda_table)
             tracker_cfg = runmod.make_tracker_config(
                 runmod.scenario_tracker_settings(sc), jpda_table, source=cfg.source
             )
