@@ -243,7 +243,7 @@ def _fill_added_settings(header: dict, arrays: dict) -> None:
     # version 6: no earlier state holds a splitting track, so none (a state written with
     # the settings must hold the arrays)
     if "tentative_components" not in header["config"] and "ids" in arrays:
-        header["config"]["tentative_components"] = 8
+        header["config"]["tentative_components"] = 4
         header["config"].setdefault("tentative_confirm_state", "moment")
         n, w = len(arrays["ids"]), arrays["x"].shape[-1] if "x" in arrays else 0
         arrays.setdefault("comp_x", np.zeros((n, 0, w)))
