@@ -74,7 +74,7 @@ def enumerate_histories(x0, P0, r0, scans, *, R, p_d, p_g, lam, p_survive, q):
     return existence, [(w / total, x, P) for w, x, P in finals]
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     sigma=st.floats(0.5, 20.0),
     p_d=st.floats(0.05, 0.99),
@@ -83,7 +83,13 @@ def enumerate_histories(x0, P0, r0, scans, *, R, p_d, p_g, lam, p_survive, q):
     r0=st.floats(0.001, 0.5),
     p_survive=st.floats(0.5, 1.0),
     offsets=st.lists(
-        st.lists(st.tuples(st.floats(-3.0, 3.0), st.floats(-3.0, 3.0)), min_size=0, max_size=3),
+        # distinct: identical returns of one scan are one return to the tracker
+        st.lists(
+            st.tuples(st.floats(-3.0, 3.0), st.floats(-3.0, 3.0)),
+            min_size=0,
+            max_size=3,
+            unique=True,
+        ),
         min_size=1,
         max_size=3,
     ),
@@ -104,6 +110,8 @@ def test_unpruned_mixture_is_the_exact_history_posterior(
         (1.0, np.array([[(k + 1) * v[0], (k + 1) * v[1]]]) + sigma * np.array(o).reshape(-1, 2))
         for k, o in enumerate(offsets)
     ]
+    # returns that round to one point are one return to the tracker (merge_coincident)
+    scans = [(dt, z[np.sort(np.unique(z, axis=0, return_index=True)[1])]) for dt, z in scans]
     cfg = TrackerConfig(
         measurement_noise=sigma**2,
         process_noise=q,
@@ -333,3 +341,84 @@ def test_state_written_before_the_setting_loads_without_components(tmp_path):
     loaded = JPDATracker.load(tmp_path / "before.npz")
     assert loaded.comp_x.shape == (len(loaded.ids), 0, 4)
     assert_steps_alike(trk, loaded, scans[8:])
+
+
+# ---------------------------------------------------------------------------
+# one scan's arithmetic, exactly; a failing step
+# ---------------------------------------------------------------------------
+
+_MAGNITUDES = st.one_of(
+    st.just(0.0),
+    st.floats(1e-300, 1e300),
+    st.sampled_from([5e-324, 2.2250738585072014e-308, 1e-300, 1e300]),
+)
+
+
+@settings(max_examples=50, deadline=None)
+@given(data=st.data(), n_comp=st.integers(1, 3), n_ret=st.integers(0, 3))
+def test_one_scan_equals_exact_rationals(data, n_comp, n_ret):
+    """its_update against the same scan in exact rationals (fractions of the float
+    inputs): existence and every child's weight to relative 1e-12, whatever the
+    magnitudes of the likelihood ratios (0, subnormal … 1e300) and of r."""
+    from fractions import Fraction as Fr
+
+    from jointtrack.trackers.track_splitting import its_update
+
+    r = data.draw(st.floats(1e-300, 1.0))
+    pdg = data.draw(st.floats(0.0, 1.0))
+    missed = 1.0 - pdg
+    raw_w = data.draw(st.lists(st.floats(1e-3, 1.0), min_size=n_comp, max_size=n_comp))
+    log_w = np.log(np.array(raw_w) / np.sum(raw_w))
+    pair_comp = np.repeat(np.arange(n_comp), n_ret)
+    L = np.array(data.draw(st.lists(_MAGNITUDES, min_size=len(pair_comp), max_size=len(pair_comp))))
+    if r * missed == 0.0 and not (L > 0).any():
+        return  # nothing can happen: no return and no miss (refused upstream)
+    r_post, miss_lw, hit_lw, _ = its_update(
+        np.array([r]),
+        log_w,
+        np.zeros(n_comp, np.int64),
+        pair_comp,
+        L,
+        np.array([missed]),
+        np.array([pdg]),
+    )
+    w = [Fr(float(v)) for v in np.exp(log_w)]
+    hits = [w[c] * Fr(float(v)) for c, v in zip(pair_comp, L, strict=True)]
+    exists_missed = Fr(r) * Fr(missed)
+    # exact: r' = (r·missed + Σ w L) / ((1 − r) + r·missed + Σ w L); given existence the
+    # miss children share r·missed by the components' weights, the hits their w L
+    total = (1 - Fr(r)) + exists_missed + sum(hits)
+    given = exists_missed + sum(hits)
+    want_r = given / total
+    assert float(r_post[0]) == pytest.approx(float(want_r), rel=1e-12, abs=0.0)
+    for got, want in zip(
+        np.concatenate([miss_lw, hit_lw]),
+        [wc * exists_missed / given for wc in w] + [h / given for h in hits],
+        strict=True,
+    ):
+        if want == 0:
+            assert got == -np.inf
+        else:
+            assert np.exp(got) == pytest.approx(float(want), rel=1e-12, abs=1e-300)
+            assert np.isfinite(got) or float(want) < 1e-300
+
+
+def test_a_failing_step_leaves_the_components_unchanged(monkeypatch):
+    """A step that fails inside the splitting update (after the existence changed)
+    leaves every array — components included — as it was."""
+    from jointtrack.trackers import jpda
+    from state_checks import assert_same_state
+
+    trk, scans = _mid_run()
+    before = trk.state_dict()
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("injected")
+
+    monkeypatch.setattr(jpda, "pda_pairs_update", broken)
+    with pytest.raises(RuntimeError, match="injected"):
+        trk.step(*scans[8])
+    assert_same_state(trk.state_dict(), before)
+    monkeypatch.undo()
+    fresh, _ = _mid_run()
+    assert_steps_alike(trk, fresh, scans[8:])
