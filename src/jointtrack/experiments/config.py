@@ -474,6 +474,8 @@ JPDA_ONLY_KEYS = (
     "merge_threshold",
     "tentative_association",
     "tentative_process_noise",
+    "tentative_components",
+    "tentative_confirm_state",
     "miss_model",
     "exact_max_bits_tentative",
     # not in the Poisson trackers (yet): they seed new Bernoullis with reported

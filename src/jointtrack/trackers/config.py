@@ -26,7 +26,9 @@ MISS_MODELS = ("1-pd*pg", "1-pd")
 #: How targets are detected (see ``TrackerConfig.reporting``).
 REPORTING = ("scan", "async")
 #: How JIPDA's tentative tracks share returns (see ``TrackerConfig.tentative_association``).
-TENTATIVE_ASSOCIATIONS = ("joint", "alternatives")
+TENTATIVE_ASSOCIATIONS = ("joint", "alternatives", "splitting")
+#: The Gaussian a "splitting" track confirms with (``TrackerConfig.tentative_confirm_state``).
+TENTATIVE_CONFIRM_STATES = ("moment", "dominant")
 #: Largest standard-deviation-like setting: ``max_speed``, ``max_acceleration``
 #: (each halved into a per-axis σ) and ``velocity_std``, which the tracker squares
 #: into covariances. Equal to the coordinate limit
@@ -190,6 +192,21 @@ class TrackerConfig(ModelSettings):
         better (GOSPA 45–49 against 57) but does not reach the start-up floor
         (25.9; ``benchmarks/RESULTS.md``), so it is not the default. With
         ``existence`` only.
+        ``"splitting"``: each tentative track is an integrated track-splitting filter
+        (Mušicki, La Scala & Evans 2007; :mod:`jointtrack.trackers.track_splitting`):
+        its existence plus a Gaussian mixture of at most ``tentative_components``
+        measurement histories; its existence is the lone IPDA's on the mixture's
+        likelihood, and the duplicate and merge rules are those of "alternatives".
+        ``existence`` only, ``motion`` "cv" or "ca", ``reporting = "scan"``.
+    tentative_components : the most track components (measurement histories) a
+        ``"splitting"`` tentative track keeps after each scan (an integer in [1, 256];
+        the most probable are kept). 1 is ``"alternatives"`` exactly. Default 4: on
+        the Bojilov scene from nothing (seeds 0–4) 4, 8 and 16 scored GOSPA 44.0,
+        45.6 and 44.6 (within the seeds' spread) and 4 costs least
+        (``benchmarks/RESULTS.md``, issue 33).
+    tentative_confirm_state : the one Gaussian with which a ``"splitting"`` track
+        enters the confirmed set: ``"moment"`` (the mixture's mean and covariance) or
+        ``"dominant"`` (its most probable component).
     tentative_process_noise : q (m²/s³, ≥ 0) of white-noise acceleration added to
         the prediction of every tentative track, on top of the motion model's
         (default 0: none). A tentative track started from one return carries a
@@ -328,6 +345,8 @@ class TrackerConfig(ModelSettings):
     merge_threshold: float = 1.0
     tentative_association: str = "joint"
     tentative_process_noise: float = 0.0
+    tentative_components: int = 4
+    tentative_confirm_state: str = "moment"
     seed: int | None = 0
     miss_model: str = "1-pd*pg"
     reporting: str = "scan"
@@ -403,8 +422,14 @@ class TrackerConfig(ModelSettings):
             self._check_imm()
         need(
             self.existence or self.tentative_association == "joint",
-            "tentative_association = 'alternatives' needs existence = true (JIPDA): "
-            "alternatives are weighed by their existence",
+            f"tentative_association = {self.tentative_association!r} needs existence = true "
+            "(JIPDA): alternatives and track components are weighed by their existence",
+        )
+        need(
+            self.tentative_association != "splitting"
+            or (self.motion != "imm" and self.reporting == "scan"),
+            "tentative_association = 'splitting' needs motion 'cv' or 'ca' and reporting = "
+            f"'scan' (got motion = {self.motion!r}, reporting = {self.reporting!r})",
         )
         need(
             self.tentative_process_noise == 0.0
@@ -856,6 +881,8 @@ _CHECKS = {
     "merge_threshold": _non_negative,
     "tentative_association": _choice(TENTATIVE_ASSOCIATIONS),
     "tentative_process_noise": _non_negative,
+    "tentative_components": _int_range(1, 256),
+    "tentative_confirm_state": _choice(TENTATIVE_CONFIRM_STATES),
     "seed": _seed,
     "miss_model": _choice(MISS_MODELS),
     "reporting": _choice(REPORTING),

@@ -89,11 +89,13 @@ from jointtrack.trackers.reporting import (
 from jointtrack.trackers.state_io import (
     StateFileError,
     covariance_problem,
+    validate_component_arrays,
     validate_mode_arrays,
     validate_retired_arrays,
     validate_tracker_arrays,
     validate_update_arrays,
 )
+from jointtrack.trackers.track_splitting import component_layout, its_update, prune_children
 
 __all__ = ["ClusterRecord", "JPDATracker", "ScanResult", "TrackHistory", "TrackerConfig"]
 
@@ -206,6 +208,15 @@ class JPDATracker(ScanTracker):
         self.retired_x = np.zeros((0, 2 * c.dim))
         self.retired_P = np.zeros((0, 2 * c.dim, 2 * c.dim))
         self.retired_time = np.zeros(0)
+        # tentative_association = "splitting": each tentative track's components
+        # (jointtrack.trackers.track_splitting) in K slots — states (N, K, n),
+        # covariances (N, K, n, n), log weights (N, K), how many slots are in use
+        # (N,), the most probable first; K = 0 otherwise, and a confirmed track has none
+        K = c.tentative_components if c.tentative_association == "splitting" else 0
+        self.comp_x = np.zeros((0, K, n))
+        self.comp_P = np.zeros((0, K, n, n))
+        self.comp_log_w = np.zeros((0, K))
+        self.comp_n = np.zeros(0, np.int64)
 
     # ------------------------------------------------------------------ scan
     def _step(self, t, z, same_time_ok=False, labels=None, velocities=None) -> ScanResult:
@@ -249,6 +260,8 @@ class JPDATracker(ScanTracker):
                     self.P[~self.confirmed, :d2, :d2] += cv_noise(
                         dt, c.tentative_process_noise, c.dim
                     )
+                if self.comp_n.any():
+                    self._predict_components(dt)
         self._scan_detection(t, 0.0 if dt is None else dt)
         if c.existence and len(self.ids):
             # survival to the time this scan's evidence is about (see _scan_detection)
@@ -386,7 +399,7 @@ class JPDATracker(ScanTracker):
                 self.existence[unheard] = r * missed / ((1.0 - r) + r * missed)
             before = set(self.ids[self.confirmed].tolist())
             held = None
-            if c.existence and c.tentative_association == "alternatives" and tentative_pairs:
+            if c.existence and c.tentative_association != "joint" and tentative_pairs:
                 # a duplicate of a confirmed track does not confirm (point 5); it stays
                 # tentative with its existence, and confirms once its returns are its own
                 held = self._duplicate_confirmations(claimed, *tentative_pairs)
@@ -400,7 +413,7 @@ class JPDATracker(ScanTracker):
                     self.confirmed,
                     c.dim,
                     c.merge_threshold,
-                    alternatives=c.tentative_association == "alternatives",
+                    alternatives=c.tentative_association != "joint",
                 )
                 self._keep(keep)
             n_continued = self._continue_ids(before, t)
@@ -614,17 +627,12 @@ class JPDATracker(ScanTracker):
         history; :mod:`jointtrack.trackers.existence`, point 5).
         """
         c = self.config
+        if not loud and c.existence and c.tentative_association == "splitting":
+            return self._associate_splitting(tracks, z, available)
         n, M = len(tracks), len(z)
         g = self._gate(self.x[tracks], self.P[tracks], z)
         groups = clusters(g)
-        if self._clutter is not None:
-            lam = self._clutter
-        else:
-            # Bojilov (8): λ = Σ_i m_i / Σ_i V_i over each cluster's tracks
-            dens = cluster_heuristic_densities(g.n_gated, g.gate_volume, groups.track_cluster)
-            lam = np.ones(M)
-            gated = groups.measurement_cluster >= 0
-            lam[gated] = dens[groups.measurement_cluster[gated]]
+        lam = self._clutter_densities(g, groups, M)
         r = self.existence[tracks] if c.existence else np.ones(n)
         # P_D,i·r_i / λ, both divided by a common scale (a rate may exceed 1)
         pd_r, scale = scaled_pair_factor(self._scan_pd_ratio[tracks], r)
@@ -676,6 +684,134 @@ class JPDATracker(ScanTracker):
             raw,
         )
 
+    def _clutter_densities(self, g, groups, M):
+        """The clutter density of each of ``M`` returns: the known one, or Bojilov (8)
+        over the clusters ``groups`` of the gated pairs ``g``."""
+        if self._clutter is not None:
+            return self._clutter
+        # Bojilov (8): λ = Σ_i m_i / Σ_i V_i over each cluster's tracks
+        dens = cluster_heuristic_densities(g.n_gated, g.gate_volume, groups.track_cluster)
+        lam = np.ones(M)
+        gated = groups.measurement_cluster >= 0
+        lam[gated] = dens[groups.measurement_cluster[gated]]
+        return lam
+
+    def _associate_splitting(self, tracks, z, available):
+        """:meth:`_associate` of tentative tracks with ``tentative_association =
+        "splitting"``: each an integrated track-splitting filter
+        (:mod:`jointtrack.trackers.track_splitting`), alone on the returns weighted by
+        ``available``, as the alternatives are.
+
+        Updates the tracks' existence, components and (moment-matched) ``x``, ``P``
+        itself; returns :meth:`_associate`'s tuple with β₀ = 1 (nothing left for the
+        PDA update) and the track–return pairs summed over components (what the
+        returns' availability and the duplicate rule need).
+        """
+        n, M = len(tracks), len(z)
+        owner, slot = component_layout(self.comp_n[tracks])
+        cx = self.comp_x[tracks[owner], slot]
+        cP = self.comp_P[tracks[owner], slot]
+        log_w = self.comp_log_w[tracks[owner], slot]
+        g = self._gate(cx, cP, z)
+        groups = clusters(g)
+        lam = self._clutter_densities(g, groups, M)
+        r = self.existence[tracks]
+        pd_r, scale = scaled_pair_factor(self._scan_pd_ratio[tracks][owner], r[owner])
+        raw, _ = likelihood_ratio_pairs(g, pd_r, lam / scale)
+        self.existence[tracks], miss_log_w, hit_log_w, used = its_update(
+            r,
+            log_w,
+            owner,
+            g.rows,
+            raw * available[g.cols],
+            self._scan_missed[tracks],
+            self._scan_pdg[tracks],
+        )
+        p = len(g.rows)
+        hx, hP = cx[g.rows], cP[g.rows]
+        if p:  # each pair's child: its component's Kalman update on its return
+            hx, hP = pda_pairs_update(
+                hx,
+                hP,
+                z,
+                np.zeros(p),
+                np.arange(p),
+                g.cols,
+                np.ones(p),
+                **self._measurement_model(),
+            )
+        child_owner = np.concatenate([owner, owner[g.rows]])
+        keep, kept_log_w = prune_children(
+            child_owner, np.concatenate([miss_log_w, hit_log_w]), self.comp_x.shape[1]
+        )
+        counts = np.bincount(child_owner[keep], minlength=n)
+        new_owner, new_slot = component_layout(counts)
+        for name in ("comp_x", "comp_P", "comp_log_w"):
+            getattr(self, name)[tracks] = 0.0
+        self.comp_x[tracks[new_owner], new_slot] = np.concatenate([cx, hx])[keep]
+        self.comp_P[tracks[new_owner], new_slot] = np.concatenate([cP, hP])[keep]
+        self.comp_log_w[tracks[new_owner], new_slot] = kept_log_w
+        self.comp_n[tracks] = counts
+        self._mixture_state(tracks)
+        # the track–return pairs, summed over the components that gated the return
+        key = owner[g.rows] * M + g.cols
+        pairs, inv = np.unique(key, return_inverse=True)
+        used_t = np.bincount(inv, used, minlength=len(pairs))
+        raw_t = np.bincount(inv, np.exp(log_w[g.rows]) * raw, minlength=len(pairs))
+        hit_t = np.bincount(inv, np.exp(hit_log_w), minlength=len(pairs))
+        hit = np.bincount(owner, g.n_gated > 0, minlength=n) > 0
+        return (
+            np.ones(n),
+            (pairs // M, pairs % M, hit_t),
+            hit,
+            groups.unassociated,
+            ([], [], [], []),
+            used_t,
+            raw_t,
+        )
+
+    def _mixture_state(self, rows) -> None:
+        """x, P of the tracks ``rows`` that hold components: their mixture's mean and
+        covariance (moment matching, :func:`~jointtrack.filters.imm.imm_combine`)."""
+        rows = np.asarray(rows)
+        counts = self.comp_n[rows]
+        for k in np.unique(counts[counts > 0]):
+            at = rows[counts == k]
+            self.x[at], self.P[at] = imm_combine(
+                self.comp_x[at, :k], self.comp_P[at, :k], self.comp_log_w[at, :k]
+            )
+
+    def _predict_components(self, dt) -> None:
+        """Predict every track component over ``dt`` (the motion model, plus
+        ``tentative_process_noise`` as a tentative track's own prediction), then the
+        tracks' moment-matched ``x``, ``P``."""
+        c = self.config
+        rows, slot = component_layout(self.comp_n)
+        cx, cP = predict(
+            self.comp_x[rows, slot],
+            self.comp_P[rows, slot],
+            self._motion.transition(dt),
+            self._motion.noise(dt),
+        )
+        if c.tentative_process_noise > 0:
+            d2 = 2 * c.dim
+            cP[:, :d2, :d2] += cv_noise(dt, c.tentative_process_noise, c.dim)
+        self.comp_x[rows, slot], self.comp_P[rows, slot] = cx, cP
+        self._mixture_state(np.flatnonzero(self.comp_n))
+
+    def _collapse(self, rows) -> None:
+        """The tracks ``rows`` (just confirmed) leave their mixture for one Gaussian:
+        its moment-matched ``x``, ``P`` (already held) or, with
+        ``tentative_confirm_state = "dominant"``, its most probable component (slot 0)."""
+        rows = rows[self.comp_n[rows] > 0]
+        if not len(rows):
+            return
+        if self.config.tentative_confirm_state == "dominant":
+            self.x[rows], self.P[rows] = self.comp_x[rows, 0], self.comp_P[rows, 0]
+        for name in ("comp_x", "comp_P", "comp_log_w"):
+            getattr(self, name)[rows] = 0.0
+        self.comp_n[rows] = 0
+
     def _duplicate_confirmations(self, claimed, rows, cols, used, raw):
         """Tentative tracks about to confirm on returns a confirmed track explains (a mask:
         they stay tentative this scan).
@@ -721,7 +857,10 @@ class JPDATracker(ScanTracker):
         blown = np.sqrt(pos_var) > c.max_position_std
         if c.existence:
             ready = self.existence >= c.r_confirm
-            self.confirmed |= ready if held is None else ready & ~held
+            if held is not None:
+                ready &= ~held
+            self._collapse(np.flatnonzero(ready & ~self.confirmed))
+            self.confirmed |= ready
             dead = self.existence < c.r_delete
         else:
             hits = np.array([bin(h).count("1") for h in self.hit_history], dtype=np.int64)
@@ -847,6 +986,10 @@ class JPDATracker(ScanTracker):
         "mode_P",
         "mode_log_prob",
         *_UPDATE_ARRAYS,
+        "comp_x",
+        "comp_P",
+        "comp_log_w",
+        "comp_n",
     )
 
     def _keep(self, keep):
@@ -980,6 +1123,16 @@ class JPDATracker(ScanTracker):
         self.existence = np.concatenate(
             [self.existence, np.broadcast_to(np.asarray(existence, float), (k,))]
         )
+        # a tentative track-splitting track starts as one component: its start
+        K = self.comp_x.shape[1]
+        cx, cP = np.zeros((k, K, *x0.shape[1:])), np.zeros((k, K, *P0.shape[1:]))
+        split = K > 0 and not confirmed
+        if split:
+            cx[:, 0], cP[:, 0] = x0, P0
+        self.comp_x = np.concatenate([self.comp_x, cx])
+        self.comp_P = np.concatenate([self.comp_P, cP])
+        self.comp_log_w = np.concatenate([self.comp_log_w, np.zeros((k, K))])
+        self.comp_n = np.concatenate([self.comp_n, np.full(k, int(split), np.int64)])
         return ids
 
     def start_tracks(self, x0, P0, *, confirmed: bool = True, existence: float = 0.99, time=None):
@@ -1068,6 +1221,10 @@ class JPDATracker(ScanTracker):
         "retired_P",
         "retired_time",
         *_UPDATE_ARRAYS,
+        "comp_x",
+        "comp_P",
+        "comp_log_w",
+        "comp_n",
     )
     # state key -> attribute (``history()`` is the track-history method)
     _ATTRS = {"history": "hit_history"}
@@ -1080,6 +1237,7 @@ class JPDATracker(ScanTracker):
             # a JIPDA track of existence 0 is deleted before any state is saved
             raise StateFileError(f"{path}: field 'existence' holds a track of existence 0")
         validate_retired_arrays(path, arrays, scalars, 2 * self.config.dim)
+        validate_component_arrays(path, arrays, self.state_dim, self.comp_x.shape[1])
 
 
 def _rows(values, index):

@@ -39,6 +39,7 @@ __all__ = [
     "StateFileError",
     "read_run",
     "read_state",
+    "validate_component_arrays",
     "validate_counters",
     "validate_mode_arrays",
     "validate_retired_arrays",
@@ -238,6 +239,17 @@ def _fill_added_settings(header: dict, arrays: dict) -> None:
     header["config"].setdefault("tentative_association", "joint")
     # tentative_process_noise (issue 33) came after version 6: none, as every earlier state ran
     header["config"].setdefault("tentative_process_noise", 0.0)
+    # the track components of tentative_association = "splitting" (issue 33) came after
+    # version 6: no earlier state holds a splitting track, so none (a state written with
+    # the settings must hold the arrays)
+    if "tentative_components" not in header["config"] and "ids" in arrays:
+        header["config"]["tentative_components"] = 4
+        header["config"].setdefault("tentative_confirm_state", "moment")
+        n, w = len(arrays["ids"]), arrays["x"].shape[-1] if "x" in arrays else 0
+        arrays.setdefault("comp_x", np.zeros((n, 0, w)))
+        arrays.setdefault("comp_P", np.zeros((n, 0, w, w)))
+        arrays.setdefault("comp_log_w", np.zeros((n, 0)))
+        arrays.setdefault("comp_n", np.zeros(n, np.int64))
     if header["version"] < 5:  # the IMM settings (issue 32) did not exist
         for key, value in _IMM_SETTINGS.items():
             header["config"].setdefault(key, value)
@@ -348,6 +360,59 @@ def validate_update_arrays(path, arrays: dict, scalars: dict, state_dim: int, mo
     if N and isinstance(t, int | float) and (arrays["updated_time"] > t).any():
         raise bad("field 'updated_time' holds a time after the state's time")
     validate_mode_arrays(path, arrays, modes, prefix="updated_")
+
+
+def validate_component_arrays(path, arrays: dict, state_dim: int, slots: int) -> None:
+    """Check a JPDA state's track components (``tentative_association = "splitting"``,
+    :mod:`jointtrack.trackers.track_splitting`): ``comp_x`` (N, K, n), ``comp_P``
+    (N, K, n, n), ``comp_log_w`` (N, K), ``comp_n`` (N,) with K = ``slots``. Each
+    tentative track holds 1 … K components, a confirmed one none; the slots in use hold
+    valid covariances and log weights that sum to one (to 1e-9), the rest zeros.
+    Raises :class:`StateFileError` naming the field."""
+
+    def bad(what: str) -> StateFileError:
+        return StateFileError(f"{path}: {what}")
+
+    check_array_fields(
+        path,
+        arrays,
+        {"comp_x": ("f", 3), "comp_P": ("f", 4), "comp_log_w": ("f", 2), "comp_n": ("i", 1)},
+    )
+    N, n, K = len(arrays["ids"]), state_dim, slots
+    for name, shape in (
+        ("comp_x", (N, K, n)),
+        ("comp_P", (N, K, n, n)),
+        ("comp_log_w", (N, K)),
+        ("comp_n", (N,)),
+    ):
+        if arrays[name].shape != shape:
+            raise bad(f"field {name!r} has shape {arrays[name].shape}, expected {shape}")
+    counts = arrays["comp_n"]
+    confirmed = arrays["confirmed"]
+    low = np.where(confirmed, 0, min(K, 1))
+    high = np.where(confirmed, 0, K)
+    if ((counts < low) | (counts > high)).any():
+        i = int(np.argmax((counts < low) | (counts > high)))
+        raise bad(
+            f"field 'comp_n' gives track {i} {counts[i]} components (a tentative track "
+            f"holds 1 to {K}, a confirmed one none)"
+        )
+    used = np.arange(K)[None, :] < counts[:, None]
+    if (
+        arrays["comp_x"][~used].any()
+        or arrays["comp_P"][~used].any()
+        or arrays["comp_log_w"][~used].any()
+    ):
+        raise bad("fields 'comp_*' hold values in slots no component uses")
+    problem = covariance_problem(arrays["comp_P"][used])
+    if problem:
+        raise bad(f"field 'comp_P' holds a covariance that {problem}")
+    lw = np.where(used, arrays["comp_log_w"], -np.inf)
+    top = lw.max(axis=1, initial=-np.inf)
+    has = counts > 0
+    tot = np.log(np.exp(lw[has] - top[has, None]).sum(axis=1)) + top[has]
+    if (np.abs(tot) > 1e-9).any():
+        raise bad("field 'comp_log_w': a track's component weights do not sum to 1")
 
 
 def _upgrade(header: dict, arrays: dict) -> None:
