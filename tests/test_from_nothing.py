@@ -42,7 +42,8 @@ def _reference_phases(sc, start_scans=20, end_scans=10, close_sigmas=3.0):
             names.append("start")
         elif late and late[0] <= k <= late[-1]:
             names.append("close")
-        elif k >= K - end_scans:
+        elif k >= K - end_scans and not (late and k < late[0]):
+            # the end follows the close phase (scan order), never precedes it
             names.append("end")
         elif late and k > late[-1]:
             names.append("separating")
