@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from jointtrack.bench.from_nothing import jipda_config, oracle_confirmation
@@ -210,6 +210,9 @@ def _magnitudes(sign):
 
 @settings(max_examples=50, deadline=None)
 @given(ell=_magnitudes(0), log_ps=_magnitudes(-1))
+@example(ell=800.0, log_ps=0.0)  # r rounds to 1, no death: logit(r) = 800, not inf
+@example(ell=1e300, log_ps=-5e-324)
+@example(ell=-1e300, log_ps=-1e300)
 def test_log_odds_survived_is_the_survival_step_exactly(ell, log_ps):
     """logit(p_s · expit(ell)) — the tracker's step existence · p_s — against 60-digit
     arithmetic: within 1e-12 relative (1e-12 absolute near 0), finite, never NaN."""
