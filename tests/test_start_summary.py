@@ -257,3 +257,15 @@ def test_start_evidence_survives_per_second_as_the_tracker():
     a, b = start_evidence(cfg, 2.0), start_evidence(per_scan, 2.0)
     assert a["expected_scans"] == b["expected_scans"]
     assert a["gain_first_scan"] == b["gain_first_scan"]
+
+
+def test_start_line_of_a_detections_run_says_it_keeps_the_joint_association():
+    from jointtrack.experiments.summary import start_description
+
+    tr = {"kind": "jipda", "existence": True, "initiation": "one-point", "r_confirm": 0.9}
+    det = {"start": "nothing", "source": {"detections": "a.csv"}, "tracker": tr}
+    assert "keeps the joint association" in start_description(det)
+    alt = det | {"tracker": tr | {"tentative_association": "alternatives"}}
+    assert "keeps the joint" not in start_description(alt)
+    scene = det | {"source": {"scenario": "crossing"}}
+    assert "keeps the joint" not in start_description(scene)
