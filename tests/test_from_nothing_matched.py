@@ -171,6 +171,9 @@ def test_bad_matched_threshold_and_scenes_are_refused(scene):
         )
     with pytest.raises(ValueError, match="Scenario"):
         fn.false_track_rate(scene.detections)
+    flat = dataclasses.replace(scene, region=np.array([[0.0, 0.0], [0.0, 100.0]]))
+    with pytest.raises(ValueError, match="region"):
+        fn.false_track_rate(flat)
     for bad in (1.0, True, float("inf"), 0.001):
         with pytest.raises(ValueError, match="r_matched"):
             fn.evaluate("crossing", 0, [], scenario_kwargs={"n_scans": 3}, r_matched=bad)

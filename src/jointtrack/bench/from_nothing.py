@@ -404,6 +404,11 @@ def false_track_rate(
     d = scenario.dim
     lo = np.asarray(scenario.region, float)[:, 0]
     span = np.asarray(scenario.region, float)[:, 1] - lo
+    if not (np.all(np.isfinite(span)) and np.all(span > 0)):
+        raise ValueError(
+            f"scenario.region must be a box of positive, finite extent (the clutter's), got "
+            f"{np.asarray(scenario.region).tolist()}"
+        )
     rate = float(scenario.clutter_rate)
     lam = rate / float(np.prod(span))
     times = np.asarray(scenario.times, float)
