@@ -21,8 +21,17 @@ file is rewritten (atomically) after every scene and seed, and a run killed
 part-way resumes from it with the same command (only unfinished seeds are run).
 The command exits 1 when a run failed (the other runs are still reported).
 
+Beside the issue's floor (never instead of it), the *matched floor*: the oracle
+confirming at the threshold r* at which clutter-born lone IPDAs with the run's
+settings give at most 0.1 false confirmed tracks per scan on the scene
+(:func:`jointtrack.bench.from_nothing.false_track_rate`, simulated once per scene
+with ``--matched-births`` births, seed 0; ``--matched-births 0``: not computed).
+Printed: r*, the oracle median at r*, the matched floor's row and every
+tracker's ratio to both floors (the PASS/FAIL lines stay the issue's).
+
 Usage: ``python benchmarks/from_nothing.py [--seeds 5] [--scenes bojilov,abreast,crossing]
-[--trackers jipda,pmb,pmbm[,stonesoup]] [--returns all|own] [--budget 300] [--out FILE.json]``.
+[--trackers jipda,pmb,pmbm[,stonesoup]] [--returns all|own] [--budget 300]
+[--matched-births 2000] [--out FILE.json]``.
 """
 
 from __future__ import annotations
@@ -55,7 +64,7 @@ def _phase_cell(phases: dict, p: str, n_seeds: int) -> str:
     return _opt(phases[p]["gospa"]["mean"]) + (f" ({n})" if n < n_seeds else "")
 
 
-def print_scene(console, agg: dict) -> None:
+def print_scene(console, agg: dict, rate: dict | None = None) -> None:
     from rich.table import Table
 
     seeds = agg["seeds"]
@@ -63,11 +72,26 @@ def print_scene(console, agg: dict) -> None:
         f"\n{agg['scene']}: seeds {seeds[0]}–{seeds[-1]} ({len(seeds)}); oracle IPDA median "
         f"{_opt(agg['oracle_median'])} scans to confirm ({agg['oracle_never']} never)"
     )
+    if rate is not None:
+        fps = dict(zip(rate["grid"], rate["false_per_scan"], strict=True))
+        console.print(
+            f"matched: clutter-born lone IPDAs ({rate['births']} births, {rate['copies']} with "
+            "the splits) give false confirmed tracks per scan "
+            + ", ".join(f"{r:g}: {f:.3g}" for r, f in fps.items())
+            + f"; r* = {_opt(rate['r_star'], 'g')}"
+        )
+    if "matched" in agg:
+        m = agg["matched"]
+        console.print(
+            f"matched floor: oracle confirming at r* = {m['r']:g}, median "
+            f"{_opt(m['oracle_median'])} scans ({m['oracle_never']} never)"
+        )
     t = Table(title=f"{agg['scene']} from nothing", title_justify="left")
     for col in (
         "tracker",
         "GOSPA",
         "/ floor",
+        *(["/ matched"] if "matched" in agg else []),
         *(f"{p}" for p in fn.PHASES),
         "switches/run",
         "false/scan",
@@ -75,12 +99,14 @@ def print_scene(console, agg: dict) -> None:
         "− oracle",
     ):
         t.add_column(col, justify="right")
-    for kind in ("floor", *[k for k in agg if k in fn.TRACKERS]):
+    rows = ("floor", *(["matched_floor"] if "matched" in agg else []))
+    for kind in (*rows, *[k for k in agg if k in fn.TRACKERS]):
         row = agg[kind]
         t.add_row(
             kind,
             _pm(row["gospa"]),
             _pm(row["ratio"], ".2f"),
+            *([_pm(row["ratio_matched"], ".2f")] if "matched" in agg else []),
             *(_phase_cell(row["phases"], p, len(seeds)) for p in fn.PHASES),
             _pm(row["switches"]),
             _pm(row["false_per_scan"], ".3f"),
@@ -92,7 +118,7 @@ def print_scene(console, agg: dict) -> None:
     parts.add_column("tracker")
     for p in fn.PHASES:
         parts.add_column(f"{p} loc/miss/false", justify="right")
-    for kind in ("floor", *[k for k in agg if k in fn.TRACKERS]):
+    for kind in (*rows, *[k for k in agg if k in fn.TRACKERS]):
         ph = agg[kind]["phases"]
         parts.add_row(
             kind,
@@ -140,14 +166,17 @@ def plot(path: Path, aggs: dict, runs: dict) -> None:
                     fontsize=8,
                 )
         series = {"floor": [r["floor"]["gospa_series"] for r in rs]}
+        if all("matched" in r for r in rs):
+            series["matched floor"] = [r["matched"]["floor"]["gospa_series"] for r in rs]
         for kind in rs[0]["trackers"]:
             series[kind] = [r["trackers"][kind]["gospa_series"] for r in rs]
         for kind, ss in series.items():
             ax.plot(
                 np.mean(ss, axis=0),
                 label=kind,
-                lw=2.2 if kind == "floor" else 1.3,
-                color="k" if kind == "floor" else None,
+                lw=2.2 if "floor" in kind else 1.3,
+                color="k" if "floor" in kind else None,
+                ls=":" if kind == "matched floor" else "-",
             )
         ax.set_ylabel("GOSPA (mean over seeds)")
         ax.set_title(f"{scene} from nothing ({len(rs)} seeds)", loc="left", pad=14)
@@ -167,7 +196,8 @@ def _write(path: Path, doc: dict) -> None:
 
 
 def _resume(path: Path, setup: dict, scenes) -> dict:
-    """{(scene, seed): run} already in ``path`` from a run with the same ``setup``."""
+    """{(scene, seed): run} already in ``path`` from a run with the same ``setup``, and
+    ``"rates"``: {scene: false_track_rate result} already computed."""
     if not path.exists():
         return {}
     try:
@@ -179,12 +209,16 @@ def _resume(path: Path, setup: dict, scenes) -> dict:
             f"--out {path} holds a run with other settings ({doc.get('setup')!r}, this one "
             f"{setup!r}); remove it or choose another --out"
         )
-    out = {}
+    out = {"rates": doc.get("rates", {})}
     for scene in scenes:
         for r in doc.get("runs", {}).get(scene, []):
             # JSON keys are strings: the targets' ids back to ints
             r["oracle"] = {int(k): v for k, v in r["oracle"].items()}
-            for sc in (r["floor"], *r["trackers"].values()):
+            extra = []
+            if "matched" in r:
+                r["matched"]["oracle"] = {int(k): v for k, v in r["matched"]["oracle"].items()}
+                extra.append(r["matched"]["floor"])
+            for sc in (r["floor"], *extra, *r["trackers"].values()):
                 sc["confirm_scans"] = {int(k): v for k, v in sc["confirm_scans"].items()}
             out[scene, int(r["seed"])] = r
     return out
@@ -197,6 +231,12 @@ def main(argv=None) -> int:
     ap.add_argument("--trackers", default="jipda,pmb,pmbm")
     ap.add_argument("--returns", default="all", choices=("all", "own"))
     ap.add_argument("--budget", type=float, default=300.0, help="seconds per Stone Soup run")
+    ap.add_argument(
+        "--matched-births",
+        type=int,
+        default=fn.MATCHED_BIRTHS,
+        help="clutter-born IPDAs simulated per scene for the matched floor's r* (0: none)",
+    )
     ap.add_argument("--out", default="", help="FILE.json (and FILE.png beside it)")
     args = ap.parse_args(argv)
     scenes = [s for s in args.scenes.split(",") if s]
@@ -209,6 +249,8 @@ def main(argv=None) -> int:
             if bad
             else "--seeds must be ≥ 1"
         )
+    if not 0 <= args.matched_births <= 10**6:
+        ap.error(f"--matched-births must be 0 … 10^6, got {args.matched_births}")
     if "stonesoup" in kinds:
         from jointtrack.bench.stonesoup_tracker import stonesoup_available
 
@@ -222,12 +264,26 @@ def main(argv=None) -> int:
     failed = []
     # every finished (scene, seed) is written at once: a killed run resumes from the file
     # (same --trackers and --returns), redoing only the unfinished ones
-    setup = {"trackers": kinds, "returns": args.returns}
+    setup = {"trackers": kinds, "returns": args.returns, "matched_births": args.matched_births}
     done = _resume(out, setup, scenes) if out is not None else {}
+    rates: dict = dict(done.pop("rates", {}))
     steps = len(scenes) * args.seeds * (2 + len(kinds))
     with progress_bar(console, unit="steps", enabled=True, remaining=True) as bar:
         task = bar.add_task("from nothing", total=steps)
         for scene in scenes:
+            if args.matched_births and scene not in rates:
+                # r* from the scene's settings (the same on every seed of a scene: seed 0's)
+                bar.update(task, description=f"{scene}: r* (matched floor)")
+                try:
+                    rates[scene] = fn.false_track_rate(
+                        fn.make_scene(scene, 0), births=args.matched_births
+                    )
+                except Exception:  # noqa: BLE001 - report it, run the rest without it
+                    failed.append(f"{scene} r*: {traceback.format_exc(limit=3)}")
+                    rates[scene] = None
+                if out is not None:
+                    _write(out, {"setup": setup, "partial": True, "rates": rates, "runs": runs})
+            r_star = (rates.get(scene) or {}).get("r_star")
             for seed in range(args.seeds):
                 bar.update(task, description=f"{scene} seed {seed}")
                 if (scene, seed) in done:
@@ -241,18 +297,19 @@ def main(argv=None) -> int:
                         kinds,
                         returns=args.returns,
                         budget=args.budget,
+                        r_matched=r_star,
                         on_step=lambda label, s=scene, e=seed: bar.update(
                             task, advance=1, description=f"{s} seed {e}: {label} done"
                         ),
                     )
                     runs[scene].append(r)
                     if out is not None:
-                        _write(out, {"setup": setup, "partial": True, "runs": runs})
+                        _write(out, {"setup": setup, "partial": True, "rates": rates, "runs": runs})
                 except Exception:  # noqa: BLE001 - report the run that failed, keep the others
                     failed.append(f"{scene} seed {seed}: {traceback.format_exc(limit=3)}")
     aggs = {s: fn.aggregate(runs[s]) for s in scenes if runs[s]}
-    for agg in aggs.values():
-        print_scene(console, agg)
+    for scene, agg in aggs.items():
+        print_scene(console, agg, rates.get(scene))
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
         doc = {
@@ -261,6 +318,7 @@ def main(argv=None) -> int:
             "setup": setup,
             "partial": bool(failed),
             "scenes": aggs,
+            "rates": rates,
             "runs": runs,
         }
         _write(out, doc)

@@ -42,7 +42,8 @@ def _reference_phases(sc, start_scans=20, end_scans=10, close_sigmas=3.0):
             names.append("start")
         elif late and late[0] <= k <= late[-1]:
             names.append("close")
-        elif k >= K - end_scans:
+        elif k >= K - end_scans and not (late and k < late[0]):
+            # the end follows the close phase (scan order), never precedes it
             names.append("end")
         elif late and k > late[-1]:
             names.append("separating")
@@ -275,6 +276,13 @@ def _canned(scene, seed, trackers, **_kw):
             "floor": score, "trackers": {k: dict(score) for k in trackers}}  # fmt: skip
 
 
+def _rate():
+    """A stand-in for false_track_rate's result."""
+    return {"grid": [0.9, 0.99], "false_per_scan": [0.5, 0.05], "false_per_scan_se": [0.1, 0.01],
+            "p_confirm": [1e-3, 1e-4], "reported_scans": [5.0, 4.0], "r_star": 0.99,
+            "births": 10, "copies": 12, "seed": 0, "clutter_rate": 10.0}  # fmt: skip
+
+
 def test_a_killed_benchmark_resumes_from_its_file(script, tmp_path, monkeypatch):
     """Seed 1 fails (fault injection): exit 1, seed 0 kept in --out; the same command again
     runs seed 1 only and writes what an uninterrupted run writes."""
@@ -289,6 +297,12 @@ def test_a_killed_benchmark_resumes_from_its_file(script, tmp_path, monkeypatch)
         return _canned(scene, seed, trackers)
 
     monkeypatch.setattr(script.fn, "evaluate", failing)
+    # r* (seconds of simulation): a stand-in that counts its calls — it is computed once per
+    # scene and resumed from the file, not again
+    rates = []
+    monkeypatch.setattr(
+        script.fn, "false_track_rate", lambda sc, **kw: rates.append(sc.name) or _rate()
+    )
     # the figure is matplotlib's (seconds to import): a stand-in records that it was drawn
     monkeypatch.setattr(script, "plot", lambda path, aggs, runs: path.write_text(str(len(runs))))
     assert script.main(argv) == 1
@@ -298,11 +312,13 @@ def test_a_killed_benchmark_resumes_from_its_file(script, tmp_path, monkeypatch)
     monkeypatch.setattr(script.fn, "evaluate", lambda *a, **k: calls.append(a[1]) or _canned(*a))
     assert script.main(argv) == 0
     assert calls == [1]
+    assert rates == ["crossing"]  # the second run took r* from the file
     resumed = json.loads(out.read_text())
+    assert resumed["rates"]["crossing"] == _rate()
     fresh = tmp_path / "f.json"
     assert script.main([*argv[:-1], str(fresh)]) == 0
     fresh_doc = json.loads(fresh.read_text())
-    for key in ("scenes", "runs", "setup", "partial"):
+    for key in ("scenes", "runs", "setup", "partial", "rates"):
         assert resumed[key] == fresh_doc[key]
     assert out.with_suffix(".png").exists()
     # another --trackers is refused by name, the file left as it was

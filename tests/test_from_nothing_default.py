@@ -14,8 +14,9 @@ import pytest
 from typer.testing import CliRunner
 
 from jointtrack.cli import app
+from jointtrack.experiments import run as runmod
 from jointtrack.experiments.config import FROM_NOTHING_JIPDA, from_nothing_overrides
-from jointtrack.experiments.run import resolved_start, run_scenario
+from jointtrack.experiments.run import resolved_start, run_scenario, start_settings
 from jointtrack.trackers.config import TrackerConfig
 
 SHORT = {"plots": False, "max_scans": 4}
@@ -92,3 +93,38 @@ def test_the_cli_builds_the_same_settings(tmp_path):
     assert tr["tentative_association"] == "alternatives"
     assert tr["r_confirm"] == FROM_NOTHING_JIPDA["r_confirm"]
     assert "scored as alternatives" in r.output
+
+
+def test_start_settings():
+    assert start_settings(None, "crossing", "jipda", {}) == (
+        "nothing",
+        {"existence": True} | FROM_NOTHING_JIPDA,
+    )
+    assert start_settings(None, "bojilov", None, {"r_confirm": 0.95}) == (
+        "truth",
+        {"r_confirm": 0.95},
+    )
+    assert start_settings("nothing", "crossing", "jpda", {}) == ("nothing", {"existence": False})
+    assert start_settings("nothing", "crossing", None, {}, particle=object()) == ("nothing", {})
+
+
+def test_the_library_and_the_cli_resolve_the_start_through_one_helper(tmp_path, monkeypatch):
+    """Both take the settings run.start_settings returns (a stand-in that changes them)."""
+    calls = []
+
+    def changed(start, name, kind, tracker, particle=None):
+        calls.append(name)
+        s, over = start_settings(start, name, kind, tracker, particle)
+        return s, over | {"r_confirm": 0.991}
+
+    monkeypatch.setattr(runmod, "start_settings", changed)
+    m = run_scenario("crossing", out_dir=tmp_path / "lib", start_from="nothing", **SHORT)
+    assert _tracker(m)["r_confirm"] == 0.991
+    out = tmp_path / "cli"
+    r = CliRunner().invoke(
+        app, ["run", "--scenario", "crossing", "--max-scans", "4", "--out", str(out)]
+    )
+    assert r.exit_code == 0, r.output
+    tr = json.loads((out / "metrics.json").read_text(encoding="utf-8"))["tracker"]
+    assert tr["r_confirm"] == 0.991
+    assert calls and set(calls) == {"crossing"}

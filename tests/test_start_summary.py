@@ -12,10 +12,11 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from jointtrack.bench.from_nothing import jipda_config, oracle_confirmation
+from jointtrack.experiments import summary as summod
 from jointtrack.experiments.run import run_detections, run_scenario
 from jointtrack.experiments.summary import (
     SLOW_START_SCANS,
@@ -195,3 +196,76 @@ def test_confirmation_median_counts_never_as_late(tmp_path):
     med = float(np.median(vals))
     assert conf["median"] == (med if math.isfinite(med) else None)
     assert conf["never"] == sum(v is None for v in conf["scans_per_target"].values())
+
+
+def _magnitudes(sign):
+    """0 and ±(subnormal … 1e300), as the project's numeric tests draw them."""
+    mags = st.one_of(
+        st.just(0.0),
+        st.just(5e-324),
+        st.floats(min_value=5e-324, max_value=1e300, allow_subnormal=True),
+    )
+    return mags.map(lambda m: sign * m) if sign else st.one_of(mags, mags.map(lambda m: -m))
+
+
+@settings(max_examples=50, deadline=None)
+@given(ell=_magnitudes(0), log_ps=_magnitudes(-1))
+@example(ell=800.0, log_ps=0.0)  # r rounds to 1, no death: logit(r) = 800, not inf
+@example(ell=1e300, log_ps=-5e-324)
+@example(ell=-1e300, log_ps=-1e300)
+def test_log_odds_survived_is_the_survival_step_exactly(ell, log_ps):
+    """logit(p_s · expit(ell)) — the tracker's step existence · p_s — against 60-digit
+    arithmetic: within 1e-12 relative (1e-12 absolute near 0), finite, never NaN."""
+    import mpmath
+
+    got = summod._log_odds_survived(ell, log_ps)
+    with mpmath.workdps(60):
+        e = mpmath.mpf(ell)
+        r = 1 / (1 + mpmath.exp(-e))
+        one_minus_r = 1 / (1 + mpmath.exp(e))
+        one_minus_ps = -mpmath.expm1(mpmath.mpf(log_ps))  # 1 − p_s below 60 digits too
+        # logit(p_s r) = log p_s + log r − log(1 − p_s r), 1 − p_s r = (1 − r) + r (1 − p_s)
+        want = log_ps - mpmath.log1p(mpmath.exp(-e)) - mpmath.log(one_minus_r + r * one_minus_ps)
+    assert math.isfinite(got)
+    assert abs(got - float(want)) <= 1e-12 * max(1.0, abs(float(want)))
+
+
+def test_start_evidence_is_computed_once_per_settings(monkeypatch):
+    """The Monte Carlo runs once per settings in a process; every call gets an equal, own
+    copy (the summary adds "slow" to it), equal to a fresh computation."""
+    cfg = jipda_config(bojilov(seed=0))
+    summod._start_evidence.cache_clear()
+    fresh = start_evidence(cfg, 1.0)
+    calls = []
+    real = summod._expected_log_gain
+    monkeypatch.setattr(summod, "_expected_log_gain", lambda *a: calls.append(a) or real(*a))
+    again = start_evidence(cfg, 1.0)
+    assert again == fresh and calls == []
+    again["slow"] = True
+    assert "slow" not in start_evidence(cfg, 1.0)
+    other = start_evidence(dataclasses.replace(cfg, p_d=0.95), 1.0)
+    assert calls and other != fresh  # other settings: computed
+    summod._start_evidence.cache_clear()
+    assert start_evidence(cfg, 1.0) == fresh
+
+
+def test_start_evidence_survives_per_second_as_the_tracker():
+    """p_survive per second over dt = 2 s is the tracker's p_s² per scan: the same evidence
+    as p_s² per scan."""
+    cfg = dataclasses.replace(jipda_config(bojilov(seed=0)), p_survive=0.99, p_survive_per="second")
+    per_scan = dataclasses.replace(cfg, p_survive=0.99**2, p_survive_per="scan")
+    a, b = start_evidence(cfg, 2.0), start_evidence(per_scan, 2.0)
+    assert a["expected_scans"] == b["expected_scans"]
+    assert a["gain_first_scan"] == b["gain_first_scan"]
+
+
+def test_start_line_of_a_detections_run_says_it_keeps_the_joint_association():
+    from jointtrack.experiments.summary import start_description
+
+    tr = {"kind": "jipda", "existence": True, "initiation": "one-point", "r_confirm": 0.9}
+    det = {"start": "nothing", "source": {"detections": "a.csv"}, "tracker": tr}
+    assert "keeps the joint association" in start_description(det)
+    alt = det | {"tracker": tr | {"tentative_association": "alternatives"}}
+    assert "keeps the joint" not in start_description(alt)
+    scene = det | {"source": {"scenario": "crossing"}}
+    assert "keeps the joint" not in start_description(scene)

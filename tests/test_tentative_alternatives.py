@@ -23,7 +23,7 @@ from scipy.stats import chi2
 from jointtrack.models import ConstantVelocity
 from jointtrack.trackers import JPDATracker, TrackerConfig
 from jointtrack.trackers.existence import merge_duplicates, most_probable_event
-from state_checks import assert_steps_alike
+from state_checks import assert_steps_alike, load_state_without
 
 # ---------------------------------------------------------------------------
 # reference: a lone IPDA from its equations
@@ -317,18 +317,12 @@ def test_saved_alternatives_continue_identically(tmp_path):
 def test_state_written_before_the_setting_loads_as_joint(tmp_path):
     """A state file of main before ``tentative_association`` existed (same version, no
     such key) loads with the joint association it ran with and continues identically."""
-    from jointtrack.trackers.state_io import read_state, write_state
-
     scans, _, lam = _two_lanes(5, n_scans=12)
     trk = JPDATracker(
         TrackerConfig(measurement_noise=9.0, p_d=0.95, clutter_density=lam, max_speed=7.5)
     )
     for t, z in scans[:8]:
         trk.step(t, z)
-    arrays, config, scalars, rng = read_state(trk.save(tmp_path / "now.npz"))
-    config.pop("tentative_association")
-    write_state(tmp_path / "before.npz", arrays, config, scalars, rng)
-    loaded = JPDATracker.load(tmp_path / "before.npz")
+    loaded = load_state_without(trk, "tentative_association", tmp_path)
     assert loaded.config.tentative_association == "joint"
-    for t, z in scans[8:]:
-        np.testing.assert_array_equal(loaded.step(t, z).x, trk.step(t, z).x)
+    assert_steps_alike(loaded, trk, scans[8:])

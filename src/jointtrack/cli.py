@@ -615,10 +615,9 @@ def run_command(
             # like --scenario and --seed, the flag wins over the config's table
             start = start_from if start_from is not None else table_start
             sc = runmod.make_scenario(name, sd, sc_table, source=cfg.source)
-            # as run_scenario does with a mapping (this path hands it a built TrackerConfig)
-            from_nothing = runmod.resolved_start(start, sc.name, kind, particle) == "nothing"
-            if from_nothing and particle is None:
-                jpda_table = runmod.from_nothing_overrides(kind, jpda_table)
+            # this path hands run_scenario a built TrackerConfig: the start's settings come
+            # from the resolution run_scenario uses for a mapping (run.start_settings)
+            _start, jpda_table = runmod.start_settings(start, sc.name, kind, jpda_table, particle)
             tracker_cfg = runmod.make_tracker_config(
                 runmod.scenario_tracker_settings(sc), jpda_table, source=cfg.source
             )

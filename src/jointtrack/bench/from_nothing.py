@@ -42,6 +42,30 @@ initiated itself are kept as they are. It is scored exactly as the trackers:
 a tracker from nothing that loses nothing to the start beyond what a lone,
 perfectly started IPDA needs would score it.
 
+**The matched floor** (:func:`false_track_rate`, :func:`matched_floor`). The
+oracle pays no false alarms, but a tracker from nothing does: it starts a test
+on every return — on the headline scene ≈ 60 clutter returns × 81 scans — and
+at r_confirm = 0.9 from r_init = 0.02 Wald's bound, odds(r_init) /
+odds(r_confirm), allows ≈ 11 false confirmations a run. The matched floor is
+the floor with the oracle confirming at the threshold r* that a tracker from
+nothing with the run's settings needs to hold at most :data:`FALSE_LIMIT`
+false confirmed tracks per scan on that scene. r* is computed by simulation
+from the scene's own settings: lone IPDAs (the oracle's settings: gate P_G,
+P_D, λ, r_init, r_delete, r_report, the one-point covariance) born on clutter
+returns uniform over the region, run on clutter-only scans of the scene's
+``clutter_rate`` and scan times until deleted (multilevel splitting reaches
+the rare confirmations); for each threshold r of :data:`MATCHED_GRID` the
+expected false confirmed tracks per scan of a run is the clutter rate × the
+expected scans a test born at a random scan of the run is reported confirmed
+(existence reached r, still ≥ r_report, not deleted) / K; r* is the smallest r
+on the grid at or below the limit (None when none is). A lone IPDA per birth is
+the tracker that lets a target's evidence accumulate at the oracle's pace (the
+issue's item 2); a tracker whose tentative tracks compete for returns suppresses
+clutter tracks further but splits its targets' evidence. Targets' returns and
+the births on them (duplicates, tracks that follow a target beyond c) are not
+in this count: it is the clutter's share of the false-track line. At r* =
+r_confirm the matched floor is the issue's floor.
+
 **Scores** (:func:`score_tracks`): the run's own GOSPA (α = 2, the ``c`` and
 ``p`` of ``jointtrack run`` on the scene, :func:`scenario_metric_settings`,
 else c = 5σ, p = 2) per scan and its parts (localisation, missed, false, in the
@@ -78,7 +102,8 @@ detections; Stone Soup's tutorial JPDA tracker
 API: :func:`make_scene` (name → checked scene), :func:`oracle_confirmation`,
 :func:`phases`, :func:`floor_tracks`, :func:`tracker_tracks`,
 :func:`score_tracks`, :func:`evaluate` (one scene and seed, every tracker and
-the floor), :func:`aggregate` (over seeds, with the issue's PASS/FAIL checks).
+the floor), :func:`aggregate` (over seeds, with the issue's PASS/FAIL checks),
+:func:`false_track_rate` (r*), :func:`matched_floor`.
 """
 
 from __future__ import annotations
@@ -98,8 +123,10 @@ __all__ = [
     "aggregate",
     "check_scene",
     "evaluate",
+    "false_track_rate",
     "floor_tracks",
     "make_scene",
+    "matched_floor",
     "oracle_confirmation",
     "phases",
     "score_tracks",
@@ -119,6 +146,14 @@ SWITCH_LIMIT = {"jipda": 1.0, "pmb": 2.0, "pmbm": 2.0}
 ORACLE_R_DELETE = 1e-12
 CONFIRM_MARGIN = 2.0  # median confirmation ≤ oracle + 2 scans
 FALSE_LIMIT = 0.1  # false confirmed tracks per scan
+#: thresholds the matched floor's r* is chosen from (false_track_rate)
+MATCHED_GRID = (0.5, 0.7, 0.8, 0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998, 0.999, 0.9995, 0.9999)
+#: clutter-born lone IPDAs simulated per scene for r* (before the splitting's copies)
+MATCHED_BIRTHS = 20000
+#: log-odds (nats) between the splitting levels of false_track_rate
+SPLIT_NATS = 1.0
+#: at most this many levels split at once (2^this copies)
+MAX_SPLIT_LEVELS = 4
 
 Tracks = tuple  # (times (R,), ids (R,), positions (R, dim))
 
@@ -190,6 +225,37 @@ def metric_settings(scenario) -> tuple[float, float]:
 # ----------------------------------------------------------------------------- oracle
 
 
+def _ipda_config(scenario, config):
+    """``config``, or the scene's JIPDA settings; refused unless an IPDA's TrackerConfig."""
+    from jointtrack.trackers import TrackerConfig
+
+    cfg = jipda_config(scenario) if config is None else config
+    if not isinstance(cfg, TrackerConfig) or not cfg.existence:
+        raise ValueError("config must be a TrackerConfig with existence = true (an IPDA)")
+    return cfg
+
+
+def _threshold(r, cfg, name: str) -> float:
+    """A confirmation threshold in (r_init, 1) as a float; else ValueError naming ``name``."""
+    from jointtrack.assignment._checks import as_float
+
+    return as_float(r, name, minimum=cfg.r_init, maximum=1.0, open_min=True, open_max=True)
+
+
+def _threshold_grid(grid, cfg) -> tuple:
+    """``grid`` as a tuple of floats strictly increasing in (r_init, 1); else ValueError."""
+    if (
+        isinstance(grid, str | bytes)
+        or not isinstance(grid, Sequence | np.ndarray)
+        or not len(grid)
+    ):
+        raise ValueError(f"grid must be a non-empty sequence of thresholds, got {grid!r}")
+    out = tuple(_threshold(r, cfg, f"grid[{i}]") for i, r in enumerate(grid))
+    if any(b <= a for a, b in zip(out[:-1], out[1:], strict=True)):
+        raise ValueError(f"grid must be strictly increasing, got {list(out)}")
+    return out
+
+
 def oracle_confirmation(
     scenario, *, returns: str = "all", config=None, restart: bool = True
 ) -> dict:
@@ -217,14 +283,12 @@ def oracle_confirmation(
         ``{target id: {"first_scan": k0, "confirm_scan": k or None,
         "scans": k − k0 + 1 or None, "restarts": n}}``.
     """
-    from jointtrack.trackers import JPDATracker, TrackerConfig
+    from jointtrack.trackers import JPDATracker
 
     check_scene(scenario)
     if returns not in ("all", "own"):
         raise ValueError(f'returns must be "all" or "own", got {returns!r}')
-    cfg = jipda_config(scenario) if config is None else config
-    if not isinstance(cfg, TrackerConfig) or not cfg.existence:
-        raise ValueError("config must be a TrackerConfig with existence = true (an IPDA)")
+    cfg = _ipda_config(scenario, config)
     if not isinstance(restart, bool):
         raise ValueError(f"restart must be True or False, got {restart!r}")
     if not restart:
@@ -265,6 +329,195 @@ def oracle_confirmation(
             "scans": None if confirm is None else confirm - first + 1,
             "restarts": max(restarts, 0),
         }
+    return out
+
+
+# ----------------------------------------------------------------------------- matched floor
+
+
+def _logit(r: float) -> float:
+    return math.log(r) - math.log1p(-r)
+
+
+def false_track_rate(
+    scenario,
+    *,
+    config=None,
+    births: int = MATCHED_BIRTHS,
+    grid: Sequence[float] = MATCHED_GRID,
+    seed: int = 0,
+    level_nats: float = SPLIT_NATS,
+) -> dict:
+    """Expected false confirmed tracks per scan of lone IPDAs born on clutter, per threshold.
+
+    The simulation of the matched floor (module docstring): ``births`` lone
+    IPDAs (``config``, default the scene's JIPDA settings as the oracle runs
+    them), each born tentative on a clutter return drawn uniformly over the
+    scene's region at its first scan (existence ``r_init``, the one-point
+    covariance), each alone in its own copy of the region, whose clutter is
+    Poisson with the scene's ``clutter_rate`` per scan, uniform over the region
+    (drawn only where the region meets the track's gate: the rest cannot reach
+    it). Each is run over the scene's scan times by the tracker's own step
+    until the tracker deletes it; the tracks the step starts on the returns
+    are removed after each scan (a lone test). Its existence is recorded at
+    every scan.
+
+    Rare confirmations (1e-4 per birth at 0.99 on the headline scene) are
+    reached by splitting (multilevel splitting, H. Kahn and T. E. Harris,
+    "Estimation of particle transmission by random sampling", *National Bureau
+    of Standards Applied Mathematics Series* 12, 1951): when a track's
+    existence log-odds first pass logit(r_init) + j·``level_nats`` it is
+    copied (2^(levels passed) copies, each in a fresh copy of the region, each
+    carrying that fraction of its weight), so that the weighted copies are an
+    unbiased estimate of every count.
+
+    For a threshold r, a clutter-born track is a false confirmed track at every
+    scan from the first at which its existence reached r while it is reported
+    (existence ≥ ``r_report``) and not deleted. A tracker from nothing starts
+    such a test on each of the ``clutter_rate`` clutter returns of every scan
+    and a test born at scan k₀ has the K − k₀ scans left of the run, so the
+    expected false confirmed tracks per scan of a run of K scans are
+    ``clutter_rate / K · E[Σ_{k ≥ c_r, reported} (K − k)]`` over births at the
+    first scan (k relative to birth, c_r its confirmation scan).
+
+    Returns
+    -------
+    dict
+        ``grid`` (the thresholds), ``false_per_scan`` (and its Monte Carlo standard
+        error ``false_per_scan_se``, over the births), ``p_confirm`` (the
+        probability that a clutter-born test reaches r) and ``reported_scans``
+        (mean scans a confirmed false track is reported, within the run) per
+        threshold; ``r_star`` (the smallest threshold on the grid with at most
+        :data:`FALSE_LIMIT` false per scan, None when none has), ``births``,
+        ``copies`` (tracks simulated with the splits), ``seed``, ``clutter_rate``.
+    """
+    from jointtrack.assignment._checks import as_float, as_int
+    from jointtrack.association.gating import gate_threshold
+    from jointtrack.trackers import JPDATracker
+
+    check_scene(scenario)
+    cfg = _ipda_config(scenario, config)
+    births = as_int(births, "births", minimum=1, maximum=10**6)
+    seed = as_int(seed, "seed", minimum=0)
+    level_nats = as_float(level_nats, "level_nats", minimum=0.05, maximum=20.0)
+    grid = _threshold_grid(grid, cfg)
+    d = scenario.dim
+    lo = np.asarray(scenario.region, float)[:, 0]
+    span = np.asarray(scenario.region, float)[:, 1] - lo
+    if not (np.all(np.isfinite(span)) and np.all(span > 0)):
+        raise ValueError(
+            f"scenario.region must be a box of positive, finite extent (the clutter's), got "
+            f"{np.asarray(scenario.region).tolist()}"
+        )
+    rate = float(scenario.clutter_rate)
+    lam = rate / float(np.prod(span))
+    times = np.asarray(scenario.times, float)
+    K = len(times)
+    # copies of the region far enough apart that no gate reaches another's clutter
+    spacing = 100.0 * float(span.max()) + 1e4
+    gamma = gate_threshold(min(float(cfg.p_g), 1.0 - 1e-12), d)
+    ell0 = _logit(cfg.r_init)
+    n_levels = max(0, math.ceil((_logit(grid[-1]) - ell0) / level_nats))
+    rng = np.random.default_rng(seed)
+
+    trk = JPDATracker(cfg)
+    tile = np.arange(births)
+    x0, P0 = trk._initial_states(lo + rng.random((births, d)) * span + _offset(tile, d, spacing))
+    ids = np.asarray(trk.start_tracks(x0, P0, confirmed=False, existence=cfg.r_init, time=times[0]))
+    leaf_ids, leaf_of = ids.copy(), np.arange(births)  # track id → leaf (ids increase)
+    hist = np.full((births, K), np.nan)  # existence per leaf and scan (NaN: deleted)
+    hist[:, 0] = cfg.r_init
+    weight = np.ones(births)
+    level = np.zeros(births, np.int64)
+    root = np.arange(births)  # the birth each copy descends from (for the standard error)
+    n_tiles = births
+    for k in range(1, K):
+        if not len(trk.ids):
+            break
+        t = float(times[k])
+        dt = t - float(times[k - 1])
+        F, Q = trk._motion.transition(dt), trk._motion.noise(dt)
+        H, R = trk._sensor.H, trk._sensor.R
+        xp = trk.x @ F.T
+        S = H @ (F @ trk.P @ F.T + Q) @ H.T + R
+        half = np.sqrt(gamma * np.linalg.eigvalsh(S)[:, -1]) * 1.01
+        row = leaf_of[np.searchsorted(leaf_ids, trk.ids)]
+        origin = lo + _offset(tile[row], d, spacing)
+        centre = xp @ H.T
+        box_lo = np.maximum(centre - half[:, None], origin)
+        box_hi = np.minimum(centre + half[:, None], origin + span)
+        size = np.clip(box_hi - box_lo, 0.0, None)
+        n = rng.poisson(lam * np.prod(size, axis=1))
+        z = np.repeat(box_lo, n, axis=0) + rng.random((int(n.sum()), d)) * np.repeat(
+            size, n, axis=0
+        )
+        trk.step(t, z)
+        trk._keep(np.isin(trk.ids, leaf_ids))  # lone tests: the tracks born on z go
+        row = leaf_of[np.searchsorted(leaf_ids, trk.ids)]
+        hist[row, k] = trk.existence
+        # split the tracks whose log-odds passed new levels
+        ell = np.log(trk.existence) - np.log1p(-np.minimum(trk.existence, 1 - 1e-16))
+        reached = np.clip(np.floor((ell - ell0) / level_nats), 0, n_levels).astype(np.int64)
+        up = np.minimum(reached - level[row], MAX_SPLIT_LEVELS)
+        src = np.flatnonzero(up > 0)
+        if src.size:
+            level[row[src]] = reached[src]
+            per = 2 ** up[src]
+            weight[row[src]] /= per
+            rep = np.repeat(src, per - 1)
+            new_rows = np.arange(len(weight), len(weight) + rep.size)
+            new_tiles = np.arange(n_tiles, n_tiles + rep.size)
+            n_tiles += rep.size
+            move = _offset(new_tiles, d, spacing) - _offset(tile[row[rep]], d, spacing)
+            xs = trk.x[rep].copy()
+            xs[:, :d] += move
+            new_ids = trk._append(
+                xs, trk.P[rep].copy(), confirmed=False, existence=trk.existence[rep], time=t
+            )
+            trk.confirmed[-rep.size :] = trk.confirmed[rep]
+            hist = np.concatenate([hist, hist[row[rep]]])
+            weight = np.concatenate([weight, weight[row[rep]]])
+            level = np.concatenate([level, level[row[rep]]])
+            root = np.concatenate([root, root[row[rep]]])
+            tile = np.concatenate([tile, new_tiles])
+            leaf_ids = np.concatenate([leaf_ids, new_ids])
+            leaf_of = np.concatenate([leaf_of, new_rows])
+    reported = np.nan_to_num(hist, nan=-1.0) >= cfg.r_report
+    left = K - np.arange(K)  # scans of the run left from each scan of a birth at the first
+    false_per_scan, false_se, p_confirm, reported_scans = [], [], [], []
+    for r in grid:
+        hit = np.nan_to_num(hist, nan=-1.0) >= r
+        ever = hit.any(axis=1)
+        first = np.where(ever, hit.argmax(axis=1), K)
+        after = np.arange(K)[None, :] >= first[:, None]
+        on = after & reported
+        # per birth: its copies' weighted sum (independent across births: the standard error)
+        per_birth = np.bincount(root, weight * (on * left).sum(axis=1), minlength=births)
+        false_per_scan.append(rate / K * float(per_birth.mean()))
+        false_se.append(
+            rate / K * float(per_birth.std(ddof=1) / math.sqrt(births)) if births > 1 else math.inf
+        )
+        pc = float(weight @ ever) / births
+        p_confirm.append(pc)
+        reported_scans.append(float(weight @ on.sum(axis=1)) / births / pc if pc > 0 else None)
+    ok = [r for r, f in zip(grid, false_per_scan, strict=True) if f <= FALSE_LIMIT]
+    return {
+        "grid": list(grid),
+        "false_per_scan": false_per_scan,
+        "false_per_scan_se": false_se,
+        "p_confirm": p_confirm,
+        "reported_scans": reported_scans,
+        "r_star": ok[0] if ok else None,
+        "births": births,
+        "copies": len(weight),
+        "seed": seed,
+        "clutter_rate": rate,
+    }
+
+
+def _offset(tile: np.ndarray, d: int, spacing: float) -> np.ndarray:
+    out = np.zeros((len(tile), d))
+    out[:, 0] = np.asarray(tile, float) * spacing
     return out
 
 
@@ -463,6 +716,7 @@ def evaluate(
     budget: float | None = None,
     scenario_kwargs: Mapping | None = None,
     on_step: Callable[[str], None] | None = None,
+    r_matched: float | None = None,
 ) -> dict:
     """One scene and seed: the oracle, the floor and every tracker of ``trackers``, scored.
 
@@ -470,6 +724,8 @@ def evaluate(
     [phase index per scan], "floor": score, "trackers": {kind: score}}``
     (scores: :func:`score_tracks`). ``scenario_kwargs``: the scene generator's
     keywords (e.g. ``{"n_scans": 15}``). ``on_step(label)`` is called after each part.
+    ``r_matched`` (e.g. ``false_track_rate(scene)["r_star"]``): also the matched
+    floor, ``"matched": {"r", "oracle", "floor"}`` (:func:`matched_floor`).
     """
     bad = [k for k in trackers if k not in TRACKERS]
     if bad or isinstance(trackers, str):
@@ -477,6 +733,8 @@ def evaluate(
             f"trackers must be a sequence of {', '.join(TRACKERS)}, got {list(trackers)!r}"
         )
     scene = make_scene(name, seed, scenario_kwargs)
+    if r_matched is not None:
+        r_matched = _threshold(r_matched, jipda_config(scene), "r_matched")  # before any run
     step = on_step or (lambda _label: None)
     phase = phases(scene)
     oracle = oracle_confirmation(scene, returns=returns)
@@ -493,6 +751,8 @@ def evaluate(
         "floor": floor,
         "trackers": {},
     }
+    if r_matched is not None:
+        out["matched"] = matched_floor(scene, truth_run, r_matched, returns=returns, phase=phase)
     for kind in trackers:
         out["trackers"][kind] = score_tracks(
             scene,
@@ -501,6 +761,25 @@ def evaluate(
         )
         step(kind)
     return out
+
+
+def matched_floor(
+    scenario, truth_run: Tracks, r: float, *, returns: str = "all", phase=None
+) -> dict:
+    """The start-up floor with the oracle confirming at ``r`` instead of the settings' r_confirm.
+
+    The oracle (:func:`oracle_confirmation`, ``returns``) with ``r_confirm = r``,
+    and :func:`floor_tracks` of ``truth_run`` from its confirmations, scored
+    (:func:`score_tracks`). Returns ``{"r", "oracle": {target: scans or None},
+    "floor": score}``. At the settings' own r_confirm it is the issue's floor.
+    """
+    check_scene(scenario)
+    cfg = jipda_config(scenario)
+    r = _threshold(r, cfg, "r")
+    cfg = dataclasses.replace(cfg, r_confirm=r)
+    oracle = oracle_confirmation(scenario, returns=returns, config=cfg)
+    floor = score_tracks(scenario, floor_tracks(scenario, truth_run, oracle), phase)
+    return {"r": r, "oracle": {t: o["scans"] for t, o in oracle.items()}, "floor": floor}
 
 
 def _median_scans(values) -> float | None:
@@ -525,7 +804,10 @@ def aggregate(runs: Sequence[Mapping]) -> dict:
     ``ratio`` (GOSPA / floor per seed, mean ± std), switches per run, false
     per scan, the median confirmation scans over (seed, target) and the
     median of (tracker − oracle) over pairs both confirmed, and ``checks``
-    ({line: PASS bool}) for the kinds the issue sets lines for.
+    ({line: PASS bool}) for the kinds the issue sets lines for. When every run
+    has a ``matched`` floor (:func:`evaluate`'s ``r_matched``): ``matched``
+    ({r, oracle_median, oracle_never}), a ``matched_floor`` row and each row's
+    ``ratio_matched`` (GOSPA / matched floor per seed; information, not a check).
     """
     if not runs:
         raise ValueError("runs must hold at least one evaluate() result")
@@ -541,8 +823,27 @@ def aggregate(runs: Sequence[Mapping]) -> dict:
     }
     floor = [r["floor"]["gospa"] for r in runs]
     kinds = ["floor", *runs[0]["trackers"]]
+    matched = [r.get("matched") for r in runs]
+    if all(matched):
+        rs = {m["r"] for m in matched}
+        if len(rs) != 1:
+            raise ValueError(f"runs must share one matched threshold, got {sorted(rs)}")
+        m_oracle = [v for m in matched for v in m["oracle"].values()]
+        out["matched"] = {
+            "r": rs.pop(),
+            "oracle_median": _median_scans(m_oracle),
+            "oracle_never": sum(v is None for v in m_oracle),
+        }
+        kinds.insert(1, "matched_floor")
     for kind in kinds:
-        sc = [r["floor"] if kind == "floor" else r["trackers"][kind] for r in runs]
+        sc = [
+            r["floor"]
+            if kind == "floor"
+            else r["matched"]["floor"]
+            if kind == "matched_floor"
+            else r["trackers"][kind]
+            for r in runs
+        ]
         conf = [v for s in sc for v in s["confirm_scans"].values()]
         behind = [
             s["confirm_scans"][t] - o
@@ -553,6 +854,16 @@ def aggregate(runs: Sequence[Mapping]) -> dict:
         row = {
             "gospa": _mean_std([s["gospa"] for s in sc]),
             "ratio": _mean_std([s["gospa"] / f for s, f in zip(sc, floor, strict=True)]),
+            # information beside the issue's lines: GOSPA / the matched floor per seed
+            **(
+                {
+                    "ratio_matched": _mean_std(
+                        [s["gospa"] / m["floor"]["gospa"] for s, m in zip(sc, matched, strict=True)]
+                    )
+                }
+                if "matched" in out
+                else {}
+            ),
             "switches": _mean_std([s["switches"] for s in sc]),
             "false_per_scan": _mean_std([s["false_per_scan"] for s in sc]),
             "confirm_median": _median_scans(conf),

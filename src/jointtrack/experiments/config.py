@@ -580,7 +580,12 @@ def jpda_kind_overrides(kind: str, tracker: Mapping) -> dict:
 #: confirmation — Wald's bound odds(r_init)/odds(r_confirm) per test is what keeps the
 #: false confirmed tracks at ≈ 0.1 per scan on the Bojilov scene (0.9: 0.26, 0.97: 0.10,
 #: 0.99: 0.05). Measured on seeds 0–9 of the five built-in scenes against the joint
-#: association: ``benchmarks/RESULTS.md``, "JIPDA from nothing: the default".
+#: association: ``benchmarks/RESULTS.md``, "JIPDA from nothing: the default". Runs of
+#: detection files (``--detections``, :func:`~jointtrack.experiments.run.run_detections`)
+#: do not take it: on the held-out ADS-B flights (quickstart) it lost coverage 0.967 →
+#: 0.954, purity 0.856 → 0.842 and GOSPA 604 → 627 (close pairs lost 5.7 → 12.2 %), and
+#: the switzerland slice only traded 0.2 points of coverage for fewer ids
+#: (``benchmarks/RESULTS.md``, "Issue 33: the matched floor …").
 FROM_NOTHING_JIPDA = {"tentative_association": "alternatives", "r_confirm": 0.97}
 
 

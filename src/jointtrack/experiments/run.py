@@ -1311,17 +1311,17 @@ def run_scenario(
         identity = {"scenario": run_name(scenario.name), "seed": scenario.seed, "kwargs": kwargs}
     start = start_setting(start_from, start_from_truth, "run_scenario:", noun="argument")
     kind = _check_kind(tracker, config, pmbm, particle)
-    start = resolved_start(start, scenario.name, kind, particle)
+    built = isinstance(config, TrackerConfig | PMBMConfig)
+    start, over = start_settings(
+        start, scenario.name, kind, {} if built else dict(config or {}), particle
+    )
     if kind in POISSON_KINDS and start == "truth":
         raise RunConfigError(_POISSON_TRUTH_START)
     start_from_truth = start == "truth"
     notes = []
-    if isinstance(config, TrackerConfig | PMBMConfig):
+    if built:
         cfg = config
     else:
-        over = jpda_kind_overrides(kind, dict(config or {}))
-        if start == "nothing" and particle is None:
-            over = from_nothing_overrides(kind, over)
         cfg = make_tracker_config(scenario_tracker_settings(scenario), over)
     if kind in POISSON_KINDS and not isinstance(cfg, PMBMConfig):
         cfg, notes = make_pmbm_config(
@@ -1373,6 +1373,26 @@ def run_scenario(
         particle=particle,
         kind=kind,
     )
+
+
+def start_settings(
+    start: str | None, scenario_name: str, kind: str | None, tracker: Mapping, particle=None
+) -> tuple[str, dict]:
+    """The start of a run on a built-in scenario and its ``[tracker]`` overrides.
+
+    The start is :func:`resolved_start`; the overrides are ``tracker`` with the
+    kind's ``existence`` (:func:`~jointtrack.experiments.config.jpda_kind_overrides`)
+    and, when the run starts from nothing (not the particle tracker), the
+    from-nothing settings for the keys ``tracker`` does not set
+    (:func:`~jointtrack.experiments.config.from_nothing_overrides`). The one
+    resolution :func:`run_scenario` and ``jointtrack run`` share: the CLI builds
+    the TrackerConfig itself and hands it over, so the two must not each decide.
+    """
+    start = resolved_start(start, scenario_name, kind, particle)
+    over = jpda_kind_overrides(kind, tracker)
+    if start == "nothing" and particle is None:
+        over = from_nothing_overrides(kind, over)
+    return start, over
 
 
 def resolved_start(start: str | None, scenario_name: str, kind: str | None, particle=None) -> str:
