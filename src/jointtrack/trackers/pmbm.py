@@ -79,7 +79,10 @@ Approximations, each with its knob in :class:`~jointtrack.trackers.pmbm_config.P
   become Gaussian components of the Poisson intensity (J. L. Williams,
   "Hybrid Poisson and multi-Bernoulli filters", *15th International
   Conference on Information Fusion*, 2012): clutter-born Bernoullis then cost
-  no association work.
+  no association work. PMBM with ``recycle_existence = "marginal"``: a track
+  whose existence summed over the global hypotheses is below it, so that a
+  target's early evidence, spread over many hypotheses, is kept in one
+  Gaussian of the intensity (issue 33).
 * **work budgets** (``max_ranking_work``, 2^25): PMBM estimates each
   cluster's ranking work before doing it; past the budget the cluster gets
   fewer events per prior hypothesis (method ``"murty-truncated"``: still its
@@ -1517,12 +1520,16 @@ class PMBMTracker(_PoissonTracker):
         return r, x, P, track, t_born, reports, modes
 
     def _recycle(self, hyp, logw, child_r, child_x, child_P):
-        """Never-reported tracks with existence below ``r_recycle`` everywhere go to the intensity.
+        """Never-reported tracks with existence below ``r_recycle`` go to the intensity.
 
-        Each such track's single-target hypotheses become Gaussian components
-        of the Poisson intensity with weight r × (total weight of the global
-        hypotheses holding them) (Williams 2012); the track is removed from
-        every hypothesis (``hyp`` is changed in place). Returns ``(w, m, P)``.
+        Which existence (``recycle_existence``): ``"least"``, below it in every
+        global hypothesis holding the track; ``"marginal"``, Σ_h w_h r_h below it
+        (normalised weights; 0 where h has no Bernoulli of the track). Each such
+        track's single-target hypotheses become Gaussian components of the
+        Poisson intensity with weight r × (total weight of the global
+        hypotheses holding them) (Williams 2012) — summing to the track's
+        marginal existence; the track is removed from every hypothesis (``hyp``
+        is changed in place). Returns ``(w, m, P)``.
         """
         c = self.config
         n = self.state_dim
@@ -1534,11 +1541,15 @@ class PMBMTracker(_PoissonTracker):
         reported = np.concatenate(
             [self.track_reported, np.zeros(hyp.shape[1] - len(self.track_reported), bool)]
         )
-        weak = (r_of < c.r_recycle).all(axis=0) & present.any(axis=0) & ~reported
-        if not weak.any():
-            return none
         wn = np.exp(logw - logw.max())
         wn /= wn.sum()
+        if c.recycle_existence == "marginal":
+            low = wn @ r_of < c.r_recycle
+        else:
+            low = (r_of < c.r_recycle).all(axis=0)
+        weak = low & present.any(axis=0) & ~reported
+        if not weak.any():
+            return none
         sub = hyp[:, weak]
         hh, tt = np.nonzero(sub >= 0)
         s_idx = sub[hh, tt]

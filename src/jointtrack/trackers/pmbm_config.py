@@ -29,6 +29,9 @@ __all__ = ["BIRTH_MODELS", "ESTIMATORS", "PMBMConfig"]
 #: PMBM estimators: estimator 1, or a track's existence over all global hypotheses.
 ESTIMATORS = ("best", "track")
 
+#: PMBM: which existence of a never-reported track is compared with r_recycle.
+RECYCLE_EXISTENCES = ("least", "marginal")
+
 #: Kinds of birth (and prior) intensity of undetected targets.
 BIRTH_MODELS = ("uniform", "gaussian")
 
@@ -41,6 +44,7 @@ _ADDED_SETTINGS = {
     "duplicate_distance": 0.0,
     "birth_per_return": 0.0,
     "estimator": "best",
+    "recycle_existence": "least",
     # reporting targets (issue 32): a scanning sensor, survival per scan, as before
     "reporting": "scan",
     "report_interval": 60.0,
@@ -60,7 +64,13 @@ _ADDED_SETTINGS = {
 
 #: The settings of issue 33 (PMB/PMBM from nothing): a state saved before them
 #: continues with the values in _ADDED_SETTINGS.
-ISSUE_33_SETTINGS = ("keep_apart", "duplicate_distance", "birth_per_return", "estimator")
+ISSUE_33_SETTINGS = (
+    "keep_apart",
+    "duplicate_distance",
+    "birth_per_return",
+    "estimator",
+    "recycle_existence",
+)
 
 #: Fields shared with TrackerConfig, checked by its field checks.
 _SHARED = (
@@ -167,6 +177,23 @@ class PMBMConfig(ModelSettings):
         target's evidence is kept in the intensity until it is strong. A
         Bernoulli once reported is never recycled (it keeps its id through
         missed detections until its existence falls below ``r_prune``).
+    recycle_existence : PMBM: which existence of a never-reported track is
+        compared with ``r_recycle`` — ``"least"`` (default): its existence in
+        every global hypothesis holding it; ``"marginal"``: its existence over
+        the global hypotheses, Σ_h w_h r_h (the one the intensity receives).
+        Why: from nothing in dense clutter, a target's early evidence is spread
+        over hundreds of global hypotheses (in each, one of its returns detected
+        the track: r = 1 there), so no tentative track is ever below
+        ``r_recycle`` in all of them; the hypotheses fill the cap with
+        alternatives of that evidence, the most probable holds ~5 % of the weight
+        and estimator 1 misses the target. Recycled by its marginal, the evidence
+        is kept in one Gaussian of the intensity, as PMB keeps it in one
+        Bernoulli, and the track returns when a return makes it likely (Williams
+        2012). Measured (``benchmarks/RESULTS.md``, "Issue 33, PMBM re-acquisition"):
+        with ``r_recycle = 0.3`` the headline scene from nothing improves in
+        GOSPA and coverage but its id switches rise, so it is an option, not the
+        default. PMB is unaffected (one Bernoulli per track: the two are equal).
+        A state saved before this setting existed loads with ``"least"``.
     keep_apart : PMB (and PMBM clusters merged past the ranking budget): each
         Bernoulli's *state* is updated by its association probabilities without the
         returns that the most probable association event gives to another Bernoulli
@@ -251,6 +278,7 @@ class PMBMConfig(ModelSettings):
     max_poisson_components: int = 100
     r_prune: float = 1e-5
     r_recycle: float = 0.1
+    recycle_existence: str = "least"
     keep_apart: bool = True
     duplicate_distance: float = 1.0
     r_estimate: float = 0.4
@@ -327,6 +355,12 @@ class PMBMConfig(ModelSettings):
             set_(self, "max_ranking_work", _work("max_ranking_work", self.max_ranking_work))
         if self.estimator not in ESTIMATORS:
             raise _fail("estimator", " or ".join(map(repr, ESTIMATORS)), self.estimator)
+        # a str first: `in` on an array or other unhashable value would not name the field
+        if not isinstance(self.recycle_existence, str) or (
+            self.recycle_existence not in RECYCLE_EXISTENCES
+        ):
+            want = " or ".join(map(repr, RECYCLE_EXISTENCES))
+            raise _fail("recycle_existence", want, self.recycle_existence)
         if not isinstance(self.keep_apart, bool | np.bool_):
             raise _fail("keep_apart", "true or false", self.keep_apart)
         set_(self, "keep_apart", bool(self.keep_apart))

@@ -45,7 +45,8 @@ def prune_and_merge(w, m, P, *, prune: float, merge: float, cap: int):
 
     Greedy merging (Vo & Ma 2006, Table II): the heaviest remaining component
     absorbs every component within squared Mahalanobis distance ``merge`` of
-    it (in its own covariance), by moment matching; ``merge = 0`` never merges.
+    it, measured in that component's own covariance, by moment matching;
+    ``merge = 0`` never merges.
     Returns ``(w, m, P)``.
     """
     keep = w >= prune if prune > 0 else w > 0
@@ -56,11 +57,16 @@ def prune_and_merge(w, m, P, *, prune: float, merge: float, cap: int):
         g = 0
         while order:
             lead = order[0]
-            inv = np.linalg.inv(P[lead])
             rest = np.array(order)
             d = m[rest] - m[lead]
-            d2 = np.einsum("ki,ij,kj->k", d, inv, d)
-            close = rest[d2 <= merge]
+            # in each candidate's own covariance (Vo & Ma Table II): in the lead's, a
+            # heavy broad prior would absorb every sharp component within its 2σ (a
+            # recycled track's evidence, 150 m broad on the coalescence scene)
+            with np.errstate(invalid="ignore", over="ignore"):
+                d2 = np.einsum("ki,kij,kj->k", d, np.linalg.inv(P[rest]), d)
+            # the lead is in its own group whatever its covariance (0 · inf is NaN: a
+            # loop that never ends), and so is a component at its mean
+            close = rest[(d2 <= merge) | ~d.any(axis=1)]
             group[close] = g
             g += 1
             taken = set(close.tolist())
