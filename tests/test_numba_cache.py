@@ -36,6 +36,7 @@ import pytest
 from numba.core.registry import CPUDispatcher
 
 import jointtrack
+from jointtrack.assignment._plan import frontier_plan
 
 # --------------------------------------------------------------------------- static rule
 
@@ -122,18 +123,23 @@ def test_cached_parallel_code_is_only_called_from_python():
 
 # --------------------------------------------------------------------------- the sequence
 
+# The plan (frontier_plan, not part of the sequence) comes from the test's process in a
+# file: compiled once in the suite's cache instead of once more in each fresh one.
 _SCRIPT = r"""
 import sys
 import numpy as np
 from jointtrack.assignment._frontier import frontier_dp, frontier_value
 from jointtrack.assignment._inclusion_exclusion import glynn_kernel, ryser_kernel
-from jointtrack.assignment._plan import frontier_plan
 
-W = np.array(eval(sys.argv[1]), dtype=float)
+plan = np.load(sys.argv[1])
+W = plan["W"]
 R, C = W.shape
 u = np.ones(R)
 v = np.ones(C)
-_, K, op_kind, op_arg, slot_of, lay_slot, term = frontier_plan(W > 0.0)
+K = int(plan["K"])
+op_kind, op_arg, slot_of, lay_slot, term = (
+    plan[k] for k in ("op_kind", "op_arg", "slot_of", "lay_slot", "term")
+)
 for entry in sys.argv[2:]:
     name, nchunk = entry.split(":")
     nchunk = int(nchunk)
@@ -167,14 +173,30 @@ def _permanent(W):
     )
 
 
-def _run(cache_dir, W, entries):
+def _write_plan(path, W):
+    """``W`` and its frontier plan, as the script reads them."""
+    _, K, op_kind, op_arg, slot_of, lay_slot, term = frontier_plan(W > 0.0)
+    np.savez(
+        path,
+        W=W,
+        K=K,
+        op_kind=op_kind,
+        op_arg=op_arg,
+        slot_of=slot_of,
+        lay_slot=lay_slot,
+        term=term,
+    )
+    return path
+
+
+def _run(cache_dir, plan, entries):
     env = dict(os.environ)
     env["NUMBA_CACHE_DIR"] = str(cache_dir)
     env["PYTHONPATH"] = os.pathsep.join(
         [str(Path(jointtrack.__file__).parents[1]), env.get("PYTHONPATH", "")]
     )
     proc = subprocess.run(
-        [sys.executable, "-c", _SCRIPT, repr(W.tolist()), *entries],
+        [sys.executable, "-c", _SCRIPT, str(plan), *entries],
         env=env,
         capture_output=True,
         text=True,
@@ -196,12 +218,13 @@ def test_cached_frontier_kernels_survive_reload(tmp_path):
         "glynn_kernel:0",
         "ryser_kernel:0",
     )
+    plan = _write_plan(tmp_path / "plan.npz", W)
     # 1. like `jointtrack run`: frontier_dp (and its callees) compiled and cached
-    first = _run(tmp_path, W, [dp, glynn])
+    first = _run(tmp_path, plan, [dp, glynn])
     # 2. like the saddle example: frontier_value compiled on top of that cache
-    second = _run(tmp_path, W, [value, ryser, "frontier_value:1"])
+    second = _run(tmp_path, plan, [value, ryser, "frontier_value:1"])
     # 3. everything loaded from the cache: this run segfaulted
-    third = _run(tmp_path, W, [value, dp, glynn, ryser, "frontier_value:1", "frontier_dp:1"])
+    third = _run(tmp_path, plan, [value, dp, glynn, ryser, "frontier_value:1", "frontier_dp:1"])
     # the runs above did go through the on-disk cache
     assert list(tmp_path.glob("**/_frontier.frontier_value-*.nbi"))
     assert list(tmp_path.glob("**/_frontier.frontier_dp-*.nbi"))
