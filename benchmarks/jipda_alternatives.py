@@ -13,8 +13,10 @@ never confirmed counts as infinitely late) and every target's confirmation.
     PYTHONPATH=src python benchmarks/jipda_alternatives.py bojilov 0,1,2,3,4 \\
         '{"tentative_association": "alternatives"}'
 
-(``'{}'`` for the default, joint association; the third argument is the
-``[tracker]`` table as JSON.) Results: ``benchmarks/RESULTS.md``, issue 33 (jipda).
+(the third argument is the ``[tracker]`` table as JSON; ``'{}'`` gives the default
+of a run from nothing, ``experiments.config.FROM_NOTHING_JIPDA``, in both passes,
+through ``run.start_settings``; ``'{"tentative_association": "joint",
+"r_confirm": 0.9}'`` the joint association.) Results: ``benchmarks/RESULTS.md``, issue 33 (jipda).
 """
 
 from __future__ import annotations
@@ -31,14 +33,17 @@ from jointtrack.experiments.config import (
     make_tracker_config,
     scenario_tracker_settings,
 )
-from jointtrack.experiments.run import run_scenario
+from jointtrack.experiments.run import run_scenario, start_settings
 from jointtrack.trackers import JPDATracker
 
 
 def confirmation_and_false(scene: str, seed: int, config: dict, c: float):
     """Per-target scans to the first GOSPA partner, and unpartnered reported tracks per scan."""
     sc = make_scenario(scene, seed, {})
-    trk = JPDATracker(make_tracker_config(scenario_tracker_settings(sc), config))
+    # the settings run_scenario gives a JIPDA run from nothing (the from-nothing
+    # defaults for the keys config does not set), so this pass replays that run
+    _, over = start_settings("nothing", scene, "jipda", config)
+    trk = JPDATracker(make_tracker_config(scenario_tracker_settings(sc), over))
     first, first_truth, false = {}, {}, []
     for k, (t, z) in enumerate(zip(sc.times, sc.detections, strict=True)):
         res = trk.step(t, z)
