@@ -55,6 +55,10 @@ def prune_and_merge(w, m, P, *, prune: float, merge: float, cap: int):
         order = list(np.argsort(-w, kind="stable"))
         group = np.full(len(w), -1)
         g = 0
+        # each component's inverse once: every round measures the remaining ones in
+        # their own covariance (below), and the first round inverts all of them anyway
+        with np.errstate(over="ignore"):
+            inv = np.linalg.inv(P)
         while order:
             lead = order[0]
             rest = np.array(order)
@@ -63,7 +67,7 @@ def prune_and_merge(w, m, P, *, prune: float, merge: float, cap: int):
             # heavy broad prior would absorb every sharp component within its 2σ (a
             # recycled track's evidence, 150 m broad on the coalescence scene)
             with np.errstate(invalid="ignore", over="ignore"):
-                d2 = np.einsum("ki,kij,kj->k", d, np.linalg.inv(P[rest]), d)
+                d2 = np.einsum("ki,kij,kj->k", d, inv[rest], d)
             # the lead is in its own group whatever its covariance (0 · inf is NaN: a
             # loop that never ends), and so is a component at its mean
             close = rest[(d2 <= merge) | ~d.any(axis=1)]
