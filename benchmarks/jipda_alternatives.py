@@ -28,12 +28,9 @@ import tempfile
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from jointtrack.experiments.config import (
-    make_scenario,
-    make_tracker_config,
-    scenario_tracker_settings,
-)
-from jointtrack.experiments.run import run_scenario, start_settings
+from jointtrack.bench.perfect_start import perfect_start_config
+from jointtrack.experiments.config import make_scenario
+from jointtrack.experiments.run import run_scenario
 from jointtrack.trackers import JPDATracker
 
 
@@ -42,8 +39,7 @@ def confirmation_and_false(scene: str, seed: int, config: dict, c: float):
     sc = make_scenario(scene, seed, {})
     # the settings run_scenario gives a JIPDA run from nothing (the from-nothing
     # defaults for the keys config does not set), so this pass replays that run
-    _, over = start_settings("nothing", scene, "jipda", config)
-    trk = JPDATracker(make_tracker_config(scenario_tracker_settings(sc), over))
+    trk = JPDATracker(perfect_start_config(sc, config))
     first, first_truth, false = {}, {}, []
     for k, (t, z) in enumerate(zip(sc.times, sc.detections, strict=True)):
         res = trk.step(t, z)

@@ -269,3 +269,24 @@ def test_start_line_of_a_detections_run_says_it_keeps_the_joint_association():
     assert "keeps the joint" not in start_description(alt)
     scene = det | {"source": {"scenario": "crossing"}}
     assert "keeps the joint" not in start_description(scene)
+    split = det | {
+        "tracker": tr | {"tentative_association": "splitting", "tentative_components": 6}
+    }
+    text = start_description(split)
+    assert "keeps the joint" not in text
+    assert "integrated track splitting" in text and "≤ 6 Gaussian histories" in text
+    assert "alternatives" not in text
+
+
+def test_an_old_state_file_gets_the_settings_defaults_for_splitting(tmp_path):
+    """A state written before tentative_components existed loads with TrackerConfig's
+    own default (one copy of each default, read from the dataclass)."""
+    from jointtrack.trackers import JPDATracker, TrackerConfig
+    from state_checks import load_state_without
+
+    default = TrackerConfig().tentative_components
+    trk = JPDATracker(TrackerConfig(existence=True, tentative_components=default + 3))
+    trk.step(0.0, np.array([[0.0, 0.0], [50.0, 50.0]]))
+    old = load_state_without(trk, "tentative_components", tmp_path)
+    assert old.config.tentative_components == default
+    assert old.config.tentative_confirm_state == TrackerConfig().tentative_confirm_state

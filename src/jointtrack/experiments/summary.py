@@ -661,20 +661,23 @@ def start_description(metrics: Mapping) -> str:
         confirm = f"confirmed at JIPDA existence ≥ {tr.get('r_confirm', 0.9):g}"
     else:
         confirm = f"confirmed by {tr.get('confirm_m', 2)}-of-{tr.get('confirm_n', 3)} hits"
-    if tr.get("tentative_association") == "alternatives":
+    tentative = tr.get("tentative_association")
+    if tentative == "alternatives":
         # jointtrack.trackers.existence, point 5: what makes a target confirm at a lone IPDA's pace
         init += " initiation, tentative tracks scored as alternatives (each a lone IPDA)"
+    elif tentative == "splitting":
+        # jointtrack.trackers.track_splitting: each tentative track a mixture of histories
+        init += (
+            " initiation, tentative tracks as integrated track splitting (each a lone IPDA "
+            f"of ≤ {tr.get('tentative_components', 4)} Gaussian histories)"
+        )
     else:
         init += " initiation"
     text = f"tracks started from nothing ({init}, {confirm})"
     if bojilov:
         text += "; the paper's experiment starts from the truth"
     detections = isinstance(source, Mapping) and "detections" in source
-    if (
-        detections
-        and tr.get("existence", True)
-        and tr.get("tentative_association") != ("alternatives")
-    ):
+    if detections and tr.get("existence", True) and tentative not in ("alternatives", "splitting"):
         # experiments.config.FROM_NOTHING_JIPDA: measured on the real-data benches
         text += (
             "; a detections run keeps the joint association of tentative tracks (as "

@@ -23,6 +23,7 @@ save that fails removes the temporary file, leaves the target as it was and rais
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -32,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from jointtrack._atomic import atomic_file
+from jointtrack.trackers.config import TrackerConfig
 
 __all__ = [
     "FORMAT",
@@ -243,8 +245,10 @@ def _fill_added_settings(header: dict, arrays: dict) -> None:
     # version 6: no earlier state holds a splitting track, so none (a state written with
     # the settings must hold the arrays)
     if "tentative_components" not in header["config"] and "ids" in arrays:
-        header["config"]["tentative_components"] = 4
-        header["config"].setdefault("tentative_confirm_state", "moment")
+        # the settings' own defaults (one copy of each: TrackerConfig's fields)
+        defaults = {f.name: f.default for f in dataclasses.fields(TrackerConfig)}
+        header["config"]["tentative_components"] = defaults["tentative_components"]
+        header["config"].setdefault("tentative_confirm_state", defaults["tentative_confirm_state"])
         n, w = len(arrays["ids"]), arrays["x"].shape[-1] if "x" in arrays else 0
         arrays.setdefault("comp_x", np.zeros((n, 0, w)))
         arrays.setdefault("comp_P", np.zeros((n, 0, w, w)))
