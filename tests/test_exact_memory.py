@@ -14,8 +14,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -91,12 +89,13 @@ def test_a_larger_budget_never_gives_a_plan_predicted_slower(G, budgets, width):
     previous = None
     for arrays_allowed in sorted(budgets):
         budget = arrays_allowed * per
-        stride, need, cost = checkpoint_plan(costs, K, budget)
+        stride, need = checkpoint_plan(op_kind, op_arg, lay_slot, K, budget)
         if stride == 0:
-            assert budget < least and need == least and cost == math.inf
+            assert budget < least and need == least
             assert previous is None  # a smaller budget cannot have fitted
             continue
         assert need == checkpoint_arrays(nops, stride) * per <= budget
+        cost = checkpoint_cost(costs, stride, K)
         # the cheapest plan that fits: no fitting stride is predicted cheaper
         fitting = [
             checkpoint_cost(costs, s, K)
@@ -159,10 +158,10 @@ def test_a_block_is_taken_at_its_memory_estimate_and_refused_one_byte_below():
     # K = 10 slots (the tracks), 14 measurement layers
     G = np.ascontiguousarray((L > 0).T)
     K, op_kind, op_arg, _, lay_slot, _ = _plan(G)
-    costs = op_costs(op_kind, op_arg, lay_slot)
-    least = min(checkpoint_arrays(len(costs), s) for s in range(1, len(costs) + 1)) * (8 << K)
-    _, need, _ = checkpoint_plan(costs, K, least)
-    assert need == least < checkpoint_arrays(len(costs), 1) * (8 << K)
+    nops = op_kind.size
+    least = min(checkpoint_arrays(nops, s) for s in range(1, nops + 1)) * (8 << K)
+    _, need = checkpoint_plan(op_kind, op_arg, lay_slot, K, least)
+    assert need == least < checkpoint_arrays(nops, 1) * (8 << K)
     res = assignment_sum(L, miss, max_memory=need)
     assert res.info["state_bytes"] == need
     ref = assignment_sum(L, miss)
@@ -182,7 +181,7 @@ def test_the_default_tracker_takes_a_dense_cluster_exactly_where_the_estimate_fi
     L, miss = _dense(n, 2 * n)
     G = np.ascontiguousarray((L > 0).T)  # the cheaper orientation: the tracks are the slots
     K, op_kind, op_arg, _, lay_slot, _ = _plan(G)
-    stride, need, _ = checkpoint_plan(op_costs(op_kind, op_arg, lay_slot), K, DEFAULT_MAX_MEMORY)
+    stride, need = checkpoint_plan(op_kind, op_arg, lay_slot, K, DEFAULT_MAX_MEMORY)
     assert stride >= 1 and need <= DEFAULT_MAX_MEMORY
     beta, method, reason, _ = tracker._cluster_marginals(L, miss, True)
     assert method == "exact" and reason == ""

@@ -13,8 +13,6 @@ and keeps the cheaper one.
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
@@ -199,21 +197,22 @@ def checkpoint_cost(costs, stride, K):
     return 3 * total + recompute + touch
 
 
-def checkpoint_plan(costs, K, max_memory):
-    """``(stride, state_bytes, cost)`` of the cheapest checkpointing within ``max_memory``.
+def checkpoint_plan(op_kind, op_arg, lay_slot, K, max_memory):
+    """``(stride, state_bytes)`` of the cheapest checkpointing of this plan within ``max_memory``.
 
     The cheapest by :func:`checkpoint_cost` among the strides whose
     :func:`checkpoint_arrays` fit (ties: the least memory), so a larger budget, which
     only adds candidates, never gives a plan predicted slower. ``stride`` is 0 when
     none fits; ``state_bytes`` is then the least memory any stride needs.
     """
-    nops = len(costs)
+    nops = op_kind.size
     per = 8 << K
     need = checkpoint_arrays(nops, 1) * per
-    if need <= min(max_memory, FRESH_BYTES):
-        # no first touch and nothing recomputed: no stride is cheaper (the tracker's
-        # small clusters take this path without a cost per stride)
-        return 1, need, checkpoint_cost(costs, 1, K)
+    if need <= max_memory and need <= FRESH_BYTES:
+        # no first touch and nothing recomputed: every other stride costs more. The
+        # tracker's small clusters take this path, with no numpy call per block.
+        return 1, need
+    costs = op_costs(op_kind, op_arg, lay_slot)
     best = None
     least = None
     for stride in range(1, max(nops, 1) + 1):
@@ -221,10 +220,9 @@ def checkpoint_plan(costs, K, max_memory):
         least = need if least is None else min(least, need)
         if need > max_memory:
             continue
-        key = (checkpoint_cost(costs, stride, K), need)
-        if best is None or key < best[0]:
-            best = (key, stride)
+        key = (checkpoint_cost(costs, stride, K), need, stride)
+        if best is None or key < best:
+            best = key
     if best is None:
-        return 0, least, math.inf
-    (cost, need), stride = best
-    return stride, need, cost
+        return 0, least
+    return best[2], best[1]

@@ -76,7 +76,7 @@ from jointtrack.assignment._checks import as_counts, as_int, as_null_weights, as
 from jointtrack.assignment._fold import _finish, _prepare
 from jointtrack.assignment._frontier import frontier_dp, frontier_value
 from jointtrack.assignment._groups import group_dp, state_count
-from jointtrack.assignment._plan import checkpoint_plan, frontier_plan, op_costs
+from jointtrack.assignment._plan import checkpoint_plan, frontier_plan
 from jointtrack.assignment.scaling import (
     group_exponents,
     scale_problem,
@@ -186,7 +186,7 @@ def _frontier_block(W, u, v, marginals, max_bits, max_memory, parallel):
             )
     else:
         # the cheapest checkpoint stride that fits (a larger budget is never slower)
-        stride, state_bytes, _ = checkpoint_plan(op_costs(op_kind, op_arg, lay_slot), K, max_memory)
+        stride, state_bytes = checkpoint_plan(op_kind, op_arg, lay_slot, K, max_memory)
         if stride == 0:
             raise ExactLimitError(
                 f"the exact DP for a {R}×{C} block needs at least {state_bytes / 2**30:.3g} GiB "
