@@ -9,7 +9,10 @@ step's input array; the terminal step lets the still-open items leave
 stored inputs with the backward messages, giving every marginal for the cost of
 about three forward passes. When the stored arrays would exceed the memory budget, only every
 ``stride``-th forward array is kept and the segments between are recomputed in the
-backward pass (memory ∝ nops/stride + stride, one extra forward pass). Powers of
+backward pass (``⌈nops/stride⌉ + stride + 1`` arrays, at most one extra forward pass;
+:func:`jointtrack.assignment._plan.checkpoint_plan` picks the stride, the cheapest that
+fits, so a larger budget never makes the DP slower). The first forward array e_∅ is not
+kept, and the segment's arrays double as the forward pass's buffers. Powers of
 two renormalise an array only if its sum leaves [2^-600, 2^600]; the exponents are
 tracked and added back into log Z and into each contraction's scale.
 
@@ -168,41 +171,39 @@ def frontier_dp(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, stride, nc
 
     Returns (pl, pi, pe, logZ') with pl[r] = P(layer r unassigned),
     pi[c] = P(item c unassigned), pe[r, c] = P(r ↔ c).
-    ``stride`` > 1 keeps only every stride-th forward array and recomputes
-    segments in the backward pass (memory ∝ nops/stride + stride).
+    ``stride`` ≥ 1: only the forward arrays F_stride, F_2·stride, … are kept
+    (checkpoints) and each segment between two of them is recomputed in the
+    backward pass; :func:`jointtrack.assignment._plan.checkpoint_arrays` state
+    arrays in all (``stride`` = 1 keeps every F_t and recomputes nothing).
     """
     R, C = W.shape
     n = np.int64(1) << K
     kb = min(K, _BLOCK_BITS)
     nops = op_kind.size
-    ncp = (nops + stride - 1) // stride
-    CP = np.empty((ncp, n))
+    ncp = (nops + stride - 1) // stride  # segments; segment sg starts at F_{sg·stride}
+    # CP[j - 1] = F_{j·stride}; F_0 = e_∅ is not kept (rebuilt in seg[0] for segment 0).
+    # seg holds one segment's recomputed arrays and serves the forward pass as its two
+    # rolling buffers and the final array F_nops, so nothing else is allocated for them.
+    CP = np.empty((ncp - 1, n))
+    seg = np.empty((max(stride, 2), n))
     fe = np.zeros(nops + 1, np.int64)  # power-of-two exponent of each forward array
     # ---- forward
-    CP[0, :] = 0.0
-    CP[0, 0] = 1.0
-    if stride == 1:
-        FT = np.empty(n)
-        for t in range(nops):
-            y = CP[t + 1] if t + 1 < nops else FT
-            mx = _op_fwd(op_kind[t], op_arg[t], CP[t], y, kb, nchunk, W, u, v, lay_slot, slot_of)
-            fe[t + 1] = fe[t] + _renorm(y, mx)
-        seg = np.empty((0, n))
-    else:
-        buf = np.empty((2, n))
-        FT = np.empty(n)
-        x = CP[0]
-        for t in range(nops):
-            if t + 1 == nops:
-                y = FT
-            elif (t + 1) % stride == 0:
-                y = CP[(t + 1) // stride]
-            else:
-                y = buf[t % 2]
-            mx = _op_fwd(op_kind[t], op_arg[t], x, y, kb, nchunk, W, u, v, lay_slot, slot_of)
-            fe[t + 1] = fe[t] + _renorm(y, mx)
-            x = y
-        seg = np.empty((stride, n))
+    x = seg[0]
+    x[:] = 0.0
+    x[0] = 1.0
+    xs = 0  # the seg buffer x is in (-1: a checkpoint)
+    for t in range(nops):
+        if (t + 1) % stride == 0 and t + 1 < nops:
+            y = CP[(t + 1) // stride - 1]
+            ys = -1
+        else:
+            ys = 1 if xs == 0 else 0
+            y = seg[ys]
+        mx = _op_fwd(op_kind[t], op_arg[t], x, y, kb, nchunk, W, u, v, lay_slot, slot_of)
+        fe[t + 1] = fe[t] + _renorm(y, mx)
+        x = y
+        xs = ys
+    FT = x
     # ---- terminal: items still open leave with weight v (b_T(S) = Π_{open c ∉ S} v_c)
     b = np.ones(n)
     bp = np.empty(n)
@@ -233,35 +234,29 @@ def frontier_dp(W, u, v, K, op_kind, op_arg, slot_of, lay_slot, term, stride, nc
                 acc += FT[b0 + t] * b[b0 + t]
         pi[c] = acc / Zs
     be = 0  # exponent of b
-    # ---- backward, segment by segment
-    nseg = ncp
-    for sg in range(nseg - 1, -1, -1):
+    # ---- backward, segment by segment (the forward buffers in seg are free now)
+    for sg in range(ncp - 1, -1, -1):
         t0 = sg * stride
         t1 = min(t0 + stride, nops)
-        if stride > 1:
-            seg[0, :] = CP[sg]
-            for t in range(t0, t1 - 1):
-                _op_fwd(
-                    op_kind[t],
-                    op_arg[t],
-                    seg[t - t0],
-                    seg[t - t0 + 1],
-                    kb,
-                    nchunk,
-                    W,
-                    u,
-                    v,
-                    lay_slot,
-                    slot_of,
-                )
-                # renormalise exactly as in the forward pass
-                e = fe[t + 1] - fe[t]
-                if e != 0:
-                    sc = math.ldexp(1.0, -e)
-                    for i in range(n):
-                        seg[t - t0 + 1, i] *= sc
+        if sg == 0:
+            start = seg[0]
+            start[:] = 0.0
+            start[0] = 1.0
+        else:
+            start = CP[sg - 1]
+        x = start
+        for t in range(t0, t1 - 1):
+            y = seg[t - t0 + 1]
+            _op_fwd(op_kind[t], op_arg[t], x, y, kb, nchunk, W, u, v, lay_slot, slot_of)
+            # renormalise exactly as in the forward pass
+            e = fe[t + 1] - fe[t]
+            if e != 0:
+                sc = math.ldexp(1.0, -e)
+                for i in range(n):
+                    y[i] *= sc
+            x = y
         for t in range(t1 - 1, t0 - 1, -1):
-            F = CP[t] if stride == 1 else seg[t - t0]
+            F = start if t == t0 else seg[t - t0]
             k = op_kind[t]
             a = op_arg[t]
             # scale of a contraction F_t · b_{t+1} relative to Z

@@ -137,3 +137,92 @@ def frontier_plan(G, max_width=-1):
             term[nterm] = c
             nterm += 1
     return order, K, op_kind[:nops], op_arg[:nops], slot_of, lay_slot, term[:nterm]
+
+
+# --------------------------------------------------------------------------- checkpointing
+
+#: Cost of one state array's first touch (page faults, the kernel zeroing the pages), in
+#: the unit of :func:`op_costs` (one pass over the states). Measured on the dense 24×48
+#: (benchmarks/RESULTS.md, issue 34): keeping all 48 forward arrays (51 arrays, 6.4 GiB)
+#: took 40.3 CPU-s against 35.2 for every 7th (18 arrays) with 41 layers recomputed, in the
+#: same run: 0.35 s per 128 MiB array against 6.2 ms per pass, ≈ 56 passes.
+TOUCH_COST = 56
+#: Plans of at most this many bytes pay no first touch: glibc's malloc serves them from
+#: memory freed by earlier calls (its largest mmap threshold, 32 MiB on 64-bit), while
+#: larger ones are mapped afresh, and fault page by page, on every call.
+FRESH_BYTES = 32 * 2**20
+
+
+def op_costs(op_kind, op_arg, lay_slot):
+    """Forward cost of each planned operation, in passes over the 2^K states.
+
+    A layer with d gated slots reads its input once and adds d shifted copies
+    (1 + d); an item leaving the frontier is one pass (1). The adjoint of an
+    operation costs twice its forward (the transposed map and the contraction).
+    """
+    deg = (np.asarray(lay_slot) >= 0).sum(axis=1)
+    layer = np.asarray(op_kind) == 0  # op_arg is a layer there, an item elsewhere
+    costs = np.ones(layer.size, np.int64)
+    costs[layer] = 1 + deg[np.asarray(op_arg)[layer]]
+    return costs
+
+
+def checkpoint_arrays(nops, stride):
+    """State arrays ``frontier_dp`` allocates with this stride.
+
+    ``⌈nops/stride⌉ − 1`` checkpoints (F_0 is not kept), ``max(stride, 2)`` segment
+    arrays (also the forward pass's buffers and its last array) and the two backward
+    messages.
+    """
+    return -(-nops // stride) - 1 + max(stride, 2) + 2
+
+
+def checkpoint_cost(costs, stride, K):
+    """Predicted cost (passes over the 2^K states) of the forward–backward DP with this stride.
+
+    Forward, the recomputed operations of every segment (all but its last), the
+    adjoint (twice the forward), and :data:`TOUCH_COST` per state array when the plan
+    needs more than :data:`FRESH_BYTES`.
+    """
+    nops = len(costs)
+    total = int(np.sum(costs))
+    # segment [t0, t1) recomputes t0 .. t1 − 2: everything but each segment's last op
+    recompute = 0
+    if stride > 1:
+        recompute = total - int(np.sum(costs[stride - 1 :: stride]))
+        if nops % stride:
+            recompute -= int(costs[-1])
+    arrays = checkpoint_arrays(nops, stride)
+    touch = TOUCH_COST * arrays if arrays * (8 << K) > FRESH_BYTES else 0
+    return 3 * total + recompute + touch
+
+
+def checkpoint_plan(op_kind, op_arg, lay_slot, K, max_memory):
+    """``(stride, state_bytes)`` of the cheapest checkpointing of this plan within ``max_memory``.
+
+    The cheapest by :func:`checkpoint_cost` among the strides whose
+    :func:`checkpoint_arrays` fit (ties: the least memory), so a larger budget, which
+    only adds candidates, never gives a plan predicted slower. ``stride`` is 0 when
+    none fits; ``state_bytes`` is then the least memory any stride needs.
+    """
+    nops = op_kind.size
+    per = 8 << K
+    need = checkpoint_arrays(nops, 1) * per
+    if need <= max_memory and need <= FRESH_BYTES:
+        # no first touch and nothing recomputed: every other stride costs more. The
+        # tracker's small clusters take this path, with no numpy call per block.
+        return 1, need
+    costs = op_costs(op_kind, op_arg, lay_slot)
+    best = None
+    least = None
+    for stride in range(1, max(nops, 1) + 1):
+        need = checkpoint_arrays(nops, stride) * per
+        least = need if least is None else min(least, need)
+        if need > max_memory:
+            continue
+        key = (checkpoint_cost(costs, stride, K), need, stride)
+        if best is None or key < best:
+            best = key
+    if best is None:
+        return 0, least
+    return best[2], best[1]

@@ -76,7 +76,7 @@ from jointtrack.assignment._checks import as_counts, as_int, as_null_weights, as
 from jointtrack.assignment._fold import _finish, _prepare
 from jointtrack.assignment._frontier import frontier_dp, frontier_value
 from jointtrack.assignment._groups import group_dp, state_count
-from jointtrack.assignment._plan import frontier_plan
+from jointtrack.assignment._plan import checkpoint_plan, frontier_plan
 from jointtrack.assignment.scaling import (
     group_exponents,
     scale_problem,
@@ -177,27 +177,22 @@ def _frontier_block(W, u, v, marginals, max_bits, max_memory, parallel):
     if transpose:
         W, u, v = np.ascontiguousarray(W.T), v, u
     _, K, op_kind, op_arg, slot_of, lay_slot, term = plan_b if transpose else plan_a
-    per = 8 * (1 << K)
-    nops = op_kind.size
-    stride = 1
     if not marginals:
-        state_bytes = 2 * per
+        stride, state_bytes = 0, 2 * (8 << K)
         if state_bytes > max_memory:
             raise ExactLimitError(
                 f"the exact DP for a {R}×{C} block needs 2 × 2^{K} states "
                 f"({state_bytes / 2**30:.3g} GiB), above max_memory = {max_memory} bytes"
             )
-    elif (nops + 3) * per > max_memory:
-        # keep every stride-th forward array, recompute the rest backwards
-        stride = max(2, math.ceil(math.sqrt(nops)))
-        state_bytes = (math.ceil(nops / stride) + stride + 4) * per
-        if state_bytes > max_memory:
-            raise ExactLimitError(
-                f"the exact DP for a {R}×{C} block needs more than max_memory = {max_memory} "
-                f"bytes (2^{K} states × {nops} layers even with checkpointing)"
-            )
     else:
-        state_bytes = (nops + 3) * per
+        # the cheapest checkpoint stride that fits (a larger budget is never slower)
+        stride, state_bytes = checkpoint_plan(op_kind, op_arg, lay_slot, K, max_memory)
+        if stride == 0:
+            raise ExactLimitError(
+                f"the exact DP for a {R}×{C} block needs at least {state_bytes / 2**30:.3g} GiB "
+                f"(2^{K} states × {state_bytes >> (K + 3)} arrays with checkpointing), above "
+                f"max_memory = {max_memory} bytes"
+            )
     # Items whose every weight underflowed in the scaling never enter the
     # frontier: they are unused in every assignment that matters, and their
     # unused weight multiplies Z.
