@@ -28,6 +28,8 @@ from jointtrack.trackers.pmbm_hypotheses import (
     RankedLists,
     check_pair_weights,
     combine_events,
+    distinct_rows,
+    merge_identical,
     rank_tuples,
 )
 
@@ -292,3 +294,45 @@ def test_bad_tuples_and_lists_are_refused_before_the_kernels():
         combine_events(hyp, np.array([np.nan]), np.ones(1, np.int64), np.zeros(2, np.int64), [ok])
     with pytest.raises(ValueError, match="taken"):  # a return the scan does not have
         combine_events(hyp, np.zeros(1), np.ones(1, np.int64), np.zeros(0, np.int64), [ok])
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    rows=st.lists(st.lists(st.integers(-1, 2), min_size=3, max_size=3), min_size=1, max_size=12),
+    data=st.data(),
+)
+def test_merge_identical_sums_the_copies_of_each_row(rows, data):
+    """Distinct rows in lexicographic order; each one's log weight is log Σ exp of its
+    copies' (exact sum of the exponentials, as Fractions, for weights down to e^−2000)."""
+    rows = np.array(rows, np.int64)
+    logw = np.array(
+        data.draw(st.lists(log_w | st.just(-np.inf), min_size=len(rows), max_size=len(rows))),
+        float,
+    )
+    out, merged = merge_identical(rows, logw)
+    distinct, inverse = distinct_rows(rows)
+    np.testing.assert_array_equal(distinct, out)
+    np.testing.assert_array_equal(distinct[inverse], rows)
+    groups = {}
+    for r, lw in zip(map(tuple, rows.tolist()), logw, strict=True):
+        groups.setdefault(r, []).append(lw)
+    assert [tuple(r) for r in out.tolist()] == sorted(groups)
+    for r, got in zip(sorted(groups), merged, strict=True):
+        finite = [x for x in groups[r] if x > -np.inf]
+        if not finite:
+            assert got == -np.inf
+            continue
+        top = max(finite)
+        # Σ exp(x − top) ≥ 1: exact enough in floats, then the log
+        truth = top + math.log(math.fsum(math.exp(x - top) for x in finite))
+        assert abs(got - truth) <= 1e-13 * (1.0 + abs(truth))
+
+
+def test_merge_identical_refuses_bad_weights():
+    rows = np.zeros((2, 1), np.int64)
+    with pytest.raises(ValueError, match="logw"):
+        merge_identical(rows, np.array([0.0, np.nan]))
+    with pytest.raises(ValueError, match="logw must have one entry per row"):
+        merge_identical(rows, np.zeros(3))
+    with pytest.raises(TypeError, match="rows"):
+        merge_identical(rows.astype(float), np.zeros(2))

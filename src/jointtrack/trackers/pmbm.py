@@ -174,6 +174,8 @@ from jointtrack.trackers.pmbm_hypotheses import (
     RankedLists,
     check_pair_weights,
     combine_events,
+    distinct_rows,
+    merge_identical,
     rank_tuples,
 )
 from jointtrack.trackers.poisson import moment_match, prune_and_merge
@@ -1313,16 +1315,9 @@ class PMBMTracker(_PoissonTracker):
         r_child = child_r[np.maximum(hyp, 0)]
         hyp = np.where((hyp >= 0) & (r_child >= c.r_prune) & (r_child > 0), hyp, -1)
         recycled = self._recycle(hyp, logw, child_r, child_x, child_P)
-        # hypotheses that became identical are one hypothesis
-        hyp, inverse = np.unique(hyp, axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
-        # logsumexp per group, relative to its max (from −inf: the weights are ≤ 0, and a
-        # start at 0 underflowed exp() for hypotheses below e^−745, giving −inf)
-        top = np.full(len(hyp), -np.inf)
-        np.maximum.at(top, inverse, logw)
-        acc = np.zeros(len(hyp))
-        np.add.at(acc, inverse, np.exp(logw - top[inverse]))
-        logw = top + np.log(acc)
+        # hypotheses that became identical are one hypothesis (logsumexp relative to the
+        # group's largest: hypotheses below e^−745 do not underflow to −inf)
+        hyp, logw = merge_identical(hyp, logw)
         # keep only referenced hypotheses and tracks, renumbered
         used = np.unique(hyp[hyp >= 0])
         track_used = np.zeros(T + M, bool)
@@ -1600,8 +1595,7 @@ class PMBMTracker(_PoissonTracker):
         bounds = np.searchsorted(pair_label[by_cluster], np.append(labels, np.inf))
         for lab, lo, hi in zip(labels, bounds[:-1], bounds[1:], strict=True):
             tracks = pair_tracks[label == lab]
-            tuples, inv = np.unique(hyp[:, tracks], axis=0, return_inverse=True)
-            inv = inv.reshape(-1)
+            tuples, inv = distinct_rows(hyp[:, tracks])
             k_u = np.zeros(len(tuples), np.int64)
             np.maximum.at(k_u, inv, k_h)
             returns = np.unique(cols[by_cluster[lo:hi]])

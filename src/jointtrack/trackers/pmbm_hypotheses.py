@@ -17,7 +17,9 @@ Two kernels do that over flat arrays, with no per-hypothesis Python object:
   kernel over its one LSAP kernel, called directly);
 * :func:`combine_events` — for every prior hypothesis the k_h best sums of its
   clusters' ranked lists (a best-first search over the grid of two ranked lists,
-  cluster after cluster), written out as rows of child-STH indices.
+  cluster after cluster), written out as rows of child-STH indices;
+* :func:`merge_identical` — hypotheses that became identical (after pruning and
+  recycling) are one, with the log of their summed weights.
 
 Both are exact: the events of :func:`rank_tuples` are those of Murty's ranking
 (ties in its creation order), the sums of :func:`combine_events` are the k best
@@ -36,7 +38,15 @@ import numpy as np
 
 from jointtrack.association.kbest import _murty, _pairwise_sum, _stable_order_decreasing
 
-__all__ = ["PairWeights", "RankedLists", "check_pair_weights", "combine_events", "rank_tuples"]
+__all__ = [
+    "PairWeights",
+    "RankedLists",
+    "check_pair_weights",
+    "combine_events",
+    "distinct_rows",
+    "merge_identical",
+    "rank_tuples",
+]
 
 
 class PairWeights(NamedTuple):
@@ -518,3 +528,100 @@ def combine_events(hyp, base_logw, k_h, new_track_hyp, clusters):
         np.asarray(list_ptr, np.int64), cat("w", np.float64), ev_ofs,
         cat("child", np.int64), cat("taken", np.int64),
     )  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _row_less(rows, a, b):
+    for t in range(rows.shape[1]):
+        if rows[a, t] != rows[b, t]:
+            return rows[a, t] < rows[b, t]
+    return False
+
+
+@numba.njit(cache=True)
+def _group_rows(rows, logw):
+    """Distinct rows in lexicographic order, each row's group and each group's largest
+    log weight (bottom-up merge sort of the row indices; equal rows keep their order)."""
+    n = rows.shape[0]
+    order = np.arange(n)
+    spare = np.empty(n, np.int64)
+    width = 1
+    while width < n:
+        for lo in range(0, n, 2 * width):
+            mid = min(lo + width, n)
+            hi = min(lo + 2 * width, n)
+            a, b, t = lo, mid, lo
+            while a < mid and b < hi:
+                if _row_less(rows, order[b], order[a]):
+                    spare[t] = order[b]
+                    b += 1
+                else:
+                    spare[t] = order[a]
+                    a += 1
+                t += 1
+            while a < mid:
+                spare[t] = order[a]
+                a += 1
+                t += 1
+            while b < hi:
+                spare[t] = order[b]
+                b += 1
+                t += 1
+        order, spare = spare, order
+        width *= 2
+    inverse = np.empty(n, np.int64)
+    first = np.empty(n, np.int64)
+    top = np.empty(n)
+    g = -1
+    for q in range(n):
+        i = order[q]
+        if g < 0 or _row_less(rows, first[g], i):
+            g += 1
+            first[g] = i
+            top[g] = logw[i]
+        elif logw[i] > top[g]:
+            top[g] = logw[i]
+        inverse[i] = g
+    G = g + 1
+    out = np.empty((G, rows.shape[1]), np.int64)
+    for g in range(G):
+        for t in range(rows.shape[1]):
+            out[g, t] = rows[first[g], t]
+    return out, inverse, top[:G].copy()
+
+
+def distinct_rows(rows):
+    """``(distinct rows, inverse)`` as ``np.unique(rows, axis=0, return_inverse=True)``:
+    the distinct rows of a 2-D int64 array in lexicographic order and each row's index
+    among them."""
+    rows = _int_array(rows, "rows", 2)
+    out, inverse, _ = _group_rows(rows, np.zeros(len(rows)))
+    return out, inverse
+
+
+def merge_identical(rows, logw):
+    """Hypotheses with the same rows are one: ``(rows (G, ·), log weights (G,))``.
+
+    The distinct rows in lexicographic order (as ``np.unique(rows, axis=0)``), each
+    with log Σ exp of its copies' log weights, taken relative to the copies' largest
+    (log weights far below 0 do not underflow to −inf); the copies are added in
+    their order in ``rows``.
+
+    Raises
+    ------
+    TypeError, ValueError
+        ``rows`` not 2-D int64, ``logw`` not float64 of one entry per row, or a log
+        weight that is NaN or +inf.
+    """
+    rows, logw = _int_array(rows, "rows", 2), _float_array(logw, "logw")
+    if len(logw) != len(rows):
+        raise ValueError(f"logw must have one entry per row ({len(rows)}), got {len(logw)}")
+    if np.isnan(logw).any() or (logw == np.inf).any():
+        raise ValueError("logw must hold log weights below +inf (no NaN)")
+    out, inverse, top = _group_rows(rows, logw)
+    with np.errstate(invalid="ignore"):  # a group whose copies are all −inf stays −inf
+        rel = np.exp(logw - top[inverse])
+    rel[logw == -np.inf] = 0.0
+    acc = np.bincount(inverse, rel, minlength=len(out))
+    with np.errstate(divide="ignore"):
+        return out, np.where(top == -np.inf, -np.inf, top + np.log(acc))
