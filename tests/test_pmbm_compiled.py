@@ -31,6 +31,7 @@ from jointtrack.trackers.pmbm_hypotheses import (
     distinct_rows,
     merge_identical,
     rank_tuples,
+    track_clusters,
 )
 
 SUBNORMAL = 5e-324
@@ -336,3 +337,62 @@ def test_merge_identical_refuses_bad_weights():
         merge_identical(rows, np.zeros(3))
     with pytest.raises(TypeError, match="rows"):
         merge_identical(rows.astype(float), np.zeros(2))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    T=st.integers(0, 6),
+    M=st.integers(0, 6),
+    data=st.data(),
+)
+def test_track_clusters_are_the_connected_components(T, M, data):
+    """Clusters of tracks through shared returns, against a breadth-first search: the
+    same partition, tracks and returns ascending, clusters ordered by first track."""
+    pairs = (
+        data.draw(
+            st.lists(
+                st.tuples(st.integers(0, max(T - 1, 0)), st.integers(0, max(M - 1, 0))), max_size=12
+            )
+        )
+        if T and M
+        else []
+    )
+    pair_track = np.array([t for t, _ in pairs], np.int64)
+    cols = np.array([j for _, j in pairs], np.int64)
+    out = track_clusters(pair_track, cols, T, M)
+    # breadth-first search over tracks and returns
+    near = {("t", t): set() for t in range(T)} | {("r", j): set() for j in range(M)}
+    for t, j in pairs:
+        near[("t", t)].add(("r", j))
+        near[("r", j)].add(("t", t))
+    seen, expected = set(), []
+    for t in sorted({t for t, _ in pairs}):
+        if ("t", t) in seen:
+            continue
+        todo, comp = [("t", t)], set()
+        while todo:
+            v = todo.pop()
+            if v not in comp:
+                comp.add(v)
+                todo.extend(near[v])
+        seen |= comp
+        expected.append(
+            (sorted(i for k, i in comp if k == "t"), sorted(i for k, i in comp if k == "r"))
+        )
+    got = [
+        (out.tracks[out.track_ptr[c] : out.track_ptr[c + 1]].tolist(),
+         out.returns[out.return_ptr[c] : out.return_ptr[c + 1]].tolist())
+        for c in range(len(out.track_ptr) - 1)
+    ]  # fmt: skip
+    assert got == expected
+
+
+def test_track_clusters_refuses_bad_indices():
+    with pytest.raises(ValueError, match="pair_track must name tracks"):
+        track_clusters(np.array([3], np.int64), np.array([0], np.int64), 3, 1)
+    with pytest.raises(ValueError, match="cols must name returns"):
+        track_clusters(np.array([0], np.int64), np.array([1], np.int64), 3, 1)
+    with pytest.raises(ValueError, match="n_returns"):
+        track_clusters(np.array([0], np.int64), np.array([0], np.int64), 3, True)
+    with pytest.raises(TypeError, match="cols"):
+        track_clusters(np.array([0], np.int64), np.array([0.0]), 3, 1)

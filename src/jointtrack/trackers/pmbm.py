@@ -146,8 +146,6 @@ import time
 from typing import NamedTuple
 
 import numpy as np
-from scipy.sparse import coo_array
-from scipy.sparse.csgraph import connected_components
 
 from jointtrack.association.budget import (
     MAX_LBP_WORK,
@@ -177,6 +175,7 @@ from jointtrack.trackers.pmbm_hypotheses import (
     distinct_rows,
     merge_identical,
     rank_tuples,
+    track_clusters,
 )
 from jointtrack.trackers.poisson import moment_match, prune_and_merge
 from jointtrack.trackers.reporting import (
@@ -1568,37 +1567,23 @@ class PMBMTracker(_PoissonTracker):
         k_h = np.maximum(1, np.ceil(c.max_hypotheses * self.hypothesis_weights())).astype(np.int64)
         pairs = check_pair_weights(start, cols, L, miss, M)
         log_miss = pairs.log_miss
-        track_of_pair = self.sth_track[rows]
-        pair_tracks = np.unique(track_of_pair)
         # clusters of the tracks that gate something (over all their hypotheses)
-        if len(pair_tracks):
-            local = np.searchsorted(pair_tracks, track_of_pair)
-            n_pt = len(pair_tracks)
-            graph = coo_array((np.ones(n_pairs), (local, n_pt + cols)), shape=(n_pt + M, n_pt + M))
-            _, label = connected_components(graph, directed=False)
-            label = label[:n_pt]
-        else:
-            label = np.zeros(0, np.int64)
+        groups = track_clusters(self.sth_track[rows], cols, T, M)
         # every track that gates nothing is missed: a constant per hypothesis
         quiet = np.ones(T, bool)
-        quiet[pair_tracks] = False
+        quiet[groups.tracks] = False
         hq = hyp[:, quiet]
         const = np.where(hq >= 0, log_miss[np.maximum(hq, 0)], 0.0).sum(axis=1)
         merged = _MergedChildren(S + n_pairs + M, self.state_dim, self._sth_modes())
         clusters = ([], [], [], [], [])  # sizes, seconds, methods, confirmed, fallbacks
         born_as = []  # (returns, child index) of the new tracks of merged clusters
         ranked = []  # per cluster: (tracks, inverse (H,), RankedLists of its tuples)
-        # each cluster's gated pairs, contiguous (for its returns)
-        pair_label = label[local] if len(pair_tracks) else np.zeros(0, np.int64)
-        by_cluster = np.argsort(pair_label, kind="stable")
-        labels = np.unique(label)
-        bounds = np.searchsorted(pair_label[by_cluster], np.append(labels, np.inf))
-        for lab, lo, hi in zip(labels, bounds[:-1], bounds[1:], strict=True):
-            tracks = pair_tracks[label == lab]
+        for g in range(len(groups.track_ptr) - 1):
+            tracks = groups.tracks[groups.track_ptr[g] : groups.track_ptr[g + 1]]
+            returns = groups.returns[groups.return_ptr[g] : groups.return_ptr[g + 1]]
             tuples, inv = distinct_rows(hyp[:, tracks])
             k_u = np.zeros(len(tuples), np.int64)
             np.maximum.at(k_u, inv, k_h)
-            returns = np.unique(cols[by_cluster[lo:hi]])
             cost = _tuple_costs(tuples, start, miss, len(returns))
             cap, work = self._ranking_cap(cost, k_u)
             multi = cost[0].max() >= 2  # Bernoullis ranked jointly (Murty)

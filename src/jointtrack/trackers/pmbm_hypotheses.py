@@ -9,8 +9,10 @@ are independent, so the events are ranked per cluster of tracks and per distinct
 tuple of single-target hypotheses (STHs) the cluster holds across the global
 hypotheses, and the ranked lists of a hypothesis' clusters are combined exactly.
 
-Two kernels do that over flat arrays, with no per-hypothesis Python object:
+Kernels do that over flat arrays, with no per-hypothesis Python object:
 
+* :func:`track_clusters` — the clusters: tracks connected through the gated
+  returns of any of their STHs (union–find);
 * :func:`rank_tuples` — the k best events of every tuple of one cluster: one
   Bernoulli by sorting its options, several by Murty's algorithm
   (:func:`jointtrack.association.kbest._murty`, the package's one ranking
@@ -41,11 +43,13 @@ from jointtrack.association.kbest import _murty, _pairwise_sum, _stable_order_de
 __all__ = [
     "PairWeights",
     "RankedLists",
+    "TrackClusters",
     "check_pair_weights",
     "combine_events",
     "distinct_rows",
     "merge_identical",
     "rank_tuples",
+    "track_clusters",
 ]
 
 
@@ -625,3 +629,94 @@ def merge_identical(rows, logw):
     acc = np.bincount(inverse, rel, minlength=len(out))
     with np.errstate(divide="ignore"):
         return out, np.where(top == -np.inf, -np.inf, top + np.log(acc))
+
+
+class TrackClusters(NamedTuple):
+    """Clusters of tracks that share gated returns, ordered by their first track.
+
+    ``tracks[track_ptr[c] : track_ptr[c + 1]]`` the tracks of cluster c (ascending),
+    ``returns[return_ptr[c] : return_ptr[c + 1]]`` the returns they gate (ascending).
+    Tracks that gate nothing are in no cluster.
+    """
+
+    track_ptr: np.ndarray
+    tracks: np.ndarray
+    return_ptr: np.ndarray
+    returns: np.ndarray
+
+
+@numba.njit(cache=True)
+def _root(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]  # path halving
+        i = parent[i]
+    return i
+
+
+@numba.njit(cache=True)
+def _track_clusters(pair_track, cols, T, M):
+    parent = np.arange(T + M)
+    gates = np.zeros(T, np.bool_)
+    gated = np.zeros(M, np.bool_)
+    for p in range(pair_track.shape[0]):
+        gates[pair_track[p]] = True
+        gated[cols[p]] = True
+        a, b = _root(parent, pair_track[p]), _root(parent, T + cols[p])
+        if a != b:
+            parent[max(a, b)] = min(a, b)
+    # clusters numbered by their first track; tracks and returns ascending in each
+    cluster_of_root = np.full(T + M, -1, np.int64)
+    n_tracks = np.zeros(T + 1, np.int64)
+    C = 0
+    for t in range(T):
+        if gates[t]:
+            r = _root(parent, t)
+            if cluster_of_root[r] < 0:
+                cluster_of_root[r] = C
+                C += 1
+            n_tracks[cluster_of_root[r] + 1] += 1
+    n_returns = np.zeros(C + 1, np.int64)
+    for j in range(M):
+        if gated[j]:
+            n_returns[cluster_of_root[_root(parent, T + j)] + 1] += 1
+    track_ptr = np.cumsum(n_tracks[: C + 1])
+    return_ptr = np.cumsum(n_returns)
+    tracks = np.empty(track_ptr[C], np.int64)
+    returns = np.empty(return_ptr[C], np.int64)
+    fill = track_ptr[:C].copy()
+    for t in range(T):
+        if gates[t]:
+            c = cluster_of_root[_root(parent, t)]
+            tracks[fill[c]] = t
+            fill[c] += 1
+    fill = return_ptr[:C].copy()
+    for j in range(M):
+        if gated[j]:
+            c = cluster_of_root[_root(parent, T + j)]
+            returns[fill[c]] = j
+            fill[c] += 1
+    return track_ptr, tracks, return_ptr, returns
+
+
+def track_clusters(pair_track, cols, n_tracks, n_returns) -> TrackClusters:
+    """Clusters of the tracks connected through gated pairs ``(pair_track[p], cols[p])``.
+
+    Raises
+    ------
+    TypeError, ValueError
+        arrays not 1-D int64 of one length, or a track or return index outside
+        [0, n_tracks) or [0, n_returns).
+    """
+    pair_track, cols = _int_array(pair_track, "pair_track", 1), _int_array(cols, "cols", 1)
+    for name, v in (("n_tracks", n_tracks), ("n_returns", n_returns)):
+        if type(v) is not int or v < 0:
+            raise ValueError(f"{name} must be a whole number ≥ 0, got {v!r}")
+    if len(pair_track) != len(cols):
+        raise ValueError(
+            f"pair_track and cols must have one length ({len(pair_track)}, {len(cols)})"
+        )
+    if len(cols) and not (0 <= pair_track.min() and pair_track.max() < n_tracks):
+        raise ValueError(f"pair_track must name tracks in [0, {n_tracks})")
+    if len(cols) and not (0 <= cols.min() and cols.max() < n_returns):
+        raise ValueError(f"cols must name returns in [0, {n_returns})")
+    return TrackClusters(*_track_clusters(pair_track, cols, n_tracks, n_returns))
