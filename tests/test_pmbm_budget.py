@@ -329,7 +329,7 @@ class Injected(RuntimeError):
 
 @pytest.mark.parametrize(
     "K, budget, stage",
-    [(60, None, s) for s in ("_ranking_cap", "kbest_hypotheses", "_best_events", "_children")]
+    [(60, None, s) for s in ("_ranking_cap", "rank_tuples", "combine_events", "_children")]
     + [(40, 10**5, s) for s in ("_merge_cluster", "_pmb_update", "moment_match", "_gate",
                                 "fallback_pair_marginals", "existence_update",
                                 "pda_pairs_update")],

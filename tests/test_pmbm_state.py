@@ -98,8 +98,8 @@ COMMON = ["predict", "gate_pairs", "predict_measurement", "likelihood_ratio_pair
           "_predict_poisson", "_pair_weights"]  # fmt: skip
 STAGES = [(PMBTracker, s) for s in COMMON + ["existence_update", "pda_pairs_update",
           "cluster_pair_marginals", "budgeted_marginals", "_pair_marginals"]] + [
-    (PMBMTracker, s) for s in COMMON + ["update", "kbest_hypotheses", "connected_components",
-                                        "_hypotheses_after", "_rank_cluster", "_combine_ranked"]
+    (PMBMTracker, s) for s in COMMON + ["update", "check_pair_weights", "track_clusters",
+                                        "_hypotheses_after", "rank_tuples", "combine_events"]
 ]  # fmt: skip
 
 

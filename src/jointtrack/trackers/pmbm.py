@@ -141,14 +141,11 @@ hypotheses 2.294 (3× slower), with 50 hypotheses 2.298 (2.4× faster).
 from __future__ import annotations
 
 import dataclasses
-import heapq
 import math
 import time
 from typing import NamedTuple
 
 import numpy as np
-from scipy.sparse import coo_array
-from scipy.sparse.csgraph import connected_components
 
 from jointtrack.association.budget import (
     MAX_LBP_WORK,
@@ -171,6 +168,15 @@ from jointtrack.models import ConstantVelocity
 from jointtrack.trackers.base import ScanResult, ScanTracker
 from jointtrack.trackers.existence import existence_update
 from jointtrack.trackers.pmbm_config import PMBMConfig
+from jointtrack.trackers.pmbm_hypotheses import (
+    RankedLists,
+    check_pair_weights,
+    combine_events,
+    distinct_rows,
+    merge_identical,
+    rank_tuples,
+    track_clusters,
+)
 from jointtrack.trackers.poisson import moment_match, prune_and_merge
 from jointtrack.trackers.reporting import (
     ScanDetection,
@@ -1058,32 +1064,6 @@ def _check_existence(path, name, r) -> None:
         raise StateFileError(f"{path}: field {name!r} has values outside (0, 1] ({v!r})")
 
 
-def _combine_ranked(a_w, a_idx, b_w, b_idx, k):
-    """The k best sums of two ranked lists (independent clusters), best first.
-
-    ``a_w`` (A,), ``b_w`` (B,) log weights sorted descending; ``a_idx`` (A, ·)
-    and ``b_idx`` (B, ·) the choices behind them. Exact: a best-first search
-    over the A × B grid (each sum is found before any smaller one).
-    """
-    if len(a_w) * len(b_w) <= 4 * k:
-        s = (a_w[:, None] + b_w[None, :]).ravel()
-        top = np.argsort(-s, kind="stable")[:k]
-        i, j = np.divmod(top, len(b_w))
-    else:
-        heap = [(-(a_w[0] + b_w[0]), 0, 0)]
-        seen = {(0, 0)}
-        out = []
-        while heap and len(out) < k:
-            neg, i0, j0 = heapq.heappop(heap)
-            out.append((i0, j0))
-            for i1, j1 in ((i0 + 1, j0), (i0, j0 + 1)):
-                if i1 < len(a_w) and j1 < len(b_w) and (i1, j1) not in seen:
-                    seen.add((i1, j1))
-                    heapq.heappush(heap, (-(a_w[i1] + b_w[j1]), i1, j1))
-        i, j = (np.array(v, np.int64) for v in zip(*out, strict=True))
-    return a_w[i] + b_w[j], np.concatenate([a_idx[i], b_idx[j]], axis=1)
-
-
 class _GatedPairs(NamedTuple):
     """Gated (Bernoulli, return) pairs in the form :func:`~jointtrack.association.clusters`
     and :meth:`~jointtrack.trackers.base.ScanTracker._pair_marginals` read."""
@@ -1305,12 +1285,10 @@ class PMBMTracker(_PoissonTracker):
             rows = cols = np.zeros(0, np.int64)
             L, miss = np.zeros(0), miss_weight(self.sth_r, det, p_d)
         n_pairs = len(rows)
-        with np.errstate(divide="ignore"):
-            log_L = np.log(L)
         # pair index of (STH, return): pairs are sorted by STH, then return
         start = np.searchsorted(rows, np.arange(S + 1))
         new_rows, new_logw, merged, clusters = self._hypotheses_after(
-            z, rows, cols, L, log_L, miss, start, S, T, n_pairs, (rho, e, x_new, P_new)
+            z, rows, cols, L, miss, start, S, T, n_pairs, (rho, e, x_new, P_new)
         )
         # prune and cap the global hypotheses (by normalised weight, in log space); the
         # most probable are kept whatever their weight: with many near-equal hypotheses
@@ -1336,16 +1314,9 @@ class PMBMTracker(_PoissonTracker):
         r_child = child_r[np.maximum(hyp, 0)]
         hyp = np.where((hyp >= 0) & (r_child >= c.r_prune) & (r_child > 0), hyp, -1)
         recycled = self._recycle(hyp, logw, child_r, child_x, child_P)
-        # hypotheses that became identical are one hypothesis
-        hyp, inverse = np.unique(hyp, axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
-        # logsumexp per group, relative to its max (from −inf: the weights are ≤ 0, and a
-        # start at 0 underflowed exp() for hypotheses below e^−745, giving −inf)
-        top = np.full(len(hyp), -np.inf)
-        np.maximum.at(top, inverse, logw)
-        acc = np.zeros(len(hyp))
-        np.add.at(acc, inverse, np.exp(logw - top[inverse]))
-        logw = top + np.log(acc)
+        # hypotheses that became identical are one hypothesis (logsumexp relative to the
+        # group's largest: hypotheses below e^−745 do not underflow to −inf)
+        hyp, logw = merge_identical(hyp, logw)
         # keep only referenced hypotheses and tracks, renumbered
         used = np.unique(hyp[hyp >= 0])
         track_used = np.zeros(T + M, bool)
@@ -1558,7 +1529,7 @@ class PMBMTracker(_PoissonTracker):
         hyp[:, weak] = -1
         return w, child_x[sths], child_P[sths]
 
-    def _hypotheses_after(self, z, rows, cols, L, log_L, miss, start, S, T, n_pairs, born):
+    def _hypotheses_after(self, z, rows, cols, L, miss, start, S, T, n_pairs, born):
         """Global hypotheses after the update, their log weights, merged children, clusters.
 
         Returns ``(rows (H', T + M), log weights (H',), merged, clusters)``: the
@@ -1576,13 +1547,15 @@ class PMBMTracker(_PoissonTracker):
         Tracks that share no gated return are independent, so the events are
         ranked per *cluster* of tracks (connected through the gated returns of
         any of their single-target hypotheses) and the ranked lists combined
-        exactly (:func:`_combine_ranked`). A cluster's ranking depends only on
-        which single-target hypotheses it holds, so it is computed once per
-        distinct tuple across the global hypotheses — a single track by sorting
-        its options, several by Murty's algorithm on the package's LSAP
-        (:func:`~jointtrack.association.kbest_hypotheses`). Tracks that gate no
-        return are missed in every event (their miss weight is a constant of
-        the hypothesis).
+        exactly. A cluster's ranking depends only on which single-target
+        hypotheses it holds, so it is computed once per distinct tuple across the
+        global hypotheses — a single track by sorting its options, several by
+        Murty's algorithm on the package's LSAP — all tuples of a cluster in one
+        compiled call (:func:`~jointtrack.trackers.pmbm_hypotheses.rank_tuples`),
+        and the lists of all clusters combined for every prior hypothesis in
+        another (:func:`~jointtrack.trackers.pmbm_hypotheses.combine_events`).
+        Tracks that gate no return are missed in every event (their miss weight
+        is a constant of the hypothesis).
 
         The ranking is budgeted per cluster (``max_ranking_work``,
         :meth:`_ranking_cap`): past it a cluster gets fewer events per
@@ -1591,51 +1564,31 @@ class PMBMTracker(_PoissonTracker):
         c = self.config
         M = len(z)
         hyp = self.hyp
-        H = len(hyp)
         k_h = np.maximum(1, np.ceil(c.max_hypotheses * self.hypothesis_weights())).astype(np.int64)
-        with np.errstate(divide="ignore"):
-            log_miss = np.log(miss)
-        track_of_pair = self.sth_track[rows]
-        pair_tracks = np.unique(track_of_pair)
+        pairs = check_pair_weights(start, cols, L, miss, M)
+        log_miss = pairs.log_miss
         # clusters of the tracks that gate something (over all their hypotheses)
-        if len(pair_tracks):
-            local = np.searchsorted(pair_tracks, track_of_pair)
-            n_pt = len(pair_tracks)
-            graph = coo_array((np.ones(n_pairs), (local, n_pt + cols)), shape=(n_pt + M, n_pt + M))
-            _, label = connected_components(graph, directed=False)
-            label = label[:n_pt]
-        else:
-            label = np.zeros(0, np.int64)
+        groups = track_clusters(self.sth_track[rows], cols, T, M)
         # every track that gates nothing is missed: a constant per hypothesis
         quiet = np.ones(T, bool)
-        quiet[pair_tracks] = False
+        quiet[groups.tracks] = False
         hq = hyp[:, quiet]
         const = np.where(hq >= 0, log_miss[np.maximum(hq, 0)], 0.0).sum(axis=1)
         merged = _MergedChildren(S + n_pairs + M, self.state_dim, self._sth_modes())
         clusters = ([], [], [], [], [])  # sizes, seconds, methods, confirmed, fallbacks
         born_as = []  # (returns, child index) of the new tracks of merged clusters
-        ranked = []  # per cluster: (tracks, inverse (H,), [(w, child, taken) per tuple])
-        # each cluster's gated pairs, contiguous (for its returns)
-        pair_label = label[local] if len(pair_tracks) else np.zeros(0, np.int64)
-        by_cluster = np.argsort(pair_label, kind="stable")
-        labels = np.unique(label)
-        bounds = np.searchsorted(pair_label[by_cluster], np.append(labels, np.inf))
-        for lab, lo, hi in zip(labels, bounds[:-1], bounds[1:], strict=True):
-            tracks = pair_tracks[label == lab]
-            tuples, inv = np.unique(hyp[:, tracks], axis=0, return_inverse=True)
-            inv = inv.reshape(-1)
+        ranked = []  # per cluster: (tracks, inverse (H,), RankedLists of its tuples)
+        for g in range(len(groups.track_ptr) - 1):
+            tracks = groups.tracks[groups.track_ptr[g] : groups.track_ptr[g + 1]]
+            returns = groups.returns[groups.return_ptr[g] : groups.return_ptr[g + 1]]
+            tuples, inv = distinct_rows(hyp[:, tracks])
             k_u = np.zeros(len(tuples), np.int64)
             np.maximum.at(k_u, inv, k_h)
-            returns = np.unique(cols[by_cluster[lo:hi]])
             cost = _tuple_costs(tuples, start, miss, len(returns))
             cap, work = self._ranking_cap(cost, k_u)
             multi = cost[0].max() >= 2  # Bernoullis ranked jointly (Murty)
             if cap is None and not multi:  # one Bernoulli at a time: sorting
-                lists = [
-                    self._rank_cluster(tup, k, rows, cols, L, log_L, log_miss, start, S)
-                    for tup, k in zip(tuples, k_u, strict=True)
-                ]
-                ranked.append((tracks, inv, lists))
+                ranked.append((tracks, inv, rank_tuples(tuples, k_u, pairs)))
                 continue
             t0 = time.perf_counter()
             loud = bool(self.track_reported[tracks].any())
@@ -1646,10 +1599,7 @@ class PMBMTracker(_PoissonTracker):
             over = f"~{work:.3g} units of work > max_ranking_work = {c.max_ranking_work}"
             if cap is None or (cap >= 2 and multi):
                 ks = k_u if cap is None else np.minimum(k_u, cap)
-                lists = [
-                    self._rank_cluster(tup, k, rows, cols, L, log_L, log_miss, start, S)
-                    for tup, k in zip(tuples, ks, strict=True)
-                ]
+                lists = rank_tuples(tuples, ks, pairs)
                 method, reason = "murty", ""
                 if cap is not None:
                     method = "murty-truncated"
@@ -1679,111 +1629,16 @@ class PMBMTracker(_PoissonTracker):
         new_track_hyp = S + n_pairs + np.arange(M)
         for returns, idx in born_as:
             new_track_hyp[returns] = idx
-        # each cluster's ranked list as (w, payload) with payload = [child | taken]
-        ranked = [
-            (tracks, inv, [(w, np.concatenate([ch, tk], axis=1)) for w, ch, tk in lists])
-            for tracks, inv, lists in ranked
-        ]
-        feasible = np.isfinite(const)  # else a track that must be detected gated nothing
-        # a hypothesis that keeps one event (⌈max_hypotheses · w_h⌉ = 1: the many light
-        # ones of a large mixture) gets each cluster's best: all of them at once
-        single = np.flatnonzero(feasible & (k_h == 1))
-        one_rows, one_logw, one_ok = self._best_events(ranked, single, const, new_track_hyp, T, M)
-        n_events = np.zeros(H, np.int64)
-        n_events[single[one_ok]] = 1
-        blocks = {}
-        for h in np.flatnonzero(feasible & (k_h > 1)):
-            # clusters with one event are constants of the hypothesis; the others'
-            # ranked lists are combined (payloads concatenated in that order)
-            w_const = 0.0
-            fixed = []  # (tracks, payload row)
-            w = np.zeros(1)
-            payload = np.zeros((1, 0), np.int64)
-            varying = []  # tracks of the combined clusters, in payload order
-            for tracks, inv, lists in ranked:
-                w2, p2 = lists[inv[h]]
-                if len(w2) == 0:
-                    w = w[:0]
-                    break
-                if len(w2) == 1:
-                    w_const += w2[0]
-                    fixed.append((tracks, p2[0]))
-                else:
-                    w, payload = _combine_ranked(w, payload, w2, p2, int(k_h[h]))
-                    varying.append(tracks)
-            if len(w) == 0:
-                continue
-            E = len(w)
-            new = np.empty((E, T + M), np.int64)
-            new[:, :T] = hyp[h]
-            new[:, T:] = new_track_hyp
-            for tracks, row in fixed:
-                n_c = len(tracks)
-                new[:, tracks] = row[:n_c]
-                taken = row[n_c:]
-                new[:, T + taken[taken >= 0]] = -1
-            off = 0
-            for tracks in varying:
-                n_c = len(tracks)
-                new[:, tracks] = payload[:, off : off + n_c]
-                taken = payload[:, off + n_c : off + 2 * n_c]
-                e_idx, t_idx = np.nonzero(taken >= 0)
-                new[e_idx, T + taken[e_idx, t_idx]] = -1
-                off += 2 * n_c
-            blocks[h] = (new, self.hyp_logw[h] + const[h] + w_const + w)
-            n_events[h] = E
+        # a track that must be detected gated nothing (const = −inf): h has no event
+        out_rows, out_logw, n_events = combine_events(
+            hyp, self.hyp_logw + const, k_h, new_track_hyp, ranked
+        )
         if not n_events.any():
             raise InfeasibleAssignmentError(
                 "no global hypothesis has an association event of positive weight "
                 "(P_D = 1 and a track with existence 1 that gates no return?)"
             )
-        # the new hypotheses in the order of their prior ones (ties are ranked by it)
-        offset = np.cumsum(n_events) - n_events
-        out_rows = np.empty((int(n_events.sum()), T + M), np.int64)
-        out_logw = np.empty(len(out_rows))
-        at = offset[single[one_ok]]
-        out_rows[at], out_logw[at] = one_rows[one_ok], one_logw[one_ok]
-        for h, (new, logw) in blocks.items():
-            (
-                out_rows[offset[h] : offset[h] + len(new)],
-                out_logw[offset[h] : offset[h] + len(new)],
-            ) = (
-                new,
-                logw,
-            )
         return out_rows, out_logw, merged.arrays(), clusters
-
-    def _best_events(self, ranked, hs, const, new_track_hyp, T, M):
-        """The best event of every prior hypothesis in ``hs``, at once.
-
-        The per-hypothesis combination of :meth:`_hypotheses_after` for k = 1, summed
-        in the same order (so with the same rounding). Returns ``(rows (len(hs),
-        T + M), log weights, ok)``; ``ok`` is False where a cluster has no event.
-        """
-        rows = np.empty((len(hs), T + M), np.int64)
-        rows[:, :T] = self.hyp[hs]
-        rows[:, T:] = new_track_hyp
-        w_fixed = np.zeros(len(hs))
-        w_varying = np.zeros(len(hs))
-        ok = np.ones(len(hs), bool)
-        for tracks, inv, lists in ranked:
-            n_c = len(tracks)
-            count = np.array([len(w) for w, _ in lists])
-            best = np.array([w[0] if len(w) else 0.0 for w, _ in lists])
-            none = np.full(2 * n_c, -1, np.int64)
-            payload = np.stack([p[0] if len(p) else none for _, p in lists])
-            u = inv[hs]
-            ok &= count[u] > 0
-            # adding 0.0 changes no sum: the fixed and the varying clusters' weights are
-            # accumulated each in cluster order, as the per-hypothesis loop does
-            w_fixed += np.where(count[u] == 1, best[u], 0.0)
-            w_varying += np.where(count[u] > 1, best[u], 0.0)
-            chosen = payload[u]
-            rows[:, tracks] = chosen[:, :n_c]
-            taken = chosen[:, n_c:]
-            e_idx, t_idx = np.nonzero(taken >= 0)
-            rows[e_idx, T + taken[e_idx, t_idx]] = -1
-        return rows, self.hyp_logw[hs] + const[hs] + w_fixed + w_varying, ok
 
     def _ranking_cap(self, cost, k_u):
         """``(cap, work)``: how many events per hypothesis one cluster's ranking may have.
@@ -1887,7 +1742,7 @@ class PMBMTracker(_PoissonTracker):
         _, _, methods, fallbacks = info
         tier = max(methods, key=_TIER_ORDER.index, default="exact")
         why = "; ".join(dict.fromkeys(f for f in fallbacks if f))
-        lists = [(np.zeros(1), child, np.full((1, n_c), -1, np.int64))]
+        lists = RankedLists(np.array([0, 1]), np.zeros(1), child, np.full((1, n_c), -1, np.int64))
         return lists, np.zeros(len(self.hyp), np.int64), born_idx, (tier, why)
 
     def _merged_modes(self, w, tt, s, n_c, present):
@@ -1907,55 +1762,6 @@ class PMBMTracker(_PoissonTracker):
             log_mu = np.log(np.maximum(mass / mass.sum(axis=1, keepdims=True), 1e-300))
         log_mu -= np.log(np.exp(log_mu).sum(axis=1, keepdims=True))
         return x.reshape(n_c, r, nc)[present], P.reshape(n_c, r, nc, nc)[present], log_mu
-
-    @staticmethod
-    def _rank_cluster(tup, k, rows, cols, L, log_L, log_miss, start, S):
-        """The ``k`` best events of one cluster holding single-target hypotheses ``tup``.
-
-        ``tup`` (n,): the cluster's single-target hypothesis per track (−1 =
-        the track has no Bernoulli here). Returns ``(w (K,), child (K, n),
-        taken (K, n))``, best first: the events' log weights, each track's
-        child hypothesis (its own index when missed or absent, S + pair when
-        it takes a return) and the return it takes (−1 for none).
-        """
-        n = len(tup)
-        part = _TuplePairs(tup, rows, cols, start)
-        here, sths, pairs, row_local = part.here, part.sths, part.pairs, part.row_local
-        base_child = tup[None, :].copy()
-        none = np.full((1, n), -1, np.int64)
-        if len(pairs) == 0:
-            w = log_miss[sths].sum()
-            return (np.array([w]) if np.isfinite(w) else np.zeros(0)), base_child, none
-        if len(sths) == 1:
-            opts = np.concatenate([[log_miss[sths[0]]], log_L[pairs]])
-            order = np.argsort(-opts, kind="stable")[:k]
-            order = order[np.isfinite(opts[order])]
-            child = np.repeat(base_child, len(order), axis=0)
-            taken = np.repeat(none, len(order), axis=0)
-            det = order > 0
-            child[det, here[0]] = S + pairs[order[det] - 1]
-            taken[det, here[0]] = cols[pairs[order[det] - 1]]
-            return opts[order], child, taken
-        ms = part.ms
-        Lc = np.zeros((len(sths), len(ms)))
-        col_local = np.searchsorted(ms, cols[pairs])
-        Lc[row_local, col_local] = L[pairs]
-        try:
-            kb = kbest_hypotheses(Lc, np.exp(log_miss[sths]), k=int(k))
-        except InfeasibleAssignmentError:
-            return np.zeros(0), np.zeros((0, n), np.int64), np.zeros((0, n), np.int64)
-        a = kb.assignments  # (K, len(sths)): 0 miss, j + 1 local return j
-        K = len(a)
-        child = np.repeat(base_child, K, axis=0)
-        taken = np.repeat(none, K, axis=0)
-        # pair index of (sths[i], ms[a − 1]) for the detections
-        pair_of = np.full((len(sths), len(ms)), -1, np.int64)
-        pair_of[row_local, col_local] = pairs
-        ev, i = np.nonzero(a > 0)
-        p = pair_of[i, a[ev, i] - 1]
-        child[ev, here[i]] = S + p
-        taken[ev, here[i]] = cols[p]
-        return kb.log_weights, child, taken
 
     def _validate_state(self, path, arrays, scalars):
         n = self.state_dim
