@@ -17,6 +17,9 @@ the two trees' digests must be equal (identical association results).
 
 ``--one`` (internal): run this interpreter's tree once and print one JSON line.
 ``--profile N``: cProfile of the first N scans of this tree (no comparison).
+``--tracks 10,100,1000``: instead of the file, CPU per report against the number of
+live tracks — that many confirmed tracks 1 km apart, one report per scan (1 s apart)
+on one of them in turn, so every track has an interval of its own; 200 scans.
 """
 
 from __future__ import annotations
@@ -68,6 +71,41 @@ def _loop(trk, dets, n):
     return h.hexdigest(), reports
 
 
+def run_tracks(n_tracks, n_scans=200) -> dict:
+    """CPU per report with ``n_tracks`` live tracks (``--tracks``, module docstring)."""
+    from jointtrack.experiments.config import make_tracker_config
+    from jointtrack.experiments.realdata import realdata_settings
+    from jointtrack.trackers import JPDATracker
+
+    settings = {**realdata_settings("ais", labelled=False), "measure_velocity": False}
+    trk = JPDATracker(make_tracker_config({"dim": 2}, settings), keep_history=False)
+    side = int(np.ceil(np.sqrt(n_tracks)))
+    k = np.arange(n_tracks)
+    pos = 1000.0 * np.stack([k % side, k // side], 1).astype(float)
+    x0 = np.hstack([pos, np.zeros((n_tracks, 2))])
+    P0 = np.broadcast_to(np.diag([225.0, 225.0, 1.0, 1.0]), (n_tracks, 4, 4))
+    trk.start_tracks(x0, P0, existence=0.99, time=0.0)
+    rng = np.random.default_rng(0)
+    h = hashlib.sha256()
+    c0, w0 = time.process_time(), time.perf_counter()
+    for s in range(1, n_scans + 1):
+        z = pos[(s * 7919) % n_tracks][None] + rng.normal(scale=15.0, size=(1, 2))
+        res = trk.step(float(s), z)
+        for a in (res.ids, res.x, res.P):
+            h.update(np.ascontiguousarray(a).tobytes())
+    cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+    return {
+        "tracks": n_tracks,
+        "reports": n_scans,
+        "cpu_s": cpu,
+        "wall_s": wall,
+        "reports_per_cpu_s": n_scans / cpu,
+        "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "live_tracks_end": len(trk.ids),
+        "digest": h.hexdigest(),
+    }
+
+
 def run_once(path, n_scans) -> dict:
     trk, dets, n = _workload(path, n_scans)
     # the numba kernels compiled (cached) outside the timing: a short warm-up tracker
@@ -100,9 +138,14 @@ def main() -> None:
     ap.add_argument("--scans", type=int, default=None)
     ap.add_argument("--one", action="store_true")
     ap.add_argument("--profile", type=int, default=None)
+    ap.add_argument("--tracks", help="comma-separated numbers of live tracks")
     args = ap.parse_args()
     if args.one:
-        print(json.dumps(run_once(args.ais, args.scans)), flush=True)
+        if args.tracks:
+            run_tracks(10, 5)  # compiled kernels outside the timing
+            print(json.dumps(run_tracks(int(args.tracks))), flush=True)
+        else:
+            print(json.dumps(run_once(args.ais, args.scans)), flush=True)
         return
     if args.profile is not None:
         import cProfile
@@ -120,6 +163,9 @@ def main() -> None:
         return
     here = str(Path(__file__).resolve().parents[1] / "src")
     trees = [("old", args.against), ("new", here)]
+    if args.tracks:
+        scaling(trees, [int(n) for n in args.tracks.split(",")], args.rounds)
+        return
     print("before:", _uptime(), flush=True)
     rows = {"old": [], "new": []}
     for r in range(args.rounds):
@@ -151,6 +197,30 @@ def main() -> None:
         f"median reports/CPU-s: old {old:.0f}, new {new:.0f}, new/old {new / old:.2f} "
         f"(per round {', '.join(f'{x:.2f}' for x in ratios)})"
     )
+
+
+def scaling(trees, counts, rounds) -> None:
+    """``--tracks``: old and new alternated per count, ``rounds`` times."""
+    print("before:", _uptime(), flush=True)
+    for n in counts:
+        got = {"old": [], "new": []}
+        for _ in range(rounds):
+            for name, src in trees:
+                cmd = [sys.executable, __file__, "--one", "--tracks", str(n)]
+                env = {**os.environ, "PYTHONPATH": src}
+                out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)
+                got[name].append(json.loads(out.stdout.strip().splitlines()[-1]))
+        same = len({r["digest"] for r in got["old"] + got["new"]}) == 1
+        rate = {k: [r["reports_per_cpu_s"] for r in v] for k, v in got.items()}
+        med = {k: np.median(v) for k, v in rate.items()}
+        each = {k: ", ".join(f"{x:.0f}" for x in v) for k, v in rate.items()}
+        print(
+            f"{n:6d} tracks: reports/CPU-s old {med['old']:.0f} ({each['old']}), new "
+            f"{med['new']:.0f} ({each['new']}), new/old {med['new'] / med['old']:.2f}; "
+            f"identical outputs: {same}",
+            flush=True,
+        )
+    print("after:", _uptime(), flush=True)
 
 
 if __name__ == "__main__":
