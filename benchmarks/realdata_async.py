@@ -19,7 +19,8 @@ the two trees' digests must be equal (identical association results).
 ``--profile N``: cProfile of the first N scans of this tree (no comparison).
 ``--tracks 10,100,1000``: instead of the file, CPU per report against the number of
 live tracks — that many confirmed tracks 1 km apart, one report per scan (1 s apart)
-on one of them in turn, so every track has an interval of its own; 200 scans.
+on one of them in turn (every reported track then has an interval of its own; past 200
+tracks the unreported ones share t = 0); 200 scans.
 """
 
 from __future__ import annotations
