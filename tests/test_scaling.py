@@ -17,12 +17,13 @@ from jointtrack.cli import app
 
 @pytest.mark.parametrize("kind", bench.KINDS)
 def test_scaling_points_of_each_tracker(kind):
-    points = bench.scaling_points(kind, {20: (2, 1), 40: (2, 1)}, warm_targets=20)
-    assert [p["n_targets"] for p in points] == [20, 40]
+    points = bench.scaling_points(kind, {16: (1, 1), 32: (1, 1)}, warm_targets=8)
+    assert [p["n_targets"] for p in points] == [16, 32]
     for p in points:
         assert p["tracker"] == kind
         assert math.isfinite(p["scans_per_second"]) and p["scans_per_second"] > 0
         assert p["ms_per_scan_mean"] == pytest.approx(1e3 / p["scans_per_second"])
+        assert 0 <= p["cpu_ms_per_scan_mean"] < math.inf
         # n·P_D targets and n/2 clutter returns a scan, roughly
         assert 0.8 * p["n_targets"] < p["mean_detections"] < 2.2 * p["n_targets"]
 
@@ -33,8 +34,8 @@ def test_loglog_slope_is_the_exponent():
 
 
 def test_memory_series_and_growth():
-    scans, rss = bench.memory_series("pmb", 12, every=4, n_targets=20)
-    assert scans.tolist() == [4, 8, 12]
+    scans, rss = bench.memory_series("pmb", 6, every=2, n_targets=10)
+    assert scans.tolist() == [2, 4, 6]
     assert (rss > 0).all()
     s = np.array([10, 20, 30, 40])
     assert bench.memory_growth(s, np.array([5, 100, 100, 100])) == 0.0  # flat second half
