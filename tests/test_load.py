@@ -89,7 +89,7 @@ def test_a_small_jpda_step_wakes_no_other_thread():
     before = _other_threads_cpu_ticks()
     for _ in range(60):
         associator.associate(tracks, detections, T1)
-    # 831ecfa: OpenBLAS's trsm workers took ≈ 2.6 s of CPU (264 ticks) in 200 calls
+    # 831ecfa: OpenBLAS's trsm workers took 0.61 s of CPU (61 ticks) in these 60 calls
     assert _other_threads_cpu_ticks() - before <= 2
 
 
