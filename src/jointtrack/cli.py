@@ -86,9 +86,26 @@ def bench_permanent(
 def bench_tracker(
     quick: bool = typer.Option(False, "--quick", help="Fewer scans and seeds, for a quick check."),
     out: str = typer.Option(None, "--out", help="Also write the results as JSON to this file."),
+    part: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--part",
+            metavar="PART",
+            help="Run only this part (repeatable): many, bojilov, scaling, memory, large.",
+        ),
+    ] = None,
 ) -> None:
-    """JPDA tracker end to end: many-target scan rate, Bojilov cluster cost vs his Table 3."""
-    _run_bench("tracker", quick, out)
+    """Trackers end to end: many-target scan rate, Bojilov cluster cost vs his Table 3,
+    JIPDA/PMB/PMBM scans/s against targets at constant density, memory against scans."""
+    from jointtrack.bench.tracker import PARTS, run
+
+    unknown = sorted(set(part or ()) - set(PARTS))
+    if unknown:
+        raise typer.BadParameter(
+            f"unknown part(s) {', '.join(unknown)}; the parts: {', '.join(PARTS)}",
+            param_hint="--part",
+        )
+    run(quick=quick, out=out, parts=part or None)
 
 
 @bench_app.command("association", cls=_Command)

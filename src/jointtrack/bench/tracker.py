@@ -25,8 +25,24 @@ Run as ``jointtrack bench tracker [--quick] [--out FILE]`` or
   over repeated runs), median and mean ms per scan, µs per target per scan and
   its ratio to n = 100, and the least-squares slope of log(ms/scan) against
   log n. Targets: ≥ 10 scans/s at n = 3000 (1500 clutter/scan); slope ≤ 1.2
-  (cost per scan roughly linear in n). With ``--out FILE`` a log-log plot is
-  written next to it (``<stem>_scaling.png``).
+  (cost per scan roughly linear in n).
+* **scaling of PMB and PMBM** (issue 34): the same scenes, n = 100 to 3,000,
+  ``PMBTracker`` and ``PMBMTracker`` built as ``jointtrack run --tracker pmb|pmbm``
+  builds them on a scenario (:func:`~jointtrack.experiments.config.make_pmbm_config`;
+  from nothing), fewer timed scans (PMBM's step is the slowest). Printed beside
+  JIPDA's: scans/s, ms per scan, and per tracker the log-log slope of ms/scan
+  against n past 300 targets. Target: ≤ 1.1 (cost per step linear in n).
+* **memory against scans**: each of JIPDA, PMB and PMBM on the 100-target scene
+  for ``MEMORY_SCANS`` scans (quick: fewer), without a kept history (as
+  ``jointtrack run`` runs them: the tracks go to the writer); the memory allocated
+  and still held since the tracker was built (``tracemalloc``, after a garbage
+  collection) every ``MEMORY_EVERY`` scans and its growth over the second half of
+  the run. Target: flat (growth over the second half ≤ 2 %).
+
+With ``--out FILE`` the log-log plot of the scaling (scans/s and ms per scan
+against n, one line per tracker) and the memory against scans are written next to
+it (``<stem>_scaling.png``). ``--part`` runs only the named parts (many, bojilov,
+scaling, memory, large).
 * **large single scans**: ``TrackerConfig(clutter_density=1e-6)`` fed
   ``LARGE_SCANS`` consecutive scans of M = 5,000, 10,000 (full run only) and
   20,000 uniform detections over 1e5 × 1e5 m (so two-point initiation pairs
@@ -56,10 +72,12 @@ import numpy as np
 from rich.table import Table
 
 from jointtrack._console import make_console
+from jointtrack.experiments.config import make_pmbm_config
 from jointtrack.io import to_jsonable
 from jointtrack.metrics import gospa_series, track_statistics
 from jointtrack.scenarios import bojilov, many_targets
 from jointtrack.trackers import JPDATracker, TrackerConfig
+from jointtrack.trackers.pmbm import PMBMTracker, PMBTracker
 
 # Bojilov, Alexiev & Konstantinova, Table 3: seconds per cluster (optimised enumeration)
 PAPER_TABLE3_OPT = {3: (0.0213, 0.0377), 4: (0.1, 0.19), 5: (0.438, 5.71)}
@@ -225,6 +243,19 @@ SKIP_SCANS = 5  # initiation transient: untimed
 # n targets -> (timed scans per run, runs); full aims at ≥ 2 s of timed steps per point
 SCALING_FULL = {100: (150, 3), 300: (100, 3), 1000: (60, 3), 3000: (30, 3), 10000: (20, 1)}
 SCALING_QUICK = {100: (30, 1), 300: (20, 1), 1000: (10, 1), 3000: (8, 1), 10000: (5, 1)}
+#: PMB and PMBM, n = 100 to 3,000 (the issue's range): fewer timed scans per point
+SCALING_POISSON_FULL = {
+    "pmb": {100: (60, 2), 300: (40, 2), 1000: (20, 2), 3000: (10, 1)},
+    "pmbm": {100: (20, 1), 300: (15, 1), 1000: (10, 1), 3000: (6, 1)},
+}
+SCALING_POISSON_QUICK = {
+    "pmb": {100: (10, 1), 300: (8, 1), 1000: (5, 1), 3000: (3, 1)},
+    "pmbm": {100: (5, 1), 300: (4, 1), 1000: (3, 1), 3000: (2, 1)},
+}
+#: the slope target of PMB/PMBM holds past this many targets (issue 34)
+POISSON_SLOPE_FROM = 300
+POISSON_SLOPE_MAX = 1.1
+KINDS = ("jipda", "pmb", "pmbm")
 
 
 def scaling_scene(n: int, n_scans: int, seed: int = 0):
@@ -233,16 +264,30 @@ def scaling_scene(n: int, n_scans: int, seed: int = 0):
     return many_targets(n, 0.5 * n, seed=seed, n_scans=n_scans, region=((0, side), (0, side)))
 
 
-def _timed_steps(sc, cfg):
-    """Per-scan seconds of ``JPDATracker.step`` and the final result."""
-    trk = JPDATracker(cfg)
-    times = []
+def scaling_tracker(kind: str, sc):
+    """JIPDA (:func:`scenario_config`), or PMB / PMBM as ``jointtrack run`` builds them on
+    ``sc`` (:func:`~jointtrack.experiments.config.make_pmbm_config` of those settings);
+    no kept history (the tracks of a long run go to its writer)."""
+    cfg = scenario_config(sc)
+    if kind == "jipda":
+        return JPDATracker(cfg, keep_history=False)
+    if kind not in ("pmb", "pmbm"):
+        raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
+    pcfg, _ = make_pmbm_config(cfg, {}, None, scenario=sc, region=sc.region, scans=sc.detections)
+    return (PMBMTracker if kind == "pmbm" else PMBTracker)(pcfg, keep_history=False)
+
+
+def _timed_steps(sc, cfg, kind: str = "jipda"):
+    """Per-scan wall and CPU seconds of the tracker's ``step`` and the final result."""
+    trk = JPDATracker(cfg) if kind == "jipda" else scaling_tracker(kind, sc)
+    times, cpu = [], []
     r = None
     for t, z in zip(sc.times, sc.detections, strict=True):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         r = trk.step(t, z)
         times.append(time.perf_counter() - t0)
-    return np.array(times), r
+        cpu.append(time.process_time() - c0)
+    return np.array(times), np.array(cpu), r
 
 
 def loglog_slope(n, y) -> float:
@@ -250,21 +295,24 @@ def loglog_slope(n, y) -> float:
     return float(np.polyfit(np.log(np.asarray(n, float)), np.log(np.asarray(y, float)), 1)[0])
 
 
-def _scaling(console, quick, results):
-    plan = SCALING_QUICK if quick else SCALING_FULL
+def scaling_points(kind: str, plan: dict, warm_targets: int = 100) -> list[dict]:
+    """Steady-state cost per scan of one tracker kind at each n of ``plan``
+    (``{n: (timed scans, runs)}``) on :func:`scaling_scene`, after an untimed run on
+    ``warm_targets`` targets; one dict per n."""
     points = []
     logging.disable(logging.WARNING)
     try:
-        warm = scaling_scene(100, 10)
-        _timed_steps(warm, scenario_config(warm))  # numba kernels, caches
+        warm = scaling_scene(warm_targets, 10)
+        _timed_steps(warm, scenario_config(warm), kind)  # numba kernels, caches
         for n, (timed, runs) in plan.items():
             sc = scaling_scene(n, SKIP_SCANS + timed)
             cfg = scenario_config(sc)
-            per_run, all_steps, last = [], [], None
+            per_run, all_steps, per_run_cpu, last = [], [], [], None
             for _ in range(runs):
-                steps, last = _timed_steps(sc, cfg)
+                steps, cpu, last = _timed_steps(sc, cfg, kind)
                 steady = steps[SKIP_SCANS:]
                 per_run.append(float(steady.sum()))
+                per_run_cpu.append(float(cpu[SKIP_SCANS:].sum()))
                 all_steps.append(steady)
             steps = np.concatenate(all_steps)
             seconds = statistics.median(per_run)
@@ -273,6 +321,7 @@ def _scaling(console, quick, results):
             alive = len(sc.truth_ids[-1])
             points.append(
                 dict(
+                    tracker=kind,
                     n_targets=n,
                     clutter_per_scan=0.5 * n,
                     side_m=10_000.0 * math.sqrt(n / 100.0),
@@ -285,6 +334,7 @@ def _scaling(console, quick, results):
                     ms_per_scan_mean=ms_mean,
                     ms_per_scan_median=float(np.median(steps) * 1e3),
                     ms_per_scan_max=float(steps.max() * 1e3),
+                    cpu_ms_per_scan_mean=statistics.median(per_run_cpu) / timed * 1e3,
                     us_per_target_scan=ms_mean * 1e3 / n,
                     confirmed_tracks_last_scan=len(last.ids),
                     tentative_tracks_last_scan=last.n_tentative,
@@ -293,6 +343,11 @@ def _scaling(console, quick, results):
             )
     finally:
         logging.disable(logging.NOTSET)
+    return points
+
+
+def _scaling(console, quick, results):
+    points = scaling_points("jipda", SCALING_QUICK if quick else SCALING_FULL)
     ns = [p["n_targets"] for p in points]
     ms = [p["ms_per_scan_mean"] for p in points]
     slope = loglog_slope(ns, ms)
@@ -355,43 +410,177 @@ def _scaling(console, quick, results):
     )
 
 
-def plot_scaling(points, path) -> Path:
-    """Log-log plot of scans/s and ms per scan against n (matplotlib, Agg)."""
+def _scaling_poisson(console, quick, results):
+    plans = SCALING_POISSON_QUICK if quick else SCALING_POISSON_FULL
+    by_kind = {"jipda": results.get("scaling", {}).get("points", [])}
+    for kind, plan in plans.items():
+        by_kind[kind] = scaling_points(kind, plan)
+    t = Table(
+        title="JIPDA, PMB and PMBM at constant density (n targets + n/2 clutter/scan, "
+        f"first {SKIP_SCANS} scans untimed)"
+    )
+    for col in (
+        "targets",
+        *(f"{k} scans/s" for k in KINDS),
+        *(f"{k} ms/scan" for k in KINDS),
+        *(f"{k} CPU ms/scan" for k in KINDS),
+    ):
+        t.add_column(col)
+    ns = sorted({p["n_targets"] for pts in by_kind.values() for p in pts if p["n_targets"] <= 3000})
+    at = {k: {p["n_targets"]: p for p in pts} for k, pts in by_kind.items()}
+
+    def cell(k, n, key, fmt):
+        p = at.get(k, {}).get(n)
+        return "—" if p is None else format(p[key], fmt)
+
+    for n in ns:
+        t.add_row(
+            f"{n:,}",
+            *(cell(k, n, "scans_per_second", ".1f") for k in KINDS),
+            *(cell(k, n, "ms_per_scan_mean", ".1f") for k in KINDS),
+            *(cell(k, n, "cpu_ms_per_scan_mean", ".1f") for k in KINDS),
+        )
+    console.print(t)
+    out = {}
+    for kind, pts in by_kind.items():
+        far = [p for p in pts if POISSON_SLOPE_FROM <= p["n_targets"] <= 3000]
+        # CPU time: on a shared machine the wall time is mostly the other processes'
+        slope = (
+            loglog_slope([p["n_targets"] for p in far], [p["cpu_ms_per_scan_mean"] for p in far])
+            if len(far) > 1
+            else None
+        )
+        ok = slope is not None and slope <= POISSON_SLOPE_MAX
+        out[kind] = dict(points=pts, slope_past_300=slope, target_met=ok)
+        if slope is not None:
+            console.print(
+                f"{kind}: log-log slope of CPU ms/scan vs n for {POISSON_SLOPE_FROM} ≤ n ≤ 3000: "
+                f"{slope:.2f} — {'PASS' if ok else 'FAIL'} (≤ {POISSON_SLOPE_MAX})"
+            )
+    results["scaling_by_tracker"] = out
+
+
+# ------------------------------------------------------------- memory against scans
+MEMORY_SCANS = 200
+MEMORY_SCANS_QUICK = 60
+MEMORY_EVERY = 10
+#: flat: the memory held grows by at most this fraction over the run's second half
+MEMORY_GROWTH_MAX = 0.02
+
+
+def memory_series(kind: str, n_scans: int, every: int = MEMORY_EVERY, n_targets: int = 100):
+    """``(scans, bytes)`` of one tracker on ``scaling_scene(n_targets, n_scans)``: the
+    memory allocated since it was built and still held (``tracemalloc``, which numpy
+    reports its arrays to), sampled after every ``every`` scans. Not the resident set:
+    the allocator keeps what an earlier, larger run freed (the 10,000-target scaling
+    point left the process at 213 MiB, and every tracker after it read 213.0 MiB flat)."""
+    import gc
+    import tracemalloc
+
+    sc = scaling_scene(n_targets, n_scans)
+    started = not tracemalloc.is_tracing()
+    if started:
+        tracemalloc.start()
+    scans, held = [], []
+    logging.disable(logging.WARNING)
+    try:
+        gc.collect()
+        base = tracemalloc.get_traced_memory()[0]
+        trk = scaling_tracker(kind, sc)
+        for k, (t, z) in enumerate(zip(sc.times, sc.detections, strict=True), start=1):
+            trk.step(t, z)
+            if k % every == 0 or k == n_scans:
+                gc.collect()
+                scans.append(k)
+                held.append(tracemalloc.get_traced_memory()[0] - base)
+    finally:
+        logging.disable(logging.NOTSET)
+        if started:
+            tracemalloc.stop()
+    return np.array(scans), np.array(held)
+
+
+def memory_growth(scans, held) -> float:
+    """Growth of the memory held over the second half of the run, as a fraction of it."""
+    half = scans >= scans[-1] / 2
+    return float((held[half][-1] - held[half][0]) / held[half][0]) if half.sum() > 1 else 0.0
+
+
+def _memory(console, quick, results):
+    n_scans = MEMORY_SCANS_QUICK if quick else MEMORY_SCANS
+    out = {}
+    t = Table(
+        title=f"Memory against scans: 100 targets + 50 clutter/scan, {n_scans} scans, "
+        "no kept history (bytes allocated and held since the tracker was built, tracemalloc)"
+    )
+    for col in ("tracker", "first sample", "half-way", "at the end", "growth"):
+        t.add_column(col)
+    for kind in KINDS:
+        scans, held = memory_series(kind, n_scans)
+        growth = memory_growth(scans, held)
+        ok = growth <= MEMORY_GROWTH_MAX
+        mid = int(np.searchsorted(scans, scans[-1] / 2))
+        out[kind] = dict(
+            scans=scans.tolist(), held_bytes=held.tolist(), growth_second_half=growth, target_met=ok
+        )
+        t.add_row(
+            kind,
+            f"{held[0] / 2**20:.2f} MiB",
+            f"{held[mid] / 2**20:.2f} MiB",
+            f"{held[-1] / 2**20:.2f} MiB",
+            f"{growth:+.1%} ({'PASS' if ok else 'FAIL'}, ≤ {MEMORY_GROWTH_MAX:.0%})",
+        )
+    console.print(t)
+    console.print(
+        "memory held by Python objects and numpy arrays (tracemalloc; numba's compiled "
+        "code and the interpreter not included); tracemalloc slows the steps, so no timing here"
+    )
+    results["memory"] = dict(n_scans=n_scans, every=MEMORY_EVERY, trackers=out)
+
+
+def plot_tracker_scaling(by_kind: dict, memory: dict | None, path) -> Path:
+    """Steps/s and ms per scan against n (log-log) per tracker, and memory against scans."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    n = np.array([p["n_targets"] for p in points], float)
-    rate = np.array([p["scans_per_second"] for p in points])
-    ms_mean = np.array([p["ms_per_scan_mean"] for p in points])
-    ms_med = np.array([p["ms_per_scan_median"] for p in points])
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
-    a.loglog(n, rate, "o-", color="C0", label="steady-state scans/s")
-    a.axhline(10, color="C3", ls="--", lw=1, label="target at n = 3000: 10 scans/s")
-    a.axhline(20, color="C2", ls=":", lw=1, label="target at n = 100: 20 scans/s")
-    a.set_xlabel("targets n (clutter n/2 per scan, constant density)")
-    a.set_ylabel("scans per second")
-    a.set_title("JPDATracker scan rate")
-    a.grid(True, which="both", alpha=0.3)
-    a.legend(fontsize=8)
-    for x, y in zip(n, rate, strict=True):
-        a.annotate(
-            f"{y:.0f}" if y >= 10 else f"{y:.1f}",
-            (x, y),
-            textcoords="offset points",
-            xytext=(4, 4),
-            fontsize=8,
-        )
-    slope = loglog_slope(n, ms_mean)
-    b.loglog(n, ms_mean, "o-", color="C1", label=f"mean ms/scan (fitted slope {slope:.2f})")
-    b.loglog(n, ms_med, "s--", color="C4", ms=4, label="median ms/scan")
-    b.loglog(n, ms_mean[0] * n / n[0], color="grey", ls=":", lw=1, label="∝ n (slope 1)")
-    b.set_xlabel("targets n (clutter n/2 per scan, constant density)")
-    b.set_ylabel("milliseconds per scan")
-    b.set_title("Cost per scan")
-    b.grid(True, which="both", alpha=0.3)
-    b.legend(fontsize=8)
+    # fixed margins: a constrained layout measured every log tick label (seconds)
+    fig, (a, b, c) = plt.subplots(1, 3, figsize=(16, 4.5))
+    fig.subplots_adjust(left=0.05, right=0.99, bottom=0.12, top=0.92, wspace=0.22)
+    for color, (kind, pts) in zip(("C0", "C1", "C2"), by_kind.items(), strict=False):
+        if not pts:
+            continue
+        n = np.array([p["n_targets"] for p in pts], float)
+        rate = np.array([p["scans_per_second"] for p in pts])
+        # CPU time where measured: on a shared machine the wall time is others' too
+        ms = np.array([p.get("cpu_ms_per_scan_mean", p["ms_per_scan_mean"]) for p in pts])
+        a.loglog(n, rate, "o-", color=color, label=kind.upper())
+        label = kind.upper()
+        if len(n) > 1:
+            label += f" (slope {loglog_slope(n, ms):.2f})"
+        b.loglog(n, ms, "o-", color=color, label=label)
+        b.loglog(n, ms[0] * n / n[0], color=color, ls=":", lw=1)
+    a.set_title("scans per second (steady state)")
+    b.set_title("CPU ms per scan (dotted: ∝ n from the first point)")
+    for ax in (a, b):
+        ax.set_xlabel("targets n (clutter n/2 per scan, constant density)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    if memory:
+        for color, (kind, m) in zip(("C0", "C1", "C2"), memory["trackers"].items(), strict=False):
+            label = f"{kind.upper()} ({m['growth_second_half']:+.1%} in the second half)"
+            c.plot(
+                m["scans"], np.array(m["held_bytes"]) / 2**20, "o-", ms=3, color=color, label=label
+            )
+        c.set_xlabel("scans (100 targets, 50 clutter/scan)")
+        c.set_ylabel("memory held since the start (MiB, tracemalloc)")
+        c.set_ylim(bottom=0)
+        c.set_title("memory against scans")
+        c.grid(True, alpha=0.3)
+        c.legend(fontsize=8)
+    else:
+        c.set_visible(False)
     path = Path(path)
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -558,20 +747,37 @@ def _large(console, quick, results):
     console.print(f"all large scans complete under RLIMIT_AS = 2 GiB — {'PASS' if ok else 'FAIL'}")
 
 
-def run(quick: bool = False, out: str | None = None) -> dict:
+PARTS = ("many", "bojilov", "scaling", "memory", "large")
+
+
+def run(quick: bool = False, out: str | None = None, parts=None) -> dict:
+    """Every part (or those named in ``parts``, see :data:`PARTS`); the JSON to ``out``."""
+    parts = PARTS if not parts else tuple(parts)
+    unknown = sorted(set(parts) - set(PARTS))
+    if unknown:
+        raise ValueError(f"unknown part(s) {', '.join(unknown)}; the parts: {', '.join(PARTS)}")
     console = make_console()
-    results: dict = {"quick": quick}
-    _many(console, quick, results)
-    _bojilov(console, quick, results)
-    _scaling(console, quick, results)
-    _large(console, quick, results)
-    if out:
+    results: dict = {"quick": quick, "parts": list(parts)}
+    if "many" in parts:
+        _many(console, quick, results)
+    if "bojilov" in parts:
+        _bojilov(console, quick, results)
+    if "scaling" in parts:
+        _scaling(console, quick, results)
+        _scaling_poisson(console, quick, results)
+    if "memory" in parts:
+        _memory(console, quick, results)
+    if "large" in parts:
+        _large(console, quick, results)
+    if out and ("scaling" in parts or "memory" in parts):
         png = Path(out).with_name(Path(out).stem + "_scaling.png")
+        by_kind = {k: v["points"] for k, v in results.get("scaling_by_tracker", {}).items()}
         try:
-            results["scaling"]["plot"] = str(plot_scaling(results["scaling"]["points"], png))
+            results["plot"] = str(plot_tracker_scaling(by_kind, results.get("memory"), png))
             console.print(f"scaling plot: {png}")
         except ImportError as exc:  # matplotlib is a dependency, but say so rather than fail
             console.print(f"scaling plot not written: {exc}")
+    if out:
         with open(out, "w") as fh:
             json.dump(to_jsonable(results, fallback=float), fh, indent=2)
     return results

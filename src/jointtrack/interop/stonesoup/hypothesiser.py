@@ -19,7 +19,15 @@ group at once:
     + k \\log 2\\pi\\big),
 
 with one Cholesky factor of S (Stone Soup's ``batch_multivariate_normal_logpdf``
-formula). Detection j is in the gate when ``d_j² ≤ χ²_k(P_G)``, as in
+formula), factored and applied by the compiled loops of
+:mod:`jointtrack._numba_linalg`, not by LAPACK: ``scipy.linalg.solve_triangular``
+on a 2×2 factor and a dozen detections went to OpenBLAS's threaded ``trsm``,
+which woke its worker threads on every call (≈ 17 ms of their CPU per
+``associate`` call of the README's snippet; beside three busy processes on two
+cores the snippet with this hypothesiser took 4.2× the time of Stone Soup's own:
+``benchmarks/load.py``, ``benchmarks/RESULTS.md``, issue 34).
+
+Detection j is in the gate when ``d_j² ≤ χ²_k(P_G)``, as in
 ``PDAHypothesiser``; the probabilities are then ``P_D N/λ`` (or the
 validation-region form without λ) exactly as there.
 
@@ -36,13 +44,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import solve_triangular
+from numba import njit
 from stonesoup.hypothesiser.probability import PDAHypothesiser
 from stonesoup.models.base import LinearModel
 from stonesoup.types.detection import MissedDetection
 from stonesoup.types.hypothesis import SingleProbabilityHypothesis
 from stonesoup.types.multihypothesis import MultipleHypothesis
 from stonesoup.types.numeric import Probability
+
+from jointtrack._numba_linalg import cholesky_lower, mahalanobis_sq
 
 __all__ = ["FastPDAHypothesiser"]
 
@@ -79,14 +89,14 @@ class FastPDAHypothesiser(PDAHypothesiser):
             first = detections[idx[0]]
             pred = self.predictor.predict(track, timestamp=first.timestamp, **kwargs)
             mp = self.updater.predict_measurement(pred, first.measurement_model, **kwargs)
-            try:
-                log_n, d2 = _gaussian_log_pdf(
-                    np.array([np.ravel(detections[n].state_vector) for n in idx], dtype=float),
-                    np.ravel(np.asarray(mp.state_vector, dtype=float)),
-                    np.asarray(mp.covar, dtype=float),
-                )
-            except np.linalg.LinAlgError:  # S not positive definite: Stone Soup repairs it
+            found = _gaussian_log_pdf(
+                [np.ravel(np.asarray(detections[n].state_vector, dtype=float)) for n in idx],
+                np.ravel(np.asarray(mp.state_vector, dtype=float)),
+                np.asarray(mp.covar, dtype=float),
+            )
+            if found is None:  # S not positive definite (Stone Soup repairs it), or shapes
                 return super().hypothesise(track, detections, timestamp, **kwargs)
+            log_n, d2 = found
             in_gate = d2 <= self._gate_threshold(self.prob_gate, mp.ndim)
             for j, n in enumerate(idx):
                 per_detection[n] = (pred, mp, float(log_n[j]), bool(in_gate[j]))
@@ -112,10 +122,39 @@ class FastPDAHypothesiser(PDAHypothesiser):
         return MultipleHypothesis(hypotheses, normalise=self.normalise)
 
 
-def _gaussian_log_pdf(z, mean, covar):
-    """``(log N(z_j; mean, covar), squared Mahalanobis distances)`` for the rows of z."""
-    chol = np.linalg.cholesky(covar)
-    white = solve_triangular(chol, (z - mean).T, lower=True)
-    d2 = np.einsum("ij,ij->j", white, white)
-    log_det = 2.0 * np.log(np.diag(chol)).sum()
-    return -0.5 * (d2 + log_det + mean.size * _LOG_2PI), d2
+def _gaussian_log_pdf(rows, mean, covar):
+    """``(log N(z_j; mean, covar), squared Mahalanobis distances)`` for the vectors z_j in
+    ``rows``, or None when they cannot be taken here: ``covar`` not a positive definite
+    k×k matrix for the k entries of ``mean``, a z_j of another length, or a value that is
+    not finite (the caller then leaves them to Stone Soup, which repairs or refuses them)."""
+    k = mean.size
+    if covar.shape != (k, k) or any(z.size != k for z in rows):
+        return None
+    z = np.array(rows, dtype=float).reshape(len(rows), k)
+    if not (np.isfinite(z).all() and np.isfinite(mean).all()):
+        return None
+    log_n = np.empty(len(rows))
+    d2 = np.empty(len(rows))
+    if not _gaussian_rows(z, mean, np.ascontiguousarray(covar), log_n, d2):
+        return None
+    return log_n, d2
+
+
+@njit(cache=True)
+def _gaussian_rows(z, mean, covar, log_n, d2):
+    """:func:`_gaussian_log_pdf`'s loops: one Cholesky factor, one forward substitution
+    per row into ``log_n`` and ``d2``; False if ``covar`` is not positive definite."""
+    k = mean.size
+    chol = np.zeros((k, k))
+    ok, log_det = cholesky_lower(covar, chol)
+    if not ok:
+        return False
+    white = np.empty(k)
+    for j in range(z.shape[0]):
+        d2[j] = mahalanobis_sq(chol, z[j], mean, white)
+        if math.isnan(d2[j]):
+            # finite inputs and factor: only an overflowed white[i] (then 0 · inf or
+            # inf − inf further on) gives NaN, and then d² ≥ white[i]² = inf
+            d2[j] = math.inf
+        log_n[j] = -0.5 * (d2[j] + log_det + k * _LOG_2PI)
+    return True
