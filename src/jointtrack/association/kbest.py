@@ -279,36 +279,9 @@ def _copy_row(a, row, values):
 
 @numba.njit(cache=True)
 def _stable_order_decreasing(x):
-    """``np.argsort(-x, kind="stable")``: bottom-up merge sort (equal keys keep order)."""
-    size = x.shape[0]
-    order = np.arange(size)
-    spare = np.empty(size, np.int64)
-    width = 1
-    while width < size:
-        for lo in range(0, size, 2 * width):
-            mid = min(lo + width, size)
-            hi = min(lo + 2 * width, size)
-            a, b, t = lo, mid, lo
-            while a < mid and b < hi:
-                # take from the right run only if strictly larger: stability
-                if x[order[b]] > x[order[a]]:
-                    spare[t] = order[b]
-                    b += 1
-                else:
-                    spare[t] = order[a]
-                    a += 1
-                t += 1
-            while a < mid:
-                spare[t] = order[a]
-                a += 1
-                t += 1
-            while b < hi:
-                spare[t] = order[b]
-                b += 1
-                t += 1
-        order, spare = spare, order
-        width *= 2
-    return order
+    """``np.argsort(-x, kind="stable")`` (equal keys keep their order): numba's
+    mergesort is numpy's stable sort."""
+    return np.argsort(-x, kind="mergesort")
 
 
 @numba.njit(cache=True)

@@ -545,34 +545,13 @@ def _row_less(rows, a, b):
 @numba.njit(cache=True)
 def _group_rows(rows, logw):
     """Distinct rows in lexicographic order, each row's group and each group's largest
-    log weight (bottom-up merge sort of the row indices; equal rows keep their order)."""
+    log weight (equal rows keep their order)."""
     n = rows.shape[0]
+    # lexicographic and stable: numpy's stable sort (mergesort) by each column, the
+    # last first — the least significant key sorted first, as in an LSD radix sort
     order = np.arange(n)
-    spare = np.empty(n, np.int64)
-    width = 1
-    while width < n:
-        for lo in range(0, n, 2 * width):
-            mid = min(lo + width, n)
-            hi = min(lo + 2 * width, n)
-            a, b, t = lo, mid, lo
-            while a < mid and b < hi:
-                if _row_less(rows, order[b], order[a]):
-                    spare[t] = order[b]
-                    b += 1
-                else:
-                    spare[t] = order[a]
-                    a += 1
-                t += 1
-            while a < mid:
-                spare[t] = order[a]
-                a += 1
-                t += 1
-            while b < hi:
-                spare[t] = order[b]
-                b += 1
-                t += 1
-        order, spare = spare, order
-        width *= 2
+    for t in range(rows.shape[1] - 1, -1, -1):
+        order = order[np.argsort(rows[order, t], kind="mergesort")]
     inverse = np.empty(n, np.int64)
     first = np.empty(n, np.int64)
     top = np.empty(n)
