@@ -70,24 +70,24 @@ def perfect_start_config(scenario, tracker: Mapping | None = None):
     return make_tracker_config(scenario_tracker_settings(scenario), over)
 
 
-def _covariances(scenario, cfg):
-    """The one-point initiation's and the steady-state covariance of ``cfg`` on ``scenario``."""
+def _steady_covariance(scenario, cfg) -> np.ndarray:
+    """The floor's covariance: the steady state of ``cfg``'s q and R at the scene's interval."""
     from jointtrack.experiments.config import steady_state_covariance
-    from jointtrack.trackers import JPDATracker
 
-    d = scenario.dim
     dt = float(np.median(np.diff(scenario.times))) if scenario.n_scans > 1 else 1.0
-    one_point = JPDATracker(cfg)._initial_states(np.zeros((1, d)))[1][0]
-    steady = steady_state_covariance(dt, cfg.process_noise, cfg.measurement_noise, d)
-    return one_point, steady
+    return steady_state_covariance(dt, cfg.process_noise, cfg.measurement_noise, scenario.dim)
 
 
 def named_velocity_stds(scenario, tracker: Mapping | None = None) -> dict:
     """``{STEADY: σ_v, ONE_POINT: σ_v}``: the per-axis velocity standard deviation (first
     axis) the named starts have on ``scenario`` with the ``tracker`` overrides."""
+    from jointtrack.trackers import JPDATracker
+
     check_scene(scenario)
-    one_point, steady = _covariances(scenario, perfect_start_config(scenario, tracker))
+    cfg = perfect_start_config(scenario, tracker)
     d = scenario.dim
+    one_point = JPDATracker(cfg)._initial_states(np.zeros((1, d)))[1][0]
+    steady = _steady_covariance(scenario, cfg)
     return {STEADY: float(np.sqrt(steady[d, d])), ONE_POINT: float(np.sqrt(one_point[d, d]))}
 
 
@@ -127,7 +127,7 @@ def perfect_start_tracks(scenario, velocity_std, *, tracker: Mapping | None = No
     check_scene(scenario)
     velocity_std = _velocity_std(velocity_std)
     cfg = perfect_start_config(scenario, tracker)
-    one_point, steady = _covariances(scenario, cfg)
+    steady = _steady_covariance(scenario, cfg)
     trk = JPDATracker(cfg)
     trk.keep_history = False
     d = scenario.dim
